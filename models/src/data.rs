@@ -1,0 +1,367 @@
+//! The pantograph type as data: Table 2 inertia, Table 4 friction and pin radii, and the
+//! single-joint test rigs of Figs 5–12, parsed from a TOML file and validated.
+//!
+//! The 160EC file is compiled in ([`builtin_160ec`]); another type is another file of the
+//! same shape, loaded with [`PantographType::from_toml`]. Parsing takes a string: no I/O here.
+
+use std::collections::BTreeMap;
+use std::sync::OnceLock;
+
+use serde::Deserialize;
+
+/// The 160EC data file, `models/data/160ec.toml`.
+pub const PANTOGRAPH_160EC_TOML: &str = include_str!("../data/160ec.toml");
+
+/// Error in a pantograph data file, naming the offending key.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    #[error("pantograph data: cannot parse TOML: {0}")]
+    Parse(String),
+    #[error("pantograph data: `{field}`: {message}")]
+    Invalid { field: String, message: String },
+}
+
+fn invalid(field: impl Into<String>, message: impl Into<String>) -> DataError {
+    DataError::Invalid {
+        field: field.into(),
+        message: message.into(),
+    }
+}
+
+/// A rigid body of the pantograph (Table 2), as it swings in its pendulum test.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyData {
+    pub paper_no: u32,
+    pub mass_kg: f64,
+    /// Moment of inertia about the pendulum-test axis (Table 2, "Ji axis").
+    #[serde(default)]
+    pub inertia_axis_kgm2: Option<f64>,
+    /// Distance from that axis to the centre of mass.
+    #[serde(default)]
+    pub com_distance_m: Option<f64>,
+    pub source: String,
+}
+
+/// Kind of a joint of the pantograph.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JointKind {
+    Revolute,
+    Prismatic,
+}
+
+/// A joint's friction baseline (Table 4).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointData {
+    pub kind: JointKind,
+    pub description: String,
+    /// Revolute joints: viscous damping, N·m·s/rad.
+    #[serde(default)]
+    pub viscous_nms_per_rad: Option<f64>,
+    /// Prismatic joints: viscous damping, N·s/m.
+    #[serde(default)]
+    pub viscous_ns_per_m: Option<f64>,
+    /// Dry friction coefficient μ (dimensionless).
+    pub dry_mu: f64,
+    /// Revolute joints: radius R of the contact surface in the dry torque N·R·μ.
+    #[serde(default)]
+    pub pin_radius_m: Option<f64>,
+    /// Prismatic joints: the constant normal force Fn in the dry force Fn·μ.
+    #[serde(default)]
+    pub normal_force_n: Option<f64>,
+    pub source: String,
+}
+
+impl JointData {
+    /// Baseline viscous coefficient in the joint's own unit (N·m·s/rad or N·s/m).
+    pub fn viscous_baseline(&self) -> f64 {
+        match self.kind {
+            JointKind::Revolute => self.viscous_nms_per_rad.unwrap_or(f64::NAN),
+            JointKind::Prismatic => self.viscous_ns_per_m.unwrap_or(f64::NAN),
+        }
+    }
+    /// Unit of the viscous coefficient.
+    pub fn viscous_unit(&self) -> &'static str {
+        match self.kind {
+            JointKind::Revolute => "N·m·s/rad",
+            JointKind::Prismatic => "N·s/m",
+        }
+    }
+}
+
+/// A mass added to a pendulum rig (Figs 9, 10): a point mass on the centre-of-mass line,
+/// or a uniform rod hanging from the axis along that line.
+#[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Attachment {
+    Point { mass_kg: f64, distance_m: f64 },
+    Rod { mass_kg: f64, length_m: f64 },
+}
+
+/// The pendulum test rig of one joint.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigData {
+    pub figure: String,
+    /// Key into `bodies`.
+    pub body: String,
+    pub release_deg: f64,
+    #[serde(default)]
+    pub attachments: Vec<Attachment>,
+    pub source: String,
+}
+
+/// The slider (head suspension) test rig.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SliderRigData {
+    pub figure: String,
+    pub joint: String,
+    pub moving_mass_kg: f64,
+    pub springs: u32,
+    pub spring_stiffness_n_per_mm: f64,
+    pub release_mm: f64,
+    pub source: String,
+}
+
+/// One pantograph type: bodies, joints and test rigs.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PantographType {
+    pub format: String,
+    pub model: String,
+    pub gravity_m_s2: f64,
+    pub bodies: BTreeMap<String, BodyData>,
+    pub joints: BTreeMap<String, JointData>,
+    pub rigs: BTreeMap<String, RigData>,
+    pub slider: SliderRigData,
+}
+
+fn positive(field: &str, v: f64) -> Result<(), DataError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(
+            field,
+            format!("must be a finite number > 0, got {v}"),
+        ))
+    }
+}
+fn non_negative(field: &str, v: f64) -> Result<(), DataError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(
+            field,
+            format!("must be a finite number >= 0, got {v}"),
+        ))
+    }
+}
+
+impl PantographType {
+    /// Parse and validate a pantograph data file.
+    pub fn from_toml(text: &str) -> Result<Self, DataError> {
+        let t: PantographType =
+            toml::from_str(text).map_err(|e| DataError::Parse(e.to_string()))?;
+        t.validate()?;
+        Ok(t)
+    }
+
+    /// Check every number: physical signs, units present for each joint kind, rigs naming
+    /// existing bodies and joints.
+    pub fn validate(&self) -> Result<(), DataError> {
+        if self.format != "pantowatch-pantograph/1" {
+            return Err(invalid(
+                "format",
+                format!("expected `pantowatch-pantograph/1`, got `{}`", self.format),
+            ));
+        }
+        positive("gravity_m_s2", self.gravity_m_s2)?;
+        for (name, b) in &self.bodies {
+            positive(&format!("bodies.{name}.mass_kg"), b.mass_kg)?;
+            if let Some(i) = b.inertia_axis_kgm2 {
+                positive(&format!("bodies.{name}.inertia_axis_kgm2"), i)?;
+                let d = b.com_distance_m.unwrap_or(0.0);
+                non_negative(&format!("bodies.{name}.com_distance_m"), d)?;
+                // Parallel-axis theorem: I_axis = I_cm + m d^2 >= m d^2.
+                if i < b.mass_kg * d * d {
+                    return Err(invalid(
+                        format!("bodies.{name}.inertia_axis_kgm2"),
+                        format!(
+                            "{i} kg·m² is below m·d² = {} (parallel-axis theorem)",
+                            b.mass_kg * d * d
+                        ),
+                    ));
+                }
+            }
+        }
+        for (name, j) in &self.joints {
+            non_negative(&format!("joints.{name}.dry_mu"), j.dry_mu)?;
+            match j.kind {
+                JointKind::Revolute => {
+                    let v = j.viscous_nms_per_rad.ok_or_else(|| {
+                        invalid(
+                            format!("joints.{name}.viscous_nms_per_rad"),
+                            "required for a revolute joint",
+                        )
+                    })?;
+                    non_negative(&format!("joints.{name}.viscous_nms_per_rad"), v)?;
+                    let r = j.pin_radius_m.ok_or_else(|| {
+                        invalid(
+                            format!("joints.{name}.pin_radius_m"),
+                            "required for a revolute joint",
+                        )
+                    })?;
+                    positive(&format!("joints.{name}.pin_radius_m"), r)?;
+                }
+                JointKind::Prismatic => {
+                    let v = j.viscous_ns_per_m.ok_or_else(|| {
+                        invalid(
+                            format!("joints.{name}.viscous_ns_per_m"),
+                            "required for a prismatic joint",
+                        )
+                    })?;
+                    non_negative(&format!("joints.{name}.viscous_ns_per_m"), v)?;
+                    let f = j.normal_force_n.ok_or_else(|| {
+                        invalid(
+                            format!("joints.{name}.normal_force_n"),
+                            "required for a prismatic joint",
+                        )
+                    })?;
+                    positive(&format!("joints.{name}.normal_force_n"), f)?;
+                }
+            }
+        }
+        for (name, r) in &self.rigs {
+            let j = self
+                .joints
+                .get(name)
+                .ok_or_else(|| invalid(format!("rigs.{name}"), "no joint of that name"))?;
+            if j.kind != JointKind::Revolute {
+                return Err(invalid(
+                    format!("rigs.{name}"),
+                    "pendulum rigs are for revolute joints",
+                ));
+            }
+            let b = self.bodies.get(&r.body).ok_or_else(|| {
+                invalid(format!("rigs.{name}.body"), format!("no body `{}`", r.body))
+            })?;
+            if b.inertia_axis_kgm2.is_none() {
+                return Err(invalid(
+                    format!("bodies.{}.inertia_axis_kgm2", r.body),
+                    "required for a pendulum rig body",
+                ));
+            }
+            if !r.release_deg.is_finite() {
+                return Err(invalid(
+                    format!("rigs.{name}.release_deg"),
+                    "must be finite",
+                ));
+            }
+            for (k, a) in r.attachments.iter().enumerate() {
+                let f = format!("rigs.{name}.attachments[{k}]");
+                match a {
+                    Attachment::Point {
+                        mass_kg,
+                        distance_m,
+                    } => {
+                        positive(&format!("{f}.mass_kg"), *mass_kg)?;
+                        non_negative(&format!("{f}.distance_m"), *distance_m)?;
+                    }
+                    Attachment::Rod { mass_kg, length_m } => {
+                        positive(&format!("{f}.mass_kg"), *mass_kg)?;
+                        positive(&format!("{f}.length_m"), *length_m)?;
+                    }
+                }
+            }
+        }
+        let s = &self.slider;
+        let j = self
+            .joints
+            .get(&s.joint)
+            .ok_or_else(|| invalid("slider.joint", format!("no joint `{}`", s.joint)))?;
+        if j.kind != JointKind::Prismatic {
+            return Err(invalid("slider.joint", "must be a prismatic joint"));
+        }
+        positive("slider.moving_mass_kg", s.moving_mass_kg)?;
+        non_negative(
+            "slider.spring_stiffness_n_per_mm",
+            s.spring_stiffness_n_per_mm,
+        )?;
+        Ok(())
+    }
+
+    /// Table 4 data of a joint, by the paper's name (`J1` … `J8`, `J2'`).
+    pub fn joint(&self, name: &str) -> Option<&JointData> {
+        self.joints.get(name)
+    }
+}
+
+/// The 160EC data, parsed and validated once.
+///
+/// # Panics
+/// Never on a released build: the compiled-in file is checked by the `builtin_data_is_valid` test.
+pub fn builtin_160ec() -> &'static PantographType {
+    static DATA: OnceLock<PantographType> = OnceLock::new();
+    DATA.get_or_init(|| {
+        PantographType::from_toml(PANTOGRAPH_160EC_TOML).expect("models/data/160ec.toml is valid")
+    })
+}
+
+/// Look up a compiled-in pantograph type by model name (`160EC`).
+pub fn builtin(model: &str) -> Option<&'static PantographType> {
+    match model {
+        "160EC" => Some(builtin_160ec()),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builtin_data_is_valid_and_traceable_to_table_4() {
+        let t = PantographType::from_toml(PANTOGRAPH_160EC_TOML).unwrap();
+        // Table 4, spot checks against the paper's printed values.
+        let j1 = t.joint("J1").unwrap();
+        assert_eq!(
+            (j1.viscous_baseline(), j1.dry_mu, j1.pin_radius_m),
+            (0.034, 0.023, Some(0.05))
+        );
+        let j5 = t.joint("J5").unwrap();
+        assert_eq!(
+            (j5.viscous_baseline(), j5.dry_mu, j5.pin_radius_m),
+            (0.401, 0.88, Some(0.01))
+        );
+        assert_eq!(
+            t.joint("J2'").unwrap().dry_mu,
+            t.joint("J2").unwrap().dry_mu
+        );
+        // Table 2.
+        assert_eq!(t.bodies["upper_arm"].inertia_axis_kgm2, Some(5.98));
+        for name in ["J1", "J2", "J2'", "J3", "J4", "J5", "J6", "J7"] {
+            assert!(t.rigs.contains_key(name), "rig for {name}");
+            assert!(
+                t.joints[name].source.contains("Table 4"),
+                "{name} cites Table 4"
+            );
+        }
+    }
+
+    #[test]
+    fn invalid_data_names_the_field() {
+        let bad = PANTOGRAPH_160EC_TOML.replace("dry_mu = 0.88", "dry_mu = -0.88");
+        let err = PantographType::from_toml(&bad).unwrap_err().to_string();
+        assert!(err.contains("joints.J5.dry_mu"), "{err}");
+        let bad = PANTOGRAPH_160EC_TOML.replace("body = \"upper_arm\"", "body = \"nope\"");
+        let err = PantographType::from_toml(&bad).unwrap_err().to_string();
+        assert!(err.contains("rigs.J3.body"), "{err}");
+        let bad =
+            PANTOGRAPH_160EC_TOML.replace("inertia_axis_kgm2 = 5.61", "inertia_axis_kgm2 = 0.5");
+        let err = PantographType::from_toml(&bad).unwrap_err().to_string();
+        assert!(err.contains("parallel-axis"), "{err}");
+    }
+}

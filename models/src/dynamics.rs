@@ -1,0 +1,282 @@
+//! Equation of motion of a one-degree-of-freedom joint test, with the friction's normal force
+//! solved together with the acceleration.
+//!
+//! Pendulum: `J·α̈ = −m·g·d·sin α − T_f(ω, N)`, N = |m·a_cm − m·g| depends on α̈ (implicit).
+//! Slider:   `m·ẍ = −k·x + F_N(t) − F_f(v)`, Fn constant.
+
+use crate::friction::{DynParam, FrictionLaw};
+use crate::rig::{PendulumRig, SliderRig};
+
+/// The mechanism of a single-joint test.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Mechanism {
+    Pendulum(PendulumRig),
+    Slider(SliderRig),
+}
+
+/// An external force on the moving part, piecewise linear between samples (slider `F_N`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Input {
+    pub t_s: Vec<f64>,
+    pub value: Vec<f64>,
+}
+
+impl Input {
+    /// Value and slope at `t`; held constant outside the samples.
+    #[inline]
+    pub fn at(&self, t: f64) -> (f64, f64) {
+        let n = self.t_s.len();
+        if n == 0 {
+            return (0.0, 0.0);
+        }
+        if t <= self.t_s[0] {
+            return (self.value[0], 0.0);
+        }
+        if t >= self.t_s[n - 1] {
+            return (self.value[n - 1], 0.0);
+        }
+        let i = self.t_s.partition_point(|&x| x <= t) - 1;
+        let (t0, t1) = (self.t_s[i], self.t_s[i + 1]);
+        let slope = (self.value[i + 1] - self.value[i]) / (t1 - t0);
+        (self.value[i] + slope * (t - t0), slope)
+    }
+
+    /// The first sample time strictly after `t`.
+    pub fn next_knot(&self, t: f64) -> Option<f64> {
+        let i = self.t_s.partition_point(|&x| x <= t);
+        self.t_s.get(i).copied()
+    }
+}
+
+/// A single-joint test: mechanism plus optional input force.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dof {
+    pub mech: Mechanism,
+    pub input: Option<Input>,
+}
+
+/// The acceleration and its partial derivatives at one state.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Accel {
+    pub a: f64,
+    pub a_q: f64,
+    pub a_v: f64,
+    /// ∂f/∂a of the implicit residual f = M·a − G + T(N(a)); a_p = −f_p / f_a.
+    pub f_a: f64,
+    /// The friction's normal force at this state.
+    pub normal: f64,
+}
+
+/// The equation has no unique acceleration (friction lever too large for the rig).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "no unique acceleration: dry friction torque grows faster with α̈ than inertia (R·μ·m·d ≥ J); μ = {dry} is unphysical for this rig"
+)]
+pub struct Indeterminate {
+    pub dry: f64,
+}
+
+impl Dof {
+    /// Generalised inertia M: J (kg·m²) or m (kg).
+    pub fn inertia(&self) -> f64 {
+        match self.mech {
+            Mechanism::Pendulum(r) => r.inertia_kgm2,
+            Mechanism::Slider(r) => r.moving_mass_kg,
+        }
+    }
+
+    /// The lever of the dry friction: R (m) for a revolute joint, 1 for a slider.
+    pub fn lever(&self) -> f64 {
+        match self.mech {
+            Mechanism::Pendulum(r) => r.pin_radius_m,
+            Mechanism::Slider(_) => 1.0,
+        }
+    }
+
+    /// Applied generalised force G(q, t) (gravity torque or spring + input), ∂G/∂q and ∂G/∂t.
+    #[inline]
+    pub fn load(&self, q: f64, t: f64) -> (f64, f64, f64) {
+        let (f, df) = self.input.as_ref().map_or((0.0, 0.0), |i| i.at(t));
+        match self.mech {
+            Mechanism::Pendulum(r) => {
+                let mgd = r.mass_kg * r.gravity_m_s2 * r.com_distance_m;
+                (-mgd * q.sin() + f, -mgd * q.cos(), df)
+            }
+            Mechanism::Slider(r) => (-r.stiffness_n_per_m * q + f, -r.stiffness_n_per_m, df),
+        }
+    }
+
+    /// Normal force N(q, v, a) of the dry friction and its partials (∂q, ∂v, ∂a).
+    ///
+    /// Pendulum: the pin reaction |m·a_cm − m·g| with the centre of mass at distance d:
+    /// tangential m·d·α̈ + m·g·sin α, centripetal m·d·ω² + m·g·cos α.
+    #[inline]
+    pub fn normal(&self, q: f64, v: f64, a: f64) -> (f64, f64, f64, f64) {
+        match self.mech {
+            Mechanism::Pendulum(r) => {
+                let (m, g, d) = (r.mass_kg, r.gravity_m_s2, r.com_distance_m);
+                let (sq, cq) = q.sin_cos();
+                let x = m * d * a + m * g * sq;
+                let y = m * d * v * v + m * g * cq;
+                let n = x.hypot(y);
+                if n == 0.0 {
+                    return (0.0, 0.0, 0.0, 0.0);
+                }
+                (
+                    n,
+                    (x * m * g * cq - y * m * g * sq) / n,
+                    y * 2.0 * m * d * v / n,
+                    x * m * d / n,
+                )
+            }
+            Mechanism::Slider(r) => (r.normal_force_n, 0.0, 0.0, 0.0),
+        }
+    }
+
+    /// The normal force at rest (a = 0, v = 0): m·g for a pendulum, Fn for a slider.
+    pub fn normal_at_rest(&self, q: f64) -> f64 {
+        self.normal(q, 0.0, 0.0).0
+    }
+
+    /// Acceleration in motion direction `s` (±1): solves M·a − G(q,t) + T(v, s, N(q,v,a)) = 0
+    /// by Newton's method (the dependence on a is weak and monotone), then the partials by the
+    /// implicit function theorem.
+    #[inline]
+    pub fn accel(
+        &self,
+        law: &FrictionLaw,
+        q: f64,
+        v: f64,
+        s: f64,
+        t: f64,
+    ) -> Result<Accel, Indeterminate> {
+        let m_gen = self.inertia();
+        let lever = self.lever();
+        let (g, g_q, _) = self.load(q, t);
+        let mut a = 0.0;
+        let mut last = (0.0, 0.0, 0.0, 0.0);
+        let mut fr = law.eval(v, s, 0.0, lever);
+        for _ in 0..30 {
+            last = self.normal(q, v, a);
+            fr = law.eval(v, s, last.0, lever);
+            let f = m_gen * a - g + fr.value;
+            let f_a = m_gen + fr.d_normal * last.3;
+            if f_a <= 1e-6 * m_gen {
+                return Err(Indeterminate { dry: law.dry });
+            }
+            let da = f / f_a;
+            a -= da;
+            if da.abs() <= 1e-15 * (a.abs() + 1e-12) {
+                break;
+            }
+            if matches!(self.mech, Mechanism::Slider(_)) {
+                // Linear in a: one step is exact.
+                last = self.normal(q, v, a);
+                fr = law.eval(v, s, last.0, lever);
+                break;
+            }
+        }
+        let (n, n_q, n_v, n_a) = last;
+        let f_a = m_gen + fr.d_normal * n_a;
+        let f_q = -g_q + fr.d_q + fr.d_normal * n_q;
+        let f_v = fr.d_v + fr.d_normal * n_v;
+        Ok(Accel {
+            a,
+            a_q: -f_q / f_a,
+            a_v: -f_v / f_a,
+            f_a,
+            normal: n,
+        })
+    }
+
+    /// ∂a/∂p for a friction parameter at a solved state.
+    #[inline]
+    pub fn accel_d_param(
+        &self,
+        law: &FrictionLaw,
+        acc: &Accel,
+        p: DynParam,
+        v: f64,
+        s: f64,
+    ) -> f64 {
+        -law.d_param(p, v, s, acc.normal, self.lever()) / acc.f_a
+    }
+
+    /// The static friction capacity at rest at q: lever · N_rest · μs.
+    pub fn static_capacity(&self, law: &FrictionLaw, q: f64) -> f64 {
+        self.lever() * self.normal_at_rest(q) * law.static_mu()
+    }
+
+    /// A time scale of the motion for step-size limits: the small-amplitude period, or
+    /// `fallback` when there is no restoring force.
+    pub fn period_s(&self, fallback: f64) -> f64 {
+        let p = match self.mech {
+            Mechanism::Pendulum(r) => r.small_angle_period_s(),
+            Mechanism::Slider(r) => r.period_s(),
+        };
+        if p.is_finite() && p > 0.0 {
+            p
+        } else {
+            fallback
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn j5() -> Dof {
+        Dof {
+            mech: Mechanism::Pendulum(PendulumRig {
+                mass_kg: 7.415,
+                inertia_kgm2: 4.645,
+                com_distance_m: 0.6685,
+                pin_radius_m: 0.01,
+                gravity_m_s2: 9.81,
+            }),
+            input: None,
+        }
+    }
+
+    #[test]
+    fn implicit_acceleration_satisfies_the_equation_with_the_reaction_at_that_acceleration() {
+        let d = j5();
+        let law = FrictionLaw::base(0.401, 0.88);
+        let (q, v) = (1.2, -0.7);
+        let acc = d.accel(&law, q, v, -1.0, 0.0).unwrap();
+        let (n, ..) = d.normal(q, v, acc.a);
+        let r =
+            4.645 * acc.a + 7.415 * 9.81 * 0.6685 * q.sin() + 0.401 * v + n * 0.01 * 0.88 * -1.0;
+        assert!(r.abs() < 1e-12, "residual {r}");
+        // The reaction is not m·g: it includes the inertial load.
+        assert!((n - 7.415 * 9.81).abs() > 1.0);
+    }
+
+    #[test]
+    fn partials_match_finite_differences() {
+        let d = j5();
+        let law = FrictionLaw::base(0.401, 0.88);
+        let (q, v, s) = (0.9, 1.3, 1.0);
+        let acc = d.accel(&law, q, v, s, 0.0).unwrap();
+        let h = 1e-7;
+        let aq = (d.accel(&law, q + h, v, s, 0.0).unwrap().a
+            - d.accel(&law, q - h, v, s, 0.0).unwrap().a)
+            / (2.0 * h);
+        let av = (d.accel(&law, q, v + h, s, 0.0).unwrap().a
+            - d.accel(&law, q, v - h, s, 0.0).unwrap().a)
+            / (2.0 * h);
+        assert!((aq - acc.a_q).abs() < 1e-6, "{aq} vs {}", acc.a_q);
+        assert!((av - acc.a_v).abs() < 1e-6, "{av} vs {}", acc.a_v);
+        for p in [DynParam::Viscous, DynParam::Dry] {
+            let (mut lp, mut lm) = (law, law);
+            lp.set(p, law.get(p) + h);
+            lm.set(p, law.get(p) - h);
+            let fd = (d.accel(&lp, q, v, s, 0.0).unwrap().a
+                - d.accel(&lm, q, v, s, 0.0).unwrap().a)
+                / (2.0 * h);
+            let an = d.accel_d_param(&law, &acc, p, v, s);
+            assert!((fd - an).abs() < 1e-6, "{p:?}: {fd} vs {an}");
+        }
+    }
+}

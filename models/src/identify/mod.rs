@@ -1,0 +1,379 @@
+//! Friction identification from a single-joint trace: first estimate by inverse dynamics, then
+//! output-error Levenberg–Marquardt on the simulated trajectory (the paper's RMSE criterion),
+//! with the release state and the sensor zero fitted too, and 95 % intervals.
+//!
+//! The Jacobian comes from forward sensitivities integrated with the trajectory (exact through
+//! stick–slip events), not finite differences.
+
+pub mod covariance;
+pub mod initial;
+pub mod lm;
+pub mod release;
+
+use nalgebra::DMatrix;
+
+use crate::dynamics::Dof;
+use crate::friction::{DynParam, FrictionLaw};
+use crate::ode::Tolerances;
+use crate::simulate::{SensParam, SimError, SimOptions, Trajectory, simulate};
+pub use covariance::Covariance;
+pub use initial::InitialEstimate;
+pub use lm::{LmOptions, Termination};
+
+/// The measured signal of a single-joint test.
+#[derive(Debug, Clone)]
+pub struct JointTest {
+    pub dof: Dof,
+    pub t_s: Vec<f64>,
+    /// Measured position in channel units (deg or mm).
+    pub y: Vec<f64>,
+    /// Channel units per model unit: 180/π (deg per rad) or 1000 (mm per m).
+    pub scale: f64,
+    /// The channel's unit, for reports.
+    pub unit: &'static str,
+    /// Initial rate at the first sample, model units, when the trace declares one.
+    pub initial_rate: Option<f64>,
+}
+
+/// A named entry of the parameter vector.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Param {
+    Dyn(DynParam),
+    /// Release position, model units.
+    Q0,
+    /// Release rate, model units.
+    V0,
+    /// Sensor zero, channel units.
+    Offset,
+}
+
+/// What to fit.
+#[derive(Debug, Clone)]
+pub struct FitSpec {
+    /// The law's shape: which effects it has; their values are starting values.
+    pub law: FrictionLaw,
+    /// Friction parameters to estimate (others held at the law's values).
+    pub free: Vec<DynParam>,
+    /// Fit the sensor zero (off when the position has no reference, e.g. a slider without springs).
+    pub fit_offset: bool,
+}
+
+impl FitSpec {
+    /// The paper's model: viscous and dry, starting from an initial estimate.
+    pub fn base(viscous: f64, dry: f64, fit_offset: bool) -> Self {
+        Self {
+            law: FrictionLaw::base(viscous, dry),
+            free: vec![DynParam::Viscous, DynParam::Dry],
+            fit_offset,
+        }
+    }
+
+    pub fn params(&self) -> Vec<Param> {
+        let mut p: Vec<Param> = self.free.iter().map(|d| Param::Dyn(*d)).collect();
+        p.extend([Param::Q0, Param::V0]);
+        if self.fit_offset {
+            p.push(Param::Offset);
+        }
+        p
+    }
+}
+
+/// Numerical options of a fit.
+#[derive(Debug, Clone, Copy)]
+pub struct FitOptions {
+    pub tol: Tolerances,
+    pub lm: LmOptions,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            tol: Tolerances {
+                rtol: 1e-8,
+                atol: 1e-10,
+                ..Default::default()
+            },
+            lm: LmOptions {
+                max_iter: 60,
+                ftol: 1e-9,
+                xtol: 1e-9,
+                gtol: 1e-9,
+            },
+        }
+    }
+}
+
+/// Why a fit failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FitError {
+    #[error("too few samples of free motion to fit: {0} (need at least 20)")]
+    TooShort(usize),
+    #[error("the model cannot be simulated at the starting point: {0}")]
+    Start(String),
+    #[error(transparent)]
+    Sim(#[from] SimError),
+}
+
+/// A fitted model on the samples `start .. start + n_fit`.
+#[derive(Debug, Clone)]
+pub struct FitOutcome {
+    pub spec_params: Vec<Param>,
+    pub values: Vec<f64>,
+    pub std: Vec<f64>,
+    /// 95 % intervals, clipped to the parameter bounds.
+    pub ci95: Vec<[f64; 2]>,
+    pub law: FrictionLaw,
+    pub q0: f64,
+    pub v0: f64,
+    pub offset: f64,
+    pub start: usize,
+    pub n_fit: usize,
+    /// Root-mean-square residual over the fitted samples, channel units.
+    pub rmse: f64,
+    /// Model output over the fitted samples, channel units.
+    pub model_y: Vec<f64>,
+    pub residual: Vec<f64>,
+    pub covariance: Covariance,
+    pub termination: Termination,
+    pub iterations: usize,
+    pub evaluations: usize,
+    pub trajectory: Trajectory,
+}
+
+impl FitOutcome {
+    /// Value, std and interval of a parameter, if it was fitted.
+    pub fn get(&self, p: Param) -> Option<(f64, f64, [f64; 2])> {
+        self.spec_params
+            .iter()
+            .position(|x| *x == p)
+            .map(|i| (self.values[i], self.std[i], self.ci95[i]))
+    }
+}
+
+/// The output-error least-squares problem: r = scale·q(t; θ) + o − y.
+struct OutputError<'a> {
+    test: &'a JointTest,
+    spec: &'a FitSpec,
+    params: Vec<Param>,
+    sens: Vec<SensParam>,
+    times: &'a [f64],
+    y: &'a [f64],
+    sim: SimOptions,
+}
+
+impl OutputError<'_> {
+    fn unpack(&self, x: &[f64]) -> (FrictionLaw, f64, f64, f64) {
+        let mut law = self.spec.law;
+        let (mut q0, mut v0, mut o) = (0.0, 0.0, 0.0);
+        for (p, v) in self.params.iter().zip(x) {
+            match p {
+                Param::Dyn(d) => law.set(*d, *v),
+                Param::Q0 => q0 = *v,
+                Param::V0 => v0 = *v,
+                Param::Offset => o = *v,
+            }
+        }
+        (law, q0, v0, o)
+    }
+}
+
+impl lm::Problem for OutputError<'_> {
+    fn n_params(&self) -> usize {
+        self.params.len()
+    }
+    fn n_residuals(&self) -> usize {
+        self.times.len()
+    }
+    fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
+        let (law, q0, v0, o) = self.unpack(x);
+        let tr = simulate(&self.test.dof, &law, q0, v0, self.times, &self.sim)
+            .map_err(|e| e.to_string())?;
+        let sc = self.test.scale;
+        let ns = self.sens.len();
+        for k in 0..self.times.len() {
+            r[k] = sc * tr.q[k] + o - self.y[k];
+        }
+        let mut js = 0;
+        for (j, p) in self.params.iter().enumerate() {
+            if *p == Param::Offset {
+                jac.column_mut(j).fill(1.0);
+            } else {
+                let col = jac.column_mut(j);
+                for (k, c) in col.into_iter().enumerate() {
+                    *c = sc * tr.dq[k * ns + js];
+                }
+                js += 1;
+            }
+        }
+        Ok(())
+    }
+    fn lower_bounds(&self) -> Vec<f64> {
+        // Friction is dissipative: coefficients ≥ 0; a Stribeck ratio ≥ 0 and speed > 0.
+        self.params
+            .iter()
+            .map(|p| match p {
+                Param::Dyn(DynParam::StribeckSpeed) => 1e-4,
+                Param::Dyn(_) => 0.0,
+                _ => f64::NEG_INFINITY,
+            })
+            .collect()
+    }
+}
+
+/// Fit `spec` to samples `start .. start + n_fit` from the starting point `init`.
+pub fn fit_window(
+    test: &JointTest,
+    start: usize,
+    n_fit: usize,
+    spec: &FitSpec,
+    init: &InitialEstimate,
+    opts: &FitOptions,
+) -> Result<FitOutcome, FitError> {
+    if n_fit < 20 {
+        return Err(FitError::TooShort(n_fit));
+    }
+    let params = spec.params();
+    let sens: Vec<SensParam> = params
+        .iter()
+        .filter_map(|p| match p {
+            Param::Dyn(d) => Some(SensParam::Dyn(*d)),
+            Param::Q0 => Some(SensParam::Q0),
+            Param::V0 => Some(SensParam::V0),
+            Param::Offset => None,
+        })
+        .collect();
+    let times = &test.t_s[start..start + n_fit];
+    let y = &test.y[start..start + n_fit];
+    let mut prob = OutputError {
+        test,
+        spec,
+        params: params.clone(),
+        sens: sens.clone(),
+        times,
+        y,
+        sim: SimOptions {
+            tol: opts.tol,
+            sens,
+        },
+    };
+    let x0: Vec<f64> = params
+        .iter()
+        .map(|p| match p {
+            Param::Dyn(DynParam::Viscous) => init.viscous,
+            Param::Dyn(DynParam::Dry) => init.dry,
+            Param::Dyn(d) => spec.law.get(*d),
+            Param::Q0 => init.q0,
+            Param::V0 => init.v0,
+            Param::Offset => init.offset,
+        })
+        .collect();
+    let rep = lm::minimize(&mut prob, &x0, &opts.lm);
+    if let Termination::EvaluationFailed(e) = &rep.termination {
+        return Err(FitError::Start(e.clone()));
+    }
+    let cov = covariance::sandwich(&rep.jacobian, &rep.residuals);
+    let lb = lm::Problem::lower_bounds(&prob);
+    let std: Vec<f64> = (0..params.len()).map(|i| cov.std(i)).collect();
+    let ci95: Vec<[f64; 2]> = rep
+        .x
+        .iter()
+        .zip(&std)
+        .zip(&lb)
+        .map(|((x, s), l)| [(x - 1.96 * s).max(*l), (x + 1.96 * s).max(*l)])
+        .collect();
+    let (law, q0, v0, offset) = prob.unpack(&rep.x);
+    let residual = rep.residuals.clone();
+    let model_y: Vec<f64> = residual.iter().zip(y).map(|(r, y)| r + y).collect();
+    let rmse = (residual.iter().map(|r| r * r).sum::<f64>() / n_fit as f64).sqrt();
+    let trajectory = simulate(
+        &test.dof,
+        &law,
+        q0,
+        v0,
+        times,
+        &SimOptions {
+            tol: opts.tol,
+            sens: vec![],
+        },
+    )?;
+    Ok(FitOutcome {
+        spec_params: params,
+        values: rep.x,
+        std,
+        ci95,
+        law,
+        q0,
+        v0,
+        offset,
+        start,
+        n_fit,
+        rmse,
+        model_y,
+        residual,
+        covariance: cov,
+        termination: rep.termination,
+        iterations: rep.iterations,
+        evaluations: rep.evaluations,
+        trajectory,
+    })
+}
+
+/// The fitted model's output (channel units) at `test.t_s[start .. end]`, simulating from the
+/// fitted release state — used to judge a fit on samples held out of it.
+pub fn predict(
+    test: &JointTest,
+    fit: &FitOutcome,
+    end: usize,
+    opts: &FitOptions,
+) -> Result<Vec<f64>, FitError> {
+    let times = &test.t_s[fit.start..end];
+    let tr = simulate(
+        &test.dof,
+        &fit.law,
+        fit.q0,
+        fit.v0,
+        times,
+        &SimOptions {
+            tol: opts.tol,
+            sens: vec![],
+        },
+    )?;
+    Ok(tr.q.iter().map(|q| test.scale * q + fit.offset).collect())
+}
+
+/// Whether the sensor zero can be told apart from the release position: only with a restoring
+/// force (gravity or springs) that defines where the rest position is.
+pub fn offset_identifiable(dof: &Dof) -> bool {
+    dof.load(0.0, f64::NEG_INFINITY).1 != 0.0
+}
+
+/// Release detection + first estimate + base fit on all free motion.
+pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitError> {
+    let start = if test.initial_rate.is_some() {
+        0
+    } else {
+        release::detect_release(&test.t_s, &test.y)
+    };
+    let n_fit = test.t_s.len() - start;
+    if n_fit < 20 {
+        return Err(FitError::TooShort(n_fit));
+    }
+    let fit_offset = offset_identifiable(&test.dof);
+    let init = initial::inverse_dynamics(
+        &test.dof,
+        &test.t_s,
+        &test.y,
+        test.scale,
+        start,
+        test.initial_rate,
+        fit_offset,
+    );
+    fit_window(
+        test,
+        start,
+        n_fit,
+        &FitSpec::base(init.viscous, init.dry, fit_offset),
+        &init,
+        opts,
+    )
+}

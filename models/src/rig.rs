@@ -1,0 +1,238 @@
+//! The single-joint test rigs as mechanics: a body swinging on one revolute joint (pendulum,
+//! Figs 5–10) or a mass on a cylindrical joint with springs (slider, Figs 11–12).
+//!
+//! Composes a rig's body and attachments into the totals the equation of motion uses.
+
+use crate::data::{Attachment, PantographType};
+
+/// A compound pendulum on one revolute joint, all masses lumped.
+///
+/// Assumptions: planar motion about a fixed horizontal axis; every attachment's centre of mass
+/// lies on the body's centre-of-mass line (so moments add as scalars); rods are uniform and thin
+/// (I = m L²/3 about the axis).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PendulumRig {
+    /// Total swinging mass.
+    pub mass_kg: f64,
+    /// Total moment of inertia about the joint axis.
+    pub inertia_kgm2: f64,
+    /// Axis to the total centre of mass.
+    pub com_distance_m: f64,
+    /// R in the dry-friction torque N·R·μ (Table 4).
+    pub pin_radius_m: f64,
+    pub gravity_m_s2: f64,
+}
+
+/// The head-suspension slider: a mass on a cylindrical joint held by springs.
+///
+/// Assumptions: displacement measured from the static rest position under the rig load, so
+/// gravity and the spring preload cancel; springs linear; the normal force Fn in the dry force
+/// Fn·μ is constant (paper, Section 4.2), not a reaction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SliderRig {
+    pub moving_mass_kg: f64,
+    /// All springs together, N/m.
+    pub stiffness_n_per_m: f64,
+    /// Fn in the dry friction force Fn·μ.
+    pub normal_force_n: f64,
+}
+
+/// The swinging body of a pendulum rig before attachments.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodySpec {
+    pub mass_kg: f64,
+    pub inertia_kgm2: f64,
+    pub com_distance_m: f64,
+}
+
+/// Why a rig cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("rig `{field}`: {message}")]
+pub struct RigError {
+    pub field: String,
+    pub message: String,
+}
+
+fn rig_err(field: &str, message: impl Into<String>) -> RigError {
+    RigError {
+        field: field.to_string(),
+        message: message.into(),
+    }
+}
+
+impl PendulumRig {
+    /// Lump a body and its attachments: m = Σm, J = ΣJ (all about the axis), d = Σ(m·d)/m.
+    pub fn compose(
+        body: BodySpec,
+        attachments: &[Attachment],
+        pin_radius_m: f64,
+        gravity_m_s2: f64,
+    ) -> Result<Self, RigError> {
+        let (mut m, mut j, mut md) = (
+            body.mass_kg,
+            body.inertia_kgm2,
+            body.mass_kg * body.com_distance_m,
+        );
+        for a in attachments {
+            match *a {
+                Attachment::Point {
+                    mass_kg,
+                    distance_m,
+                } => {
+                    m += mass_kg;
+                    j += mass_kg * distance_m * distance_m;
+                    md += mass_kg * distance_m;
+                }
+                Attachment::Rod { mass_kg, length_m } => {
+                    m += mass_kg;
+                    j += mass_kg * length_m * length_m / 3.0;
+                    md += mass_kg * length_m / 2.0;
+                }
+            }
+        }
+        let rig = Self {
+            mass_kg: m,
+            inertia_kgm2: j,
+            com_distance_m: md / m,
+            pin_radius_m,
+            gravity_m_s2,
+        };
+        rig.validate()?;
+        Ok(rig)
+    }
+
+    /// Physical consistency: positive mass and inertia, J ≥ m·d² (parallel-axis theorem).
+    pub fn validate(&self) -> Result<(), RigError> {
+        let pos = |f: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(rig_err(f, format!("must be > 0, got {v}")))
+            }
+        };
+        pos("mass_kg", self.mass_kg)?;
+        pos("inertia_kgm2", self.inertia_kgm2)?;
+        pos("pin_radius_m", self.pin_radius_m)?;
+        pos("gravity_m_s2", self.gravity_m_s2)?;
+        if !(self.com_distance_m.is_finite() && self.com_distance_m >= 0.0) {
+            return Err(rig_err(
+                "com_distance_m",
+                format!("must be >= 0, got {}", self.com_distance_m),
+            ));
+        }
+        let md2 = self.mass_kg * self.com_distance_m.powi(2);
+        if self.inertia_kgm2 < md2 * (1.0 - 1e-9) {
+            return Err(rig_err(
+                "inertia_kgm2",
+                format!(
+                    "{} kg·m² is below m·d² = {md2} (parallel-axis theorem)",
+                    self.inertia_kgm2
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Small-angle period, s: 2π √(J / (m g d)).
+    pub fn small_angle_period_s(&self) -> f64 {
+        2.0 * std::f64::consts::PI
+            * (self.inertia_kgm2 / (self.mass_kg * self.gravity_m_s2 * self.com_distance_m)).sqrt()
+    }
+
+    /// The paper's rig for a 160EC joint (Table 2 body, Fig 5–10 attachments, Table 4 R).
+    pub fn paper_default(data: &PantographType, joint: &str) -> Result<Self, RigError> {
+        let rig = data
+            .rigs
+            .get(joint)
+            .ok_or_else(|| rig_err("joint", format!("no pendulum rig for `{joint}`")))?;
+        let b = &data.bodies[&rig.body];
+        let body = BodySpec {
+            mass_kg: b.mass_kg,
+            inertia_kgm2: b.inertia_axis_kgm2.unwrap_or(f64::NAN),
+            com_distance_m: b.com_distance_m.unwrap_or(0.0),
+        };
+        let r = data.joints[joint].pin_radius_m.unwrap_or(f64::NAN);
+        Self::compose(body, &rig.attachments, r, data.gravity_m_s2)
+    }
+}
+
+impl SliderRig {
+    /// Build from the rig fields of the trace format (`springs` × `spring_stiffness_n_per_mm`).
+    pub fn new(
+        moving_mass_kg: f64,
+        springs: u32,
+        spring_stiffness_n_per_mm: f64,
+        normal_force_n: f64,
+    ) -> Result<Self, RigError> {
+        let rig = Self {
+            moving_mass_kg,
+            stiffness_n_per_m: springs as f64 * spring_stiffness_n_per_mm * 1000.0,
+            normal_force_n,
+        };
+        if !(moving_mass_kg.is_finite() && moving_mass_kg > 0.0) {
+            return Err(rig_err(
+                "moving_mass_kg",
+                format!("must be > 0, got {moving_mass_kg}"),
+            ));
+        }
+        if !(spring_stiffness_n_per_mm.is_finite() && spring_stiffness_n_per_mm >= 0.0) {
+            return Err(rig_err(
+                "spring_stiffness_n_per_mm",
+                format!("must be >= 0, got {spring_stiffness_n_per_mm}"),
+            ));
+        }
+        if !(normal_force_n.is_finite() && normal_force_n >= 0.0) {
+            return Err(rig_err(
+                "normal_force_n",
+                format!("must be >= 0, got {normal_force_n}"),
+            ));
+        }
+        Ok(rig)
+    }
+
+    /// Undamped period, s (infinite without springs).
+    pub fn period_s(&self) -> f64 {
+        2.0 * std::f64::consts::PI * (self.moving_mass_kg / self.stiffness_n_per_m).sqrt()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::builtin_160ec;
+
+    #[test]
+    fn j5_rig_lumps_rod_and_weight_as_the_examples_state() {
+        // ../shared/data/examples/README.md: J5 m_tot 7.415, J_tot 4.645, d_tot 0.6685.
+        let r = PendulumRig::paper_default(builtin_160ec(), "J5").unwrap();
+        assert!((r.mass_kg - 7.415).abs() < 1e-9);
+        assert!((r.inertia_kgm2 - 4.645).abs() < 5e-4, "{}", r.inertia_kgm2);
+        assert!(
+            (r.com_distance_m - 0.6685).abs() < 5e-4,
+            "{}",
+            r.com_distance_m
+        );
+        let r6 = PendulumRig::paper_default(builtin_160ec(), "J6").unwrap();
+        assert!(
+            (r6.mass_kg - 10.64).abs() < 1e-9
+                && (r6.inertia_kgm2 - 0.1448).abs() < 1e-3
+                && (r6.com_distance_m - 0.1146).abs() < 1e-3
+        );
+    }
+
+    #[test]
+    fn inconsistent_inertia_is_rejected() {
+        let e = PendulumRig::compose(
+            BodySpec {
+                mass_kg: 1.0,
+                inertia_kgm2: 0.1,
+                com_distance_m: 1.0,
+            },
+            &[],
+            0.01,
+            9.81,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "inertia_kgm2");
+    }
+}
