@@ -14,6 +14,9 @@
 //! - [`signal`] — local polynomial smoothing and differentiation of sampled signals.
 //! - [`identify`] — first estimate by inverse dynamics, bounded Levenberg–Marquardt, intervals.
 //! - [`drift`] — drift status of identified parameters against the Table 4 baseline.
+//! - [`testspec`] — a test described as data, completed with the pantograph type's defaults.
+//! - [`report`] — the contract's fit result.
+//! - [`synth`] — synthetic traces: simulate, add sensor noise and quantisation.
 //! - [`noise`] — a small deterministic random source for synthetic traces.
 
 pub mod data;
@@ -23,6 +26,43 @@ pub mod friction;
 pub mod identify;
 pub mod noise;
 pub mod ode;
+pub mod report;
+pub mod residual;
 pub mod rig;
 pub mod signal;
 pub mod simulate;
+pub mod synth;
+pub mod testspec;
+
+use drift::DriftThresholds;
+use identify::{FitError, FitOptions, FitOutcome, JointTest};
+use report::FitResult;
+use testspec::Baseline;
+
+/// Identify a single-joint test end to end: release, first estimate, base fit with intervals,
+/// drift status against `baseline`, and the residual block.
+pub fn fit_joint_test(
+    test: &JointTest,
+    baseline: &Baseline,
+    thresholds: &DriftThresholds,
+    trace_id: &str,
+    opts: &FitOptions,
+) -> Result<(FitResult, FitOutcome), FitError> {
+    let full = identify::fit_base(test, opts)?;
+    let residual = residual::base_residual(test, &full, opts)?;
+    let units = match test.dof.mech {
+        dynamics::Mechanism::Pendulum(_) => ("rad", "rad/s"),
+        dynamics::Mechanism::Slider(_) => ("m", "m/s"),
+    };
+    let result = FitResult {
+        trace_id: trace_id.to_string(),
+        joints: vec![report::joint_result(&full, baseline, thresholds)],
+        rmse: report::Quantity {
+            value: full.rmse,
+            unit: test.unit.to_string(),
+        },
+        residual,
+        fit: report::details(&full, test.t_s[full.start], units, test.unit),
+    };
+    Ok((result, full))
+}

@@ -1,0 +1,78 @@
+//! `pantowatch bench FILE…`: time the identification of each trace on one core (median of
+//! `--repeat` runs) — the Rust side of `bench/run.sh`, which puts it beside the SciPy peer.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use pantowatch_models::identify::{FitOptions, fit_base};
+use serde_json::json;
+
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    /// Trace documents to fit.
+    pub files: Vec<PathBuf>,
+    /// Fits per file; the median time is reported.
+    #[arg(long, default_value_t = 5)]
+    pub repeat: usize,
+    /// One JSON line per file instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+pub fn run(a: BenchArgs) -> anyhow::Result<()> {
+    if !a.json {
+        println!(
+            "{:<28} {:>10} {:>14} {:>12} {:>12} {:>10}",
+            "file", "fit ms", "fit+resid ms", "viscous", "dry", "rmse"
+        );
+    }
+    for f in &a.files {
+        let doc = super::read_trace(f)?;
+        let (test, baseline) = doc
+            .joint_test()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
+        let opts = FitOptions::default();
+        let (mut t_fit, mut t_all) = (Vec::new(), Vec::new());
+        let mut last = None;
+        for _ in 0..a.repeat.max(1) {
+            let t0 = Instant::now();
+            let fit =
+                fit_base(&test, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
+            t_fit.push(t0.elapsed().as_secs_f64());
+            let t0 = Instant::now();
+            let _ =
+                pantowatch_models::fit_joint_test(&test, &baseline, &Default::default(), "", &opts)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?;
+            t_all.push(t0.elapsed().as_secs_f64());
+            last = Some(fit);
+        }
+        let fit = last.expect("at least one run");
+        let (s_fit, s_all) = (median(t_fit), median(t_all));
+        if a.json {
+            println!(
+                "{}",
+                json!({"file": f.display().to_string(), "kind": doc.kind.as_str(), "joint": baseline.joint, "viscous": fit.law.viscous, "dry": fit.law.dry,
+                       "rmse": fit.rmse, "seconds_per_fit": s_fit, "seconds_with_residual": s_all, "fits": a.repeat.max(1), "iterations": fit.iterations, "evaluations": fit.evaluations})
+            );
+        } else {
+            let name = f
+                .file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().into_owned());
+            println!(
+                "{:<28} {:>10.2} {:>14.2} {:>12.6} {:>12.6} {:>10.5}",
+                name,
+                s_fit * 1e3,
+                s_all * 1e3,
+                fit.law.viscous,
+                fit.law.dry,
+                fit.rmse
+            );
+        }
+    }
+    Ok(())
+}

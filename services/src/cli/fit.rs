@@ -1,0 +1,147 @@
+//! `pantowatch fit TRACE.json [--json] [--plot fit.svg]`: identify a trace's joint friction and
+//! print a short table, or the contract's fit result as JSON.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use pantowatch_models::drift::DriftThresholds;
+use pantowatch_models::identify::{FitOptions, FitOutcome};
+use pantowatch_models::report::FitResult;
+use plotters::style::RGBColor;
+
+use crate::plot::{Series, fit_svg};
+use crate::trace::TraceDoc;
+
+#[derive(Debug, clap::Args)]
+pub struct FitArgs {
+    /// Trace document (pantograph-trace/1 JSON).
+    pub trace: PathBuf,
+    /// Print the fit result of the trace format as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Draw measured vs fitted motion and the residual to this SVG file.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// Fit a validated document: the identification and the contract result.
+pub fn fit_doc(
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+) -> anyhow::Result<(FitResult, FitOutcome)> {
+    let (test, baseline) = doc.joint_test().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let id = doc.trace_id.clone().unwrap_or_default();
+    pantowatch_models::fit_joint_test(&test, &baseline, thresholds, &id, &FitOptions::default())
+        .map_err(|e| anyhow::anyhow!("fit failed: {e}"))
+}
+
+fn fmt_opt(x: Option<f64>) -> String {
+    x.map_or("—".into(), |v| format!("{v:.4}"))
+}
+
+/// The human table.
+pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
+    let mut s = String::new();
+    let id = doc.trace_id.as_deref().unwrap_or("(no trace_id)");
+    s += &format!(
+        "trace {id}  vehicle {}  {} test  released at t = {:.3} s, {} samples fitted\n",
+        doc.vehicle_id,
+        doc.kind.as_str(),
+        r.fit.release_t_s,
+        r.fit.samples_fitted
+    );
+    s += &format!(
+        "{:<6} {:<9} {:>11} {:>25} {:>10} {:>13} {:>8}\n",
+        "joint", "parameter", "value", "95 % interval", "baseline", "identifiable", "status"
+    );
+    for j in &r.joints {
+        for (name, p) in [("viscous", &j.viscous), ("dry", &j.dry)] {
+            s += &format!(
+                "{:<6} {:<9} {:>11.5} {:>25} {:>10} {:>13} {:>8}   {}\n",
+                j.joint,
+                name,
+                p.value,
+                format!("[{:.5}, {:.5}]", p.ci95[0], p.ci95[1]),
+                fmt_opt(p.baseline),
+                if p.identifiable { "yes" } else { "no" },
+                p.status.as_str(),
+                p.unit
+            );
+        }
+        s += &format!("{:<6} joint status: {}\n", j.joint, j.status.as_str());
+    }
+    s += &format!(
+        "RMSE {:.4} {}; sensor zero {:.4} {}; release rate {:.4} {}; {} after {} iterations\n",
+        r.rmse.value,
+        r.rmse.unit,
+        r.fit.sensor_offset.value,
+        r.fit.sensor_offset.unit,
+        r.fit.release_rate.value,
+        r.fit.release_rate.unit,
+        r.fit.termination,
+        r.fit.iterations
+    );
+    let effects: Vec<&str> = r.residual.effects.iter().map(|e| e.name.as_str()).collect();
+    s += &format!(
+        "residual: effects [{}]; fitted part {:.4}, held-out part {:.4} {}\n",
+        effects.join(", "),
+        r.residual.rmse_before,
+        r.residual.holdout_rmse_before,
+        r.rmse.unit
+    );
+    s
+}
+
+pub fn run(args: FitArgs, thresholds: &DriftThresholds) -> anyhow::Result<()> {
+    let doc = super::read_trace(&args.trace)?;
+    let (result, fit) = fit_doc(&doc, thresholds)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&result)?);
+    } else {
+        print!("{}", table(&doc, &result));
+    }
+    if let Some(path) = args.plot {
+        let t = &doc.channel("t_s").unwrap_or_default()[fit.start..fit.start + fit.n_fit];
+        let y = &doc.channels[1].1[fit.start..fit.start + fit.n_fit];
+        let key = if doc.channel("alpha_deg").is_some() {
+            "alpha_deg"
+        } else {
+            "h_mm"
+        };
+        let y = doc
+            .channel(key)
+            .map_or(y, |c| &c[fit.start..fit.start + fit.n_fit]);
+        let title = format!(
+            "{} — measured vs fitted (RMSE {:.4} {})",
+            doc.trace_id.as_deref().unwrap_or(""),
+            result.rmse.value,
+            result.rmse.unit
+        );
+        let svg = fit_svg(
+            &title,
+            t,
+            &result.rmse.unit,
+            &[
+                Series {
+                    name: "measured",
+                    y,
+                    color: RGBColor(120, 120, 120),
+                },
+                Series {
+                    name: "fitted model",
+                    y: &fit.model_y,
+                    color: RGBColor(200, 30, 30),
+                },
+            ],
+            &[Series {
+                name: "residual",
+                y: &fit.residual,
+                color: RGBColor(30, 60, 200),
+            }],
+        )
+        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+        std::fs::write(&path, svg).with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("plot written to {}", path.display());
+    }
+    Ok(())
+}

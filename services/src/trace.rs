@@ -1,0 +1,701 @@
+//! The trace document (`pantograph-trace/1`, `../shared/contract/TRACE_FORMAT.md`): parsed,
+//! checked against every rule of the contract, and turned into the models' test description.
+//!
+//! Every rejection names the offending field (`channels.alpha_deg[17]`, `test.joint`, …).
+
+use std::collections::BTreeMap;
+
+use pantowatch_models::data::{self, Attachment, PantographType};
+use pantowatch_models::identify::JointTest;
+use pantowatch_models::rig::BodySpec;
+use pantowatch_models::testspec::{Baseline, PendulumSpec, SliderSpec};
+use serde_json::{Map, Value};
+
+/// The format tag every document carries.
+pub const FORMAT: &str = "pantograph-trace/1";
+/// Longest accepted channel, samples (a 30 min recording at 500 Hz is 900 000).
+pub const MAX_SAMPLES: usize = 2_000_000;
+/// Longest accepted identifier or free-text string, characters.
+pub const MAX_STRING: usize = 256;
+/// Most channels in one document.
+pub const MAX_CHANNELS: usize = 32;
+
+/// A rule of the contract that the document breaks.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("`{field}`: {message}")]
+pub struct TraceError {
+    pub field: String,
+    pub message: String,
+}
+
+fn bad(field: impl Into<String>, message: impl Into<String>) -> TraceError {
+    TraceError {
+        field: field.into(),
+        message: message.into(),
+    }
+}
+
+/// The test kinds of the contract.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Pendulum,
+    Slider,
+    Lift,
+}
+
+impl Kind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Kind::Pendulum => "pendulum",
+            Kind::Slider => "slider",
+            Kind::Lift => "lift",
+        }
+    }
+    /// Channels the kind needs, and optional ones.
+    pub fn channels(self) -> (&'static [&'static str], &'static [&'static str]) {
+        match self {
+            Kind::Pendulum => (&["alpha_deg"], &[]),
+            Kind::Slider => (&["h_mm"], &["F_N"]),
+            Kind::Lift => (&["H_m", "T_Nm", "Fs_N"], &["Fm_N"]),
+        }
+    }
+}
+
+/// A validated trace document.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TraceDoc {
+    pub trace_id: Option<String>,
+    pub vehicle_id: String,
+    pub pantograph_model: String,
+    pub pantograph_serial: Option<String>,
+    pub recorded_at: String,
+    pub kind: Kind,
+    pub joint: Option<String>,
+    /// The document's `test` object, verbatim.
+    pub test: Value,
+    /// `t_s` first, then the others in name order.
+    pub channels: Vec<(String, Vec<f64>)>,
+}
+
+fn obj<'a>(v: &'a Value, field: &str) -> Result<&'a Map<String, Value>, TraceError> {
+    v.as_object().ok_or_else(|| bad(field, "must be an object"))
+}
+
+fn string(
+    m: &Map<String, Value>,
+    key: &str,
+    field: &str,
+    required: bool,
+) -> Result<Option<String>, TraceError> {
+    match m.get(key) {
+        None | Some(Value::Null) if !required => Ok(None),
+        None | Some(Value::Null) => Err(bad(field, "is required")),
+        Some(Value::String(s)) if s.trim().is_empty() => Err(bad(field, "must not be empty")),
+        Some(Value::String(s)) if s.chars().count() > MAX_STRING => {
+            Err(bad(field, format!("longer than {MAX_STRING} characters")))
+        }
+        Some(Value::String(s)) if s.chars().any(char::is_control) => {
+            Err(bad(field, "contains control characters"))
+        }
+        Some(Value::String(s)) => Ok(Some(s.clone())),
+        Some(_) => Err(bad(field, "must be a string")),
+    }
+}
+
+fn number(m: &Map<String, Value>, key: &str, field: &str) -> Result<Option<f64>, TraceError> {
+    match m.get(key) {
+        None | Some(Value::Null) => Ok(None),
+        Some(Value::Number(n)) => match n.as_f64() {
+            Some(x) if x.is_finite() => Ok(Some(x)),
+            _ => Err(bad(field, "must be a finite number")),
+        },
+        Some(_) => Err(bad(field, "must be a number")),
+    }
+}
+
+fn only_keys(m: &Map<String, Value>, allowed: &[&str], field: &str) -> Result<(), TraceError> {
+    for k in m.keys() {
+        if !allowed.contains(&k.as_str()) {
+            let at = if field.is_empty() {
+                k.clone()
+            } else {
+                format!("{field}.{k}")
+            };
+            return Err(bad(
+                at,
+                format!("unknown key (allowed: {})", allowed.join(", ")),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// RFC 3339 date-time: `YYYY-MM-DDTHH:MM:SS[.frac](Z|±HH:MM)`, with calendar-valid fields.
+pub fn check_rfc3339(s: &str) -> bool {
+    let b = s.as_bytes();
+    if b.len() < 20 {
+        return false;
+    }
+    let digits = |r: std::ops::Range<usize>| {
+        b.get(r.clone())
+            .is_some_and(|x| x.iter().all(u8::is_ascii_digit))
+    };
+    let num = |r: std::ops::Range<usize>| s[r].parse::<u32>().unwrap_or(u32::MAX);
+    if !(digits(0..4)
+        && b[4] == b'-'
+        && digits(5..7)
+        && b[7] == b'-'
+        && digits(8..10)
+        && matches!(b[10], b'T' | b't' | b' ')
+        && digits(11..13)
+        && b[13] == b':'
+        && digits(14..16)
+        && b[16] == b':'
+        && digits(17..19))
+    {
+        return false;
+    }
+    let (y, mo, d, h, mi, se) = (
+        num(0..4),
+        num(5..7),
+        num(8..10),
+        num(11..13),
+        num(14..16),
+        num(17..19),
+    );
+    let leap = (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
+    let mdays = [
+        31,
+        if leap { 29 } else { 28 },
+        31,
+        30,
+        31,
+        30,
+        31,
+        31,
+        30,
+        31,
+        30,
+        31,
+    ];
+    if !(1..=12).contains(&mo)
+        || d == 0
+        || d > mdays[(mo - 1) as usize]
+        || h > 23
+        || mi > 59
+        || se > 60
+    {
+        return false;
+    }
+    let mut i = 19;
+    if b.get(i) == Some(&b'.') {
+        i += 1;
+        let st = i;
+        while b.get(i).is_some_and(u8::is_ascii_digit) {
+            i += 1;
+        }
+        if i == st {
+            return false;
+        }
+    }
+    match b.get(i) {
+        Some(b'Z' | b'z') => i + 1 == b.len(),
+        Some(b'+' | b'-') => {
+            i + 6 == b.len()
+                && digits(i + 1..i + 3)
+                && b[i + 3] == b':'
+                && digits(i + 4..i + 6)
+                && num(i + 1..i + 3) <= 23
+                && num(i + 4..i + 6) <= 59
+        }
+        _ => false,
+    }
+}
+
+fn channel(v: &Value, field: &str) -> Result<Vec<f64>, TraceError> {
+    let a = v
+        .as_array()
+        .ok_or_else(|| bad(field, "must be an array of numbers"))?;
+    if a.len() > MAX_SAMPLES {
+        return Err(bad(
+            field,
+            format!("{} samples, more than the limit of {MAX_SAMPLES}", a.len()),
+        ));
+    }
+    a.iter()
+        .enumerate()
+        .map(|(i, x)| match x.as_f64() {
+            Some(f) if f.is_finite() => Ok(f),
+            Some(_) => Err(bad(format!("{field}[{i}]"), "must be finite")),
+            None => Err(bad(format!("{field}[{i}]"), "must be a number")),
+        })
+        .collect()
+}
+
+impl TraceDoc {
+    /// Parse and validate a document from JSON bytes.
+    pub fn from_json(bytes: &[u8]) -> Result<Self, TraceError> {
+        let v: Value = serde_json::from_slice(bytes)
+            .map_err(|e| bad("body", format!("not valid JSON: {e}")))?;
+        Self::from_value(&v)
+    }
+
+    /// Validate a parsed JSON document against the contract.
+    pub fn from_value(v: &Value) -> Result<Self, TraceError> {
+        let root = obj(v, "body")?;
+        only_keys(
+            root,
+            &[
+                "format",
+                "trace_id",
+                "vehicle_id",
+                "pantograph",
+                "recorded_at",
+                "test",
+                "channels",
+            ],
+            "",
+        )?;
+        match string(root, "format", "format", true)?.as_deref() {
+            Some(FORMAT) => {}
+            Some(other) => {
+                return Err(bad("format", format!("expected `{FORMAT}`, got `{other}`")));
+            }
+            None => unreachable!("required"),
+        }
+        let trace_id = string(root, "trace_id", "trace_id", false)?;
+        if let Some(id) = &trace_id
+            && !id
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_.:".contains(c))
+        {
+            return Err(bad(
+                "trace_id",
+                "may contain only letters, digits and - _ . :",
+            ));
+        }
+        let vehicle_id = string(root, "vehicle_id", "vehicle_id", true)?.unwrap_or_default();
+        let panto = obj(
+            root.get("pantograph")
+                .ok_or_else(|| bad("pantograph", "is required"))?,
+            "pantograph",
+        )?;
+        only_keys(panto, &["model", "serial"], "pantograph")?;
+        let pantograph_model =
+            string(panto, "model", "pantograph.model", true)?.unwrap_or_default();
+        let pantograph_serial = string(panto, "serial", "pantograph.serial", false)?;
+        let recorded_at = string(root, "recorded_at", "recorded_at", true)?.unwrap_or_default();
+        if !check_rfc3339(&recorded_at) {
+            return Err(bad(
+                "recorded_at",
+                format!("`{recorded_at}` is not an RFC 3339 date-time (e.g. 2026-03-02T07:15:00Z)"),
+            ));
+        }
+        let test_v = root.get("test").ok_or_else(|| bad("test", "is required"))?;
+        let test = obj(test_v, "test")?;
+        only_keys(test, &["kind", "joint", "rig"], "test")?;
+        let kind = match string(test, "kind", "test.kind", true)?.as_deref() {
+            Some("pendulum") => Kind::Pendulum,
+            Some("slider") => Kind::Slider,
+            Some("lift") => Kind::Lift,
+            Some(k) => {
+                return Err(bad(
+                    "test.kind",
+                    format!("unknown kind `{k}` (pendulum, slider, lift)"),
+                ));
+            }
+            None => unreachable!("required"),
+        };
+        let joint = string(test, "joint", "test.joint", false)?;
+        if let Some(r) = test.get("rig")
+            && !r.is_object()
+        {
+            return Err(bad("test.rig", "must be an object"));
+        }
+        let chans = obj(
+            root.get("channels")
+                .ok_or_else(|| bad("channels", "is required"))?,
+            "channels",
+        )?;
+        if chans.len() > MAX_CHANNELS {
+            return Err(bad(
+                "channels",
+                format!("{} channels, more than {MAX_CHANNELS}", chans.len()),
+            ));
+        }
+        let t = channel(
+            chans
+                .get("t_s")
+                .ok_or_else(|| bad("channels.t_s", "is required"))?,
+            "channels.t_s",
+        )?;
+        if t.len() < 2 {
+            return Err(bad("channels.t_s", "needs at least 2 samples"));
+        }
+        if let Some(i) = t.windows(2).position(|w| w[1] <= w[0]) {
+            return Err(bad(
+                format!("channels.t_s[{}]", i + 1),
+                format!(
+                    "time must be strictly increasing ({} after {})",
+                    t[i + 1],
+                    t[i]
+                ),
+            ));
+        }
+        let (needed, optional) = kind.channels();
+        for name in needed {
+            if !chans.contains_key(*name) {
+                return Err(bad(
+                    format!("channels.{name}"),
+                    format!("is required for a {} test", kind.as_str()),
+                ));
+            }
+        }
+        let mut channels = vec![("t_s".to_string(), t)];
+        for (name, v) in chans {
+            if name == "t_s" {
+                continue;
+            }
+            if name.is_empty()
+                || name.len() > 64
+                || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+            {
+                return Err(bad(
+                    "channels",
+                    format!(
+                        "channel name `{}` must be 1-64 letters, digits or _",
+                        name.chars().take(64).collect::<String>()
+                    ),
+                ));
+            }
+            let field = format!("channels.{name}");
+            let x = channel(v, &field)?;
+            if x.len() != channels[0].1.len() {
+                return Err(bad(
+                    field,
+                    format!(
+                        "has {} samples but t_s has {}",
+                        x.len(),
+                        channels[0].1.len()
+                    ),
+                ));
+            }
+            let _ = optional;
+            channels.push((name.clone(), x));
+        }
+        let doc = TraceDoc {
+            trace_id,
+            vehicle_id,
+            pantograph_model,
+            pantograph_serial,
+            recorded_at,
+            kind,
+            joint,
+            test: test_v.clone(),
+            channels,
+        };
+        // Check the rig now, so a document the model cannot use is rejected at the door.
+        if doc.kind != Kind::Lift {
+            doc.joint_test()?;
+        }
+        Ok(doc)
+    }
+
+    pub fn channel(&self, name: &str) -> Option<&[f64]> {
+        self.channels
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+    }
+
+    /// The pantograph type's data when compiled in (`160EC`); `None` for other models.
+    pub fn pantograph_data(&self) -> Option<&'static PantographType> {
+        data::builtin(&self.pantograph_model)
+    }
+
+    /// The models' single-joint test (pendulum or slider) with its Table 4 baseline.
+    pub fn joint_test(&self) -> Result<(JointTest, Baseline), TraceError> {
+        let rig = self
+            .test
+            .get("rig")
+            .and_then(Value::as_object)
+            .cloned()
+            .unwrap_or_default();
+        let t = self.channel("t_s").unwrap_or_default().to_vec();
+        let data = self.pantograph_data();
+        let rig_err = |e: pantowatch_models::rig::RigError| bad(e.field, e.message);
+        match self.kind {
+            Kind::Pendulum => {
+                let joint = self
+                    .joint
+                    .clone()
+                    .ok_or_else(|| bad("test.joint", "is required for a pendulum test"))?;
+                const JOINTS: [&str; 9] =
+                    ["J1", "J2", "J2'", "J3", "J4", "J5", "J6", "J7", "custom"];
+                if !JOINTS.contains(&joint.as_str()) {
+                    return Err(bad(
+                        "test.joint",
+                        format!("unknown joint `{joint}` (J1 J2 J2' J3 J4 J5 J6 J7 custom)"),
+                    ));
+                }
+                only_keys(
+                    &rig,
+                    &[
+                        "body",
+                        "attachments",
+                        "pin_radius_m",
+                        "gravity_m_s2",
+                        "initial_rate_deg_s",
+                    ],
+                    "test.rig",
+                )?;
+                let body = match rig.get("body") {
+                    None | Some(Value::Null) => None,
+                    Some(b) => {
+                        let b = obj(b, "test.rig.body")?;
+                        only_keys(
+                            b,
+                            &["mass_kg", "inertia_kgm2", "com_distance_m"],
+                            "test.rig.body",
+                        )?;
+                        let get = |k: &str| {
+                            number(b, k, &format!("test.rig.body.{k}"))?
+                                .ok_or_else(|| bad(format!("test.rig.body.{k}"), "is required"))
+                        };
+                        Some(BodySpec {
+                            mass_kg: get("mass_kg")?,
+                            inertia_kgm2: get("inertia_kgm2")?,
+                            com_distance_m: get("com_distance_m")?,
+                        })
+                    }
+                };
+                let attachments = match rig.get("attachments") {
+                    None | Some(Value::Null) => None,
+                    Some(a) => {
+                        let arr = a
+                            .as_array()
+                            .ok_or_else(|| bad("test.rig.attachments", "must be an array"))?;
+                        let mut out = Vec::new();
+                        for (i, x) in arr.iter().enumerate() {
+                            let f = format!("test.rig.attachments[{i}]");
+                            let m = obj(x, &f)?;
+                            let req = |k: &str| {
+                                number(m, k, &format!("{f}.{k}"))?
+                                    .ok_or_else(|| bad(format!("{f}.{k}"), "is required"))
+                            };
+                            out.push(match m.get("kind").and_then(Value::as_str) {
+                                Some("point") => {
+                                    only_keys(m, &["kind", "mass_kg", "distance_m"], &f)?;
+                                    Attachment::Point {
+                                        mass_kg: req("mass_kg")?,
+                                        distance_m: req("distance_m")?,
+                                    }
+                                }
+                                Some("rod") => {
+                                    only_keys(m, &["kind", "mass_kg", "length_m"], &f)?;
+                                    Attachment::Rod {
+                                        mass_kg: req("mass_kg")?,
+                                        length_m: req("length_m")?,
+                                    }
+                                }
+                                _ => {
+                                    return Err(bad(
+                                        format!("{f}.kind"),
+                                        "must be `point` or `rod`",
+                                    ));
+                                }
+                            });
+                        }
+                        Some(out)
+                    }
+                };
+                let spec = PendulumSpec {
+                    joint,
+                    body,
+                    attachments,
+                    pin_radius_m: number(&rig, "pin_radius_m", "test.rig.pin_radius_m")?,
+                    gravity_m_s2: number(&rig, "gravity_m_s2", "test.rig.gravity_m_s2")?,
+                    initial_rate_deg_s: number(
+                        &rig,
+                        "initial_rate_deg_s",
+                        "test.rig.initial_rate_deg_s",
+                    )?,
+                };
+                let y = self.channel("alpha_deg").unwrap_or_default().to_vec();
+                spec.joint_test(data, t, y).map_err(rig_err)
+            }
+            Kind::Slider => {
+                if let Some(j) = &self.joint
+                    && j != "J8"
+                {
+                    return Err(bad(
+                        "test.joint",
+                        format!("a slider test is of joint J8, got `{j}`"),
+                    ));
+                }
+                only_keys(
+                    &rig,
+                    &[
+                        "moving_mass_kg",
+                        "springs",
+                        "spring_stiffness_n_per_mm",
+                        "normal_force_n",
+                    ],
+                    "test.rig",
+                )?;
+                let springs = match rig.get("springs") {
+                    None | Some(Value::Null) => None,
+                    Some(v) => Some(v.as_u64().filter(|n| *n <= 64).ok_or_else(|| {
+                        bad("test.rig.springs", "must be a whole number from 0 to 64")
+                    })? as u32),
+                };
+                let spec = SliderSpec {
+                    moving_mass_kg: number(&rig, "moving_mass_kg", "test.rig.moving_mass_kg")?,
+                    springs,
+                    spring_stiffness_n_per_mm: number(
+                        &rig,
+                        "spring_stiffness_n_per_mm",
+                        "test.rig.spring_stiffness_n_per_mm",
+                    )?,
+                    normal_force_n: number(&rig, "normal_force_n", "test.rig.normal_force_n")?,
+                };
+                let y = self.channel("h_mm").unwrap_or_default().to_vec();
+                let f = self.channel("F_N").map(<[f64]>::to_vec);
+                spec.joint_test(data, t, y, f).map_err(rig_err)
+            }
+            Kind::Lift => Err(bad(
+                "test.kind",
+                "lift-test identification is not available yet (complete-pantograph model: issue 5)",
+            )),
+        }
+    }
+
+    /// The document as JSON (the contract's shape), channels in stored order.
+    pub fn to_value(&self) -> Value {
+        let mut root = Map::new();
+        root.insert("format".into(), FORMAT.into());
+        if let Some(id) = &self.trace_id {
+            root.insert("trace_id".into(), id.clone().into());
+        }
+        root.insert("vehicle_id".into(), self.vehicle_id.clone().into());
+        let mut p = Map::new();
+        p.insert("model".into(), self.pantograph_model.clone().into());
+        if let Some(s) = &self.pantograph_serial {
+            p.insert("serial".into(), s.clone().into());
+        }
+        root.insert("pantograph".into(), p.into());
+        root.insert("recorded_at".into(), self.recorded_at.clone().into());
+        root.insert("test".into(), self.test.clone());
+        let ch: BTreeMap<&str, &Vec<f64>> =
+            self.channels.iter().map(|(n, v)| (n.as_str(), v)).collect();
+        root.insert(
+            "channels".into(),
+            serde_json::to_value(ch).unwrap_or(Value::Null),
+        );
+        root.into()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn doc() -> Value {
+        json!({"format": FORMAT, "vehicle_id": "EN57-1021", "pantograph": {"model": "160EC", "serial": "160EC-0042"},
+               "recorded_at": "2026-03-02T07:15:00Z", "test": {"kind": "pendulum", "joint": "J1", "rig": {}},
+               "channels": {"t_s": [0.0, 0.002, 0.004], "alpha_deg": [74.2, 74.19, 74.17]}})
+    }
+
+    fn field_of(v: Value) -> String {
+        TraceDoc::from_value(&v).unwrap_err().field
+    }
+
+    #[test]
+    fn accepts_the_contract_example() {
+        let d = TraceDoc::from_value(&doc()).unwrap();
+        assert_eq!(d.kind, Kind::Pendulum);
+        assert_eq!(d.channels[0].0, "t_s");
+        assert_eq!(TraceDoc::from_value(&d.to_value()).unwrap(), d);
+    }
+
+    #[test]
+    fn every_rule_names_its_field() {
+        let mut cases: Vec<(Value, &str)> = Vec::new();
+        let mut d = doc();
+        d["format"] = json!("pantograph-trace/2");
+        cases.push((d, "format"));
+        let mut d = doc();
+        d.as_object_mut().unwrap().remove("vehicle_id");
+        cases.push((d, "vehicle_id"));
+        let mut d = doc();
+        d["pantograph"].as_object_mut().unwrap().remove("model");
+        cases.push((d, "pantograph.model"));
+        let mut d = doc();
+        d["recorded_at"] = json!("2026-02-30T07:15:00Z");
+        cases.push((d, "recorded_at"));
+        let mut d = doc();
+        d["test"]["kind"] = json!("swing");
+        cases.push((d, "test.kind"));
+        let mut d = doc();
+        d["test"]["joint"] = json!("J9");
+        cases.push((d, "test.joint"));
+        let mut d = doc();
+        d["channels"]["t_s"] = json!([0.0, 0.002, 0.002]);
+        cases.push((d, "channels.t_s[2]"));
+        let mut d = doc();
+        d["channels"]["alpha_deg"] = json!([1.0, 2.0]);
+        cases.push((d, "channels.alpha_deg"));
+        let mut d = doc();
+        d["channels"]["alpha_deg"] = json!([1.0, "x", 2.0]);
+        cases.push((d, "channels.alpha_deg[1]"));
+        let mut d = doc();
+        d["channels"].as_object_mut().unwrap().remove("alpha_deg");
+        cases.push((d, "channels.alpha_deg"));
+        let mut d = doc();
+        d["test"]["rig"] =
+            json!({"body": {"mass_kg": -1.0, "inertia_kgm2": 1.0, "com_distance_m": 0.1}});
+        cases.push((d, "test.rig.mass_kg"));
+        let mut d = doc();
+        d["test"]["rig"] = json!({"pin_radius": 0.01});
+        cases.push((d, "test.rig.pin_radius"));
+        let mut d = doc();
+        d["test"]["joint"] = json!("custom");
+        cases.push((d, "test.rig.body"));
+        let mut d = doc();
+        d["trace_id"] = json!("a b; DROP TABLE traces");
+        cases.push((d, "trace_id"));
+        for (v, field) in cases {
+            assert_eq!(field_of(v.clone()), field, "{v}");
+        }
+        assert_eq!(
+            TraceDoc::from_json(b"{\"format\": ").unwrap_err().field,
+            "body"
+        );
+        assert_eq!(
+            TraceDoc::from_json(b"{\"a\": NaN}").unwrap_err().field,
+            "body"
+        );
+    }
+
+    #[test]
+    fn rfc3339() {
+        for ok in [
+            "2026-03-02T07:15:00Z",
+            "2024-02-29T23:59:60.123+01:00",
+            "2026-03-02t07:15:00z",
+        ] {
+            assert!(check_rfc3339(ok), "{ok}");
+        }
+        for no in [
+            "2026-03-02",
+            "2026-03-02T07:15:00",
+            "2025-02-29T00:00:00Z",
+            "2026-13-01T00:00:00Z",
+            "2026-03-02T07:15:00+0100",
+            "2026-03-02T07:15:00.Z",
+        ] {
+            assert!(!check_rfc3339(no), "{no}");
+        }
+    }
+}
