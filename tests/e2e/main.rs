@@ -1,1 +1,5 @@
+//! End-to-end tests: identification of the shared example traces (made by an independent
+//! simulator) against their truth, interval coverage on synthetic traces, the measured trace.
 
+mod coverage;
+mod examples;

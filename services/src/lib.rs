@@ -1,0 +1,8 @@
+//! pantowatch service library: trace storage, HTTP API, background fitting.
+//! The binary in `main.rs` wires these modules into the CLI.
+
+pub mod cli;
+pub mod plot;
+#[cfg(feature = "store")]
+pub mod store;
+pub mod trace;
