@@ -118,7 +118,7 @@ impl Dof {
                 let (sq, cq) = q.sin_cos();
                 let x = m * d * a + m * g * sq;
                 let y = m * d * v * v + m * g * cq;
-                let n = x.hypot(y);
+                let n = (x * x + y * y).sqrt();
                 if n == 0.0 {
                     return (0.0, 0.0, 0.0, 0.0);
                 }
@@ -153,40 +153,70 @@ impl Dof {
         let m_gen = self.inertia();
         let lever = self.lever();
         let (g, g_q, _) = self.load(q, t);
-        let mut a = 0.0;
-        let mut last = (0.0, 0.0, 0.0, 0.0);
-        let mut fr = law.eval(v, s, 0.0, lever);
-        for _ in 0..30 {
-            last = self.normal(q, v, a);
-            fr = law.eval(v, s, last.0, lever);
-            let f = m_gen * a - g + fr.value;
-            let f_a = m_gen + fr.d_normal * last.3;
-            if f_a <= 1e-6 * m_gen {
-                return Err(Indeterminate { dry: law.dry });
+        match self.mech {
+            Mechanism::Slider(r) => {
+                // Fn is constant: the equation is linear in a.
+                let fr = law.eval(v, s, r.normal_force_n, lever);
+                let a = (g - fr.value) / m_gen;
+                Ok(Accel {
+                    a,
+                    a_q: (g_q - fr.d_q) / m_gen,
+                    a_v: -fr.d_v / m_gen,
+                    f_a: m_gen,
+                    normal: r.normal_force_n,
+                })
             }
-            let da = f / f_a;
-            a -= da;
-            if da.abs() <= 1e-15 * (a.abs() + 1e-12) {
-                break;
-            }
-            if matches!(self.mech, Mechanism::Slider(_)) {
-                // Linear in a: one step is exact.
-                last = self.normal(q, v, a);
-                fr = law.eval(v, s, last.0, lever);
-                break;
+            Mechanism::Pendulum(r) => {
+                // N(a) = |(m·d·a + m·g·sin q, m·d·v² + m·g·cos q)|; trig once, Newton on a
+                // (f_a ≥ J − R·μ·m·d > 0, so it converges in 2–4 steps from a = G/J).
+                let (m, gr, d) = (r.mass_kg, r.gravity_m_s2, r.com_distance_m);
+                let (sq, cq) = q.sin_cos();
+                let (md, mg) = (m * d, m * gr);
+                let y = md * v * v + mg * cq;
+                let mut a = g / m_gen;
+                let (mut n, mut x);
+                let mut fr;
+                let mut it = 0;
+                loop {
+                    x = md * a + mg * sq;
+                    n = (x * x + y * y).sqrt();
+                    fr = law.eval(v, s, n, lever);
+                    let n_a = if n > 0.0 { x * md / n } else { 0.0 };
+                    let f_a = m_gen + fr.d_normal * n_a;
+                    if f_a <= 1e-6 * m_gen {
+                        return Err(Indeterminate { dry: law.dry });
+                    }
+                    let da = (m_gen * a - g + fr.value) / f_a;
+                    a -= da;
+                    it += 1;
+                    if da.abs() <= 1e-14 * (a.abs() + 1e-9) || it >= 30 {
+                        break;
+                    }
+                }
+                x = md * a + mg * sq;
+                n = (x * x + y * y).sqrt();
+                fr = law.eval(v, s, n, lever);
+                let (n_q, n_v, n_a) = if n > 0.0 {
+                    (
+                        (x * mg * cq - y * mg * sq) / n,
+                        y * 2.0 * md * v / n,
+                        x * md / n,
+                    )
+                } else {
+                    (0.0, 0.0, 0.0)
+                };
+                let f_a = m_gen + fr.d_normal * n_a;
+                let f_q = -g_q + fr.d_q + fr.d_normal * n_q;
+                let f_v = fr.d_v + fr.d_normal * n_v;
+                Ok(Accel {
+                    a,
+                    a_q: -f_q / f_a,
+                    a_v: -f_v / f_a,
+                    f_a,
+                    normal: n,
+                })
             }
         }
-        let (n, n_q, n_v, n_a) = last;
-        let f_a = m_gen + fr.d_normal * n_a;
-        let f_q = -g_q + fr.d_q + fr.d_normal * n_q;
-        let f_v = fr.d_v + fr.d_normal * n_v;
-        Ok(Accel {
-            a,
-            a_q: -f_q / f_a,
-            a_v: -f_v / f_a,
-            f_a,
-            normal: n,
-        })
     }
 
     /// ∂a/∂p for a friction parameter at a solved state.
@@ -246,8 +276,7 @@ mod tests {
         let (q, v) = (1.2, -0.7);
         let acc = d.accel(&law, q, v, -1.0, 0.0).unwrap();
         let (n, ..) = d.normal(q, v, acc.a);
-        let r =
-            4.645 * acc.a + 7.415 * 9.81 * 0.6685 * q.sin() + 0.401 * v + n * 0.01 * 0.88 * -1.0;
+        let r = 4.645 * acc.a + 7.415 * 9.81 * 0.6685 * q.sin() + 0.401 * v + -(n * 0.01 * 0.88);
         assert!(r.abs() < 1e-12, "residual {r}");
         // The reaction is not m·g: it includes the inertial load.
         assert!((n - 7.415 * 9.81).abs() > 1.0);

@@ -19,6 +19,9 @@
 //! - [`synth`] — synthetic traces: simulate, add sensor noise and quantisation.
 //! - [`noise`] — a small deterministic random source for synthetic traces.
 
+// Numerical kernels index several arrays with one counter; iterator chains would hide that.
+#![allow(clippy::needless_range_loop)]
+
 pub mod data;
 pub mod drift;
 pub mod dynamics;

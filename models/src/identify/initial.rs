@@ -40,7 +40,7 @@ pub fn inverse_dynamics(
     let n = t.len();
     let duration = t[n - 1] - t[0];
     let half = half_window(t, (dof.period_s(duration) / 12.0).clamp(0.01, 0.2));
-    let stride = (n / 2000).max(1);
+    let stride = (n / 800).max(1);
     let mut rows: Vec<([f64; 3], f64)> = Vec::with_capacity(n / stride + 1);
     let mut vmax: f64 = 0.0;
     let pts: Vec<(f64, f64, f64, f64)> = (half..n.saturating_sub(half))

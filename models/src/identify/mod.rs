@@ -89,15 +89,18 @@ impl Default for FitOptions {
     fn default() -> Self {
         Self {
             tol: Tolerances {
-                rtol: 1e-8,
-                atol: 1e-10,
+                // 1e-7 rad is 6e-6 deg: far below any sensor's noise.
+                rtol: 1e-7,
+                atol: 1e-9,
                 ..Default::default()
             },
             lm: LmOptions {
                 max_iter: 60,
-                ftol: 1e-9,
-                xtol: 1e-9,
-                gtol: 1e-9,
+                // A relative cost change of 1e-8 is far below one parameter's statistical
+                // weight (~1/n of the cost for n samples).
+                ftol: 1e-8,
+                xtol: 1e-8,
+                gtol: 1e-8,
             },
         }
     }

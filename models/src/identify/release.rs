@@ -31,12 +31,11 @@ pub fn detect_release(t: &[f64], y: &[f64]) -> usize {
     };
     // Refine between the two strided samples: the sample of the extreme value.
     let (a, b) = (idx[w.saturating_sub(1)], idx[w]);
-    let ext = (a..=b)
+    (a..=b)
         .max_by(|&i, &j| {
             (s0 * local_cubic(t, y, i, half).0).total_cmp(&(s0 * local_cubic(t, y, j, half).0))
         })
-        .unwrap_or(b);
-    ext
+        .unwrap_or(b)
 }
 
 #[cfg(test)]
