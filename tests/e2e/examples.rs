@@ -125,3 +125,32 @@ fn the_measured_pendulum_is_fitted_from_its_release() {
         r.rmse
     );
 }
+
+/// Our simulator with the examples' true parameters and true release reproduces the
+/// independent simulator's traces to within the sensor noise.
+#[test]
+fn the_simulator_agrees_with_the_independent_one_at_the_truth() {
+    use pantowatch_models::friction::FrictionLaw;
+    use pantowatch_models::simulate::{SimOptions, simulate};
+    for (name, t) in truth().as_object().unwrap() {
+        if !t["effects"].as_array().unwrap().is_empty() {
+            continue;
+        }
+        let doc = load(&examples_dir().join(t["file"].as_str().unwrap()));
+        let (test, _) = doc.joint_test().unwrap();
+        let law = FrictionLaw::base(t["viscous"].as_f64().unwrap(), t["dry"].as_f64().unwrap());
+        let q0 = match t["kind"].as_str().unwrap() {
+            "pendulum" => t["initial"]["theta0_deg"].as_f64().unwrap() / test.scale,
+            _ => t["initial"]["h0_mm"].as_f64().unwrap() / test.scale,
+        };
+        let tr = simulate(&test.dof, &law, q0, 0.0, &test.t_s, &SimOptions::default()).unwrap();
+        let n = test.y.len() as f64;
+        let rmse = (tr.q.iter().zip(&test.y).map(|(q, y)| (test.scale * q - y).powi(2)).sum::<f64>() / n).sqrt();
+        let sigma = t["noise_sigma"].as_f64().unwrap();
+        assert!(rmse < 1.05 * sigma, "{name}: rmse {rmse} vs noise {sigma}");
+        if let Some(rest) = t["t_rest_s"].as_f64() {
+            let ours = tr.rest_time_s().expect("comes to rest");
+            assert!((ours - rest).abs() < 0.01, "{name}: rests at {ours} s, truth {rest} s");
+        }
+    }
+}
