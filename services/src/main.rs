@@ -20,7 +20,7 @@ enum Command {
     /// Identify a trace's joint friction (viscous and dry, 95 % intervals, drift status).
     Fit(cli::fit::FitArgs),
     /// Write a synthetic trace document.
-    Simulate(cli::simulate::SimulateArgs),
+    Simulate(Box<cli::simulate::SimulateArgs>),
     /// Time the identification of trace files.
     Bench(cli::bench::BenchArgs),
     /// Fit the example traces and show the results against their truth.
@@ -38,7 +38,7 @@ fn main() {
     let thresholds = DriftThresholds::default();
     let res = match cli.command {
         Command::Fit(a) => cli::fit::run(a, &thresholds),
-        Command::Simulate(a) => cli::simulate::run(a),
+        Command::Simulate(a) => cli::simulate::run(*a),
         Command::Bench(a) => cli::bench::run(a),
         Command::Demo => cli::demo::run(&thresholds),
     };
