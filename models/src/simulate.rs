@@ -141,7 +141,9 @@ pub fn simulate(
 ) -> Result<Trajectory, SimError> {
     let n = times.len();
     for k in 1..n {
-        if times[k].partial_cmp(&times[k - 1]) != Some(std::cmp::Ordering::Greater) || !times[k].is_finite() {
+        if times[k].partial_cmp(&times[k - 1]) != Some(std::cmp::Ordering::Greater)
+            || !times[k].is_finite()
+        {
             return Err(SimError::Times(k));
         }
     }

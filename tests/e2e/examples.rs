@@ -145,12 +145,22 @@ fn the_simulator_agrees_with_the_independent_one_at_the_truth() {
         };
         let tr = simulate(&test.dof, &law, q0, 0.0, &test.t_s, &SimOptions::default()).unwrap();
         let n = test.y.len() as f64;
-        let rmse = (tr.q.iter().zip(&test.y).map(|(q, y)| (test.scale * q - y).powi(2)).sum::<f64>() / n).sqrt();
+        let rmse = (tr
+            .q
+            .iter()
+            .zip(&test.y)
+            .map(|(q, y)| (test.scale * q - y).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt();
         let sigma = t["noise_sigma"].as_f64().unwrap();
         assert!(rmse < 1.05 * sigma, "{name}: rmse {rmse} vs noise {sigma}");
         if let Some(rest) = t["t_rest_s"].as_f64() {
             let ours = tr.rest_time_s().expect("comes to rest");
-            assert!((ours - rest).abs() < 0.01, "{name}: rests at {ours} s, truth {rest} s");
+            assert!(
+                (ours - rest).abs() < 0.01,
+                "{name}: rests at {ours} s, truth {rest} s"
+            );
         }
     }
 }
