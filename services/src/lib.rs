@@ -3,6 +3,4 @@
 
 pub mod cli;
 pub mod plot;
-#[cfg(feature = "store")]
-pub mod store;
 pub mod trace;
