@@ -167,35 +167,30 @@ impl Dof {
                 })
             }
             Mechanism::Pendulum(r) => {
-                // N(a) = |(m·d·a + m·g·sin q, m·d·v² + m·g·cos q)|; trig once, Newton on a
-                // (f_a ≥ J − R·μ·m·d > 0, so it converges in 2–4 steps from a = G/J).
+                // The friction is affine in N: T = T0 + k·N, k = ∂T/∂N (lever·μ·φ(v)·s). With
+                // N(a) = |(m·d·a + p, y)|, p = m·g·sin q, y = m·d·v² + m·g·cos q, the equation
+                // J·a + c = −k·N(a), c = T0 − G, squares to a quadratic in a whose root with
+                // sign(J·a + c) = −sign(k) is
+                //   a = (−(J·c − k²·md·p) − k·S) / (J² − k²·md²),
+                //   S = √((J·p − md·c)² + y²·(J² − k²·md²)),
+                // exact and free of cancellation (k → 0 gives a = −c/J). J² > k²·md² is the
+                // condition for a unique acceleration.
                 let (m, gr, d) = (r.mass_kg, r.gravity_m_s2, r.com_distance_m);
                 let (sq, cq) = q.sin_cos();
                 let (md, mg) = (m * d, m * gr);
-                let y = md * v * v + mg * cq;
-                let mut a = g / m_gen;
-                let (mut n, mut x);
-                let mut fr;
-                let mut it = 0;
-                loop {
-                    x = md * a + mg * sq;
-                    n = (x * x + y * y).sqrt();
-                    fr = law.eval(v, s, n, lever);
-                    let n_a = if n > 0.0 { x * md / n } else { 0.0 };
-                    let f_a = m_gen + fr.d_normal * n_a;
-                    if f_a <= 1e-6 * m_gen {
-                        return Err(Indeterminate { dry: law.dry });
-                    }
-                    let da = (m_gen * a - g + fr.value) / f_a;
-                    a -= da;
-                    it += 1;
-                    if da.abs() <= 1e-14 * (a.abs() + 1e-9) || it >= 30 {
-                        break;
-                    }
+                let (p, y) = (mg * sq, md * v * v + mg * cq);
+                let fr0 = law.eval(v, s, 0.0, lever);
+                let k = fr0.d_normal;
+                let c = fr0.value - g;
+                let den = m_gen * m_gen - k * k * md * md;
+                if den <= 1e-12 * m_gen * m_gen {
+                    return Err(Indeterminate { dry: law.dry });
                 }
-                x = md * a + mg * sq;
-                n = (x * x + y * y).sqrt();
-                fr = law.eval(v, s, n, lever);
+                let sroot = ((m_gen * p - md * c).powi(2) + y * y * den).sqrt();
+                let a = (-(m_gen * c - k * k * md * p) - k * sroot) / den;
+                let x = md * a + p;
+                let n = (x * x + y * y).sqrt();
+                let fr = law.eval(v, s, n, lever);
                 let (n_q, n_v, n_a) = if n > 0.0 {
                     (
                         (x * mg * cq - y * mg * sq) / n,
@@ -206,6 +201,9 @@ impl Dof {
                     (0.0, 0.0, 0.0)
                 };
                 let f_a = m_gen + fr.d_normal * n_a;
+                if f_a <= 1e-6 * m_gen {
+                    return Err(Indeterminate { dry: law.dry });
+                }
                 let f_q = -g_q + fr.d_q + fr.d_normal * n_q;
                 let f_v = fr.d_v + fr.d_normal * n_v;
                 Ok(Accel {

@@ -271,8 +271,17 @@ impl Dopri5 {
 
     /// The whole dense state at time `t` into `out`.
     pub fn dense_all(&self, t: f64, out: &mut [f64]) {
-        for (i, o) in out.iter_mut().enumerate().take(self.n) {
-            *o = self.dense(i, t);
+        self.dense_range(t, 0..self.n, out);
+    }
+
+    /// Components `range` of the dense state at `t` into `out[range]`.
+    #[inline]
+    pub fn dense_range(&self, t: f64, range: std::ops::Range<usize>, out: &mut [f64]) {
+        let th = (t - self.t_old) / self.h_old;
+        let th1 = 1.0 - th;
+        let r = &self.r;
+        for i in range {
+            out[i] = r[0][i] + th * (r[1][i] + th1 * (r[2][i] + th * (r[3][i] + th1 * r[4][i])));
         }
     }
 }

@@ -305,7 +305,7 @@ pub fn simulate(
                                     }));
                                 };
                                 while k < n && times[k] < t_e {
-                                    stepper.dense_all(times[k], &mut dense_buf);
+                                    stepper.dense_range(times[k], 0..2 + ns, &mut dense_buf);
                                     record(&mut tr, k, &dense_buf);
                                     k += 1;
                                 }
@@ -321,7 +321,8 @@ pub fn simulate(
                                 if times[k] == t_new {
                                     record(&mut tr, k, &y);
                                 } else {
-                                    stepper.dense_all(times[k], &mut dense_buf);
+                                    // Only q, v and ∂q/∂p are recorded.
+                                    stepper.dense_range(times[k], 0..2 + ns, &mut dense_buf);
                                     record(&mut tr, k, &dense_buf);
                                 }
                                 k += 1;

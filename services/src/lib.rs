@@ -3,4 +3,5 @@
 
 pub mod cli;
 pub mod plot;
+pub mod store;
 pub mod trace;

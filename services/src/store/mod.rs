@@ -1,0 +1,1103 @@
+//! Storage layer: one [`Store`] over SQLite (a file path, the embedded default) or PostgreSQL
+//! (a `postgres://` URL) holding traces, fits, the durable fit-job queue and API keys.
+//!
+//! Both backends implement the same crate-private `Backend` trait, so their signatures cannot
+//! drift; [`Store`] is an enum that dispatches to them (no `dyn`, no `async_trait`). Migrations
+//! are embedded per backend (`migrations/sqlite`, `migrations/postgres`) and run on connect.
+//! Every statement binds its values; the only dynamic SQL is test-database DDL.
+//!
+//! Semantics shared by both backends:
+//! - An upload ([`Store::insert_trace`]) writes vehicle, pantograph, mount, trace and fit job in
+//!   one transaction: all or nothing. Idempotent on `trace_id` + `content_sha256`.
+//! - The *current fit* of a trace is its most recently written fit (any model version); a
+//!   joint's *latest status* is the current fit of the latest-recorded trace that fitted it.
+//! - A worker *holds* a job while the job is `running` under its worker id: once another worker
+//!   has reclaimed an expired lease, the first worker's `complete`/`fail` are no-ops.
+
+pub mod keys;
+mod postgres;
+pub mod samples;
+mod sqlite;
+#[cfg(test)]
+mod tests;
+
+use std::str::FromStr;
+use std::time::Duration;
+
+use chrono::{DateTime, SubsecRound, Utc};
+use serde::{Deserialize, Serialize};
+
+pub use postgres::PgStore;
+pub use samples::{Channels, CodecError};
+pub use sqlite::SqliteStore;
+
+/// Result type of the storage layer.
+pub type Result<T, E = StoreError> = std::result::Result<T, E>;
+
+/// Everything that can go wrong in the storage layer.
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    /// The database refused or failed (connection, constraint, I/O).
+    #[error("database error: {0}")]
+    Db(#[from] sqlx::Error),
+    /// Embedded migrations could not be applied.
+    #[error("migration error: {0}")]
+    Migrate(#[from] sqlx::migrate::MigrateError),
+    /// A samples blob could not be encoded or decoded.
+    #[error(transparent)]
+    Codec(#[from] CodecError),
+    /// The caller passed something the store cannot accept.
+    #[error("invalid input: {0}")]
+    Invalid(String),
+    /// A row holds a value this code does not understand.
+    #[error("unexpected data in the database: {0}")]
+    Corrupt(String),
+    /// The OS random number generator failed.
+    #[error("random number generator: {0}")]
+    Rng(String),
+    /// A blocking task (codec) panicked or was cancelled.
+    #[error("background task failed: {0}")]
+    Task(String),
+}
+
+impl From<getrandom::Error> for StoreError {
+    fn from(e: getrandom::Error) -> Self {
+        StoreError::Rng(e.to_string())
+    }
+}
+
+/// Attempts after which a job is failed for good (by `fail` or by lease expiry).
+pub const MAX_ATTEMPTS: i64 = 3;
+
+macro_rules! text_enum {
+    ($(#[$m:meta])* $name:ident { $($(#[$vm:meta])* $v:ident = $s:literal),+ $(,)? }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+        #[serde(rename_all = "lowercase")]
+        pub enum $name { $($(#[$vm])* $v),+ }
+
+        impl $name {
+            /// The text stored in the database and used on the wire.
+            pub fn as_str(self) -> &'static str {
+                match self { $($name::$v => $s),+ }
+            }
+        }
+
+        impl FromStr for $name {
+            type Err = StoreError;
+            fn from_str(s: &str) -> Result<Self> {
+                match s {
+                    $($s => Ok($name::$v),)+
+                    other => Err(StoreError::Invalid(format!(
+                        concat!("unknown ", stringify!($name), " {:?}"), other))),
+                }
+            }
+        }
+
+        impl std::fmt::Display for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.as_str())
+            }
+        }
+    };
+}
+
+text_enum!(
+    /// Health of a joint; ordered `Ok < Watch < Alarm` so `max` is the worst.
+    Status {
+        /// Within its baseline.
+        Ok = "ok",
+        /// Drifting: look at it at the next service.
+        Watch = "watch",
+        /// Out of tolerance.
+        Alarm = "alarm",
+    }
+);
+text_enum!(
+    /// Access level of an API key; ordered so `role >= Role::Writer` means "may upload".
+    Role {
+        /// Reads everything.
+        Reader = "reader",
+        /// Also uploads traces.
+        Writer = "writer",
+        /// Also manages keys and re-fits.
+        Admin = "admin",
+    }
+);
+text_enum!(
+    /// Life cycle of a fit job.
+    JobState {
+        /// Waiting for a worker.
+        Queued = "queued",
+        /// Leased by a worker until `lease_until`.
+        Running = "running",
+        /// Fit written.
+        Done = "done",
+        /// Gave up after an error or `MAX_ATTEMPTS`.
+        Failed = "failed",
+    }
+);
+
+impl Status {
+    /// Rank used in SQL aggregates (`ok` 0, `watch` 1, `alarm` 2).
+    pub fn rank(self) -> i64 {
+        self as i64
+    }
+    fn from_rank(r: i64) -> Result<Self> {
+        match r {
+            0 => Ok(Status::Ok),
+            1 => Ok(Status::Watch),
+            2 => Ok(Status::Alarm),
+            _ => Err(StoreError::Corrupt(format!("status rank {r}"))),
+        }
+    }
+}
+
+/// Which database a [`Store`] talks to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BackendKind {
+    /// Embedded SQLite file.
+    Sqlite,
+    /// PostgreSQL server.
+    Postgres,
+}
+
+/// One uploaded trace document, parsed and validated by the caller.
+#[derive(Debug, Clone)]
+pub struct NewTrace {
+    /// Client-chosen id; a UUID is generated when `None`.
+    pub trace_id: Option<String>,
+    pub vehicle_id: String,
+    /// `pantograph.serial`; optional in the contract (then no pantograph row is linked).
+    pub serial: Option<String>,
+    pub model: String,
+    /// Normalised to UTC and truncated to microseconds when stored.
+    pub recorded_at: DateTime<Utc>,
+    pub kind: String,
+    pub joint: Option<String>,
+    /// The document's `test` object, verbatim JSON text.
+    pub test_json: String,
+    /// Lowercase hex SHA-256 of the canonical document bytes (idempotency key with `trace_id`).
+    pub content_sha256: String,
+    /// Channel name → values, `t_s` first.
+    pub channels: Channels,
+    /// Model version of the fit job enqueued with the upload.
+    pub model_version: String,
+}
+
+/// What [`Store::insert_trace`] did.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[serde(tag = "outcome", rename_all = "snake_case")]
+pub enum InsertOutcome {
+    /// Stored now, with its fit job (None if a live job for the pair already existed).
+    Created {
+        trace_id: String,
+        job_id: Option<i64>,
+    },
+    /// Already stored with the same content: nothing written.
+    Existing { trace_id: String },
+    /// Already stored with other content: nothing written.
+    Conflict { trace_id: String },
+}
+
+impl InsertOutcome {
+    /// The trace id the outcome is about.
+    pub fn trace_id(&self) -> &str {
+        match self {
+            InsertOutcome::Created { trace_id, .. }
+            | InsertOutcome::Existing { trace_id }
+            | InsertOutcome::Conflict { trace_id } => trace_id,
+        }
+    }
+}
+
+/// Stored metadata of a trace (everything but the samples).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TraceMeta {
+    pub trace_id: String,
+    pub vehicle_id: String,
+    pub serial: Option<String>,
+    pub model: String,
+    pub recorded_at: DateTime<Utc>,
+    pub kind: String,
+    pub joint: Option<String>,
+    pub test_json: String,
+    pub content_sha256: String,
+    /// Values per channel.
+    pub sample_count: i64,
+    pub channel_names: Vec<String>,
+    /// Size of the stored samples blob.
+    pub samples_bytes: i64,
+    pub created_at: DateTime<Utc>,
+}
+
+/// One joint of a fit, flattened for queries.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointFit {
+    pub joint: String,
+    pub viscous: Option<f64>,
+    pub viscous_lo: Option<f64>,
+    pub viscous_hi: Option<f64>,
+    pub dry: Option<f64>,
+    pub dry_lo: Option<f64>,
+    pub dry_hi: Option<f64>,
+    pub identifiable: bool,
+    pub status: Status,
+}
+
+/// A fit result to store: the contract JSON plus the columns extracted from it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NewFit {
+    /// The contract fit result, stored as is.
+    pub result: serde_json::Value,
+    pub rmse: Option<f64>,
+    pub joints: Vec<JointFit>,
+}
+
+impl NewFit {
+    /// Extracts `rmse.value` and every `joints[]` entry from a contract fit result.
+    pub fn from_result(result: serde_json::Value) -> Result<Self> {
+        let bad = |m: String| StoreError::Invalid(format!("fit result: {m}"));
+        let rmse = result
+            .pointer("/rmse/value")
+            .and_then(serde_json::Value::as_f64);
+        let mut joints = Vec::new();
+        let list = result
+            .get("joints")
+            .and_then(serde_json::Value::as_array)
+            .ok_or_else(|| bad("no `joints` array".into()))?;
+        for (i, j) in list.iter().enumerate() {
+            let name = j
+                .get("joint")
+                .and_then(serde_json::Value::as_str)
+                .ok_or_else(|| bad(format!("joints[{i}].joint missing")))?;
+            let status = j
+                .get("status")
+                .and_then(serde_json::Value::as_str)
+                .ok_or_else(|| bad(format!("joints[{i}].status missing")))?
+                .parse::<Status>()?;
+            let num = |p: &str| j.pointer(p).and_then(serde_json::Value::as_f64);
+            joints.push(JointFit {
+                joint: name.to_owned(),
+                viscous: num("/viscous/value"),
+                viscous_lo: num("/viscous/ci95/0"),
+                viscous_hi: num("/viscous/ci95/1"),
+                dry: num("/dry/value"),
+                dry_lo: num("/dry/ci95/0"),
+                dry_hi: num("/dry/ci95/1"),
+                identifiable: j
+                    .get("identifiable")
+                    .and_then(serde_json::Value::as_bool)
+                    .unwrap_or(true),
+                status,
+            });
+        }
+        Ok(NewFit {
+            result,
+            rmse,
+            joints,
+        })
+    }
+
+    /// Worst joint status (`None` without joints).
+    pub fn status(&self) -> Option<Status> {
+        self.joints.iter().map(|j| j.status).max()
+    }
+}
+
+/// Result of writing a fit: the id of the row for (trace, model version), new or not.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct FitWrite {
+    pub fit_id: i64,
+    /// False when a fit for the pair already existed (nothing written).
+    pub created: bool,
+}
+
+/// A stored fit.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FitRecord {
+    pub id: i64,
+    pub trace_id: String,
+    pub model_version: String,
+    pub created_at: DateTime<Utc>,
+    pub result: serde_json::Value,
+    pub rmse: Option<f64>,
+    pub status: Option<Status>,
+    pub joints: Vec<JointFit>,
+}
+
+/// A fit job.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Job {
+    pub id: i64,
+    pub trace_id: String,
+    pub model_version: String,
+    pub state: JobState,
+    pub attempts: i64,
+    pub lease_until: Option<DateTime<Utc>>,
+    pub worker: Option<String>,
+    pub last_error: Option<String>,
+    pub created_at: DateTime<Utc>,
+    pub updated_at: DateTime<Utc>,
+}
+
+/// What [`Store::complete`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CompleteOutcome {
+    /// Fit stored (or already there) and job marked done, atomically.
+    Completed(FitWrite),
+    /// This worker no longer holds the job: nothing written.
+    LeaseLost,
+}
+
+/// What [`Store::fail`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FailOutcome {
+    /// Back in the queue for another attempt.
+    Requeued,
+    /// Failed for good (no retry asked, or `MAX_ATTEMPTS` reached).
+    Failed,
+    /// This worker no longer holds the job: nothing written.
+    LeaseLost,
+}
+
+/// Number of jobs per state.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct JobCounts {
+    pub queued: i64,
+    pub running: i64,
+    pub done: i64,
+    pub failed: i64,
+}
+
+/// Stored API key (never the key itself).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct ApiKey {
+    pub id: i64,
+    pub prefix: String,
+    pub role: Role,
+    pub label: String,
+    pub created_at: DateTime<Utc>,
+    pub revoked_at: Option<DateTime<Utc>>,
+}
+
+/// A vehicle in the list.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct VehicleSummary {
+    pub vehicle_id: String,
+    pub created_at: DateTime<Utc>,
+    /// Pantographs currently mounted.
+    pub pantographs: i64,
+    pub traces: i64,
+    pub last_test: Option<DateTime<Utc>>,
+}
+
+/// A vehicle with its current pantographs.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct VehicleDetail {
+    pub vehicle_id: String,
+    pub created_at: DateTime<Utc>,
+    pub pantographs: Vec<PantographState>,
+}
+
+/// A pantograph as mounted now, with each joint's latest status.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PantographState {
+    pub serial: String,
+    pub model: String,
+    /// Mounted on this vehicle since.
+    pub since: DateTime<Utc>,
+    pub worst_status: Option<Status>,
+    pub last_test: Option<DateTime<Utc>>,
+    pub joints: Vec<JointPoint>,
+}
+
+/// One joint's fit from one trace (a history point, or the latest state).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointPoint {
+    pub trace_id: String,
+    pub vehicle_id: String,
+    pub recorded_at: DateTime<Utc>,
+    pub model_version: String,
+    pub fit_id: i64,
+    pub fitted_at: DateTime<Utc>,
+    #[serde(flatten)]
+    pub fit: JointFit,
+}
+
+/// Filter of [`Store::fleet_health`].
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct FleetFilter {
+    /// Only pantographs whose worst latest status is this.
+    pub status: Option<Status>,
+    /// Only pantographs currently mounted on this vehicle.
+    pub vehicle_id: Option<String>,
+}
+
+/// Offset pagination.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Page {
+    pub limit: u32,
+    pub offset: u64,
+}
+
+impl Default for Page {
+    fn default() -> Self {
+        Page {
+            limit: 50,
+            offset: 0,
+        }
+    }
+}
+
+/// A joint that is not `ok`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct JointStatus {
+    pub joint: String,
+    pub status: Status,
+}
+
+/// One pantograph's health.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct FleetRow {
+    pub serial: String,
+    pub model: String,
+    /// Current vehicle.
+    pub vehicle_id: Option<String>,
+    /// Worst latest joint status; `None` until a fit exists.
+    pub worst_status: Option<Status>,
+    /// Joints whose latest status is not `ok`, worst first.
+    pub not_ok: Vec<JointStatus>,
+    pub last_test: Option<DateTime<Utc>>,
+}
+
+/// A page of fleet health, worst first (`alarm`, `watch`, `ok`, not yet fitted), then serial.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct FleetPage {
+    /// Rows matching the filter, over all pages.
+    pub total: u64,
+    pub rows: Vec<FleetRow>,
+}
+
+/// A trace ready for the backend: validated, id chosen, samples encoded.
+#[derive(Debug, Clone)]
+pub(crate) struct PreparedTrace {
+    pub trace_id: String,
+    pub vehicle_id: String,
+    pub serial: Option<String>,
+    pub model: String,
+    pub recorded_at: DateTime<Utc>,
+    pub kind: String,
+    pub joint: Option<String>,
+    pub test_json: String,
+    pub content_sha256: String,
+    pub samples: Vec<u8>,
+    pub sample_count: i64,
+    pub channel_names: String,
+    pub model_version: String,
+}
+
+/// The operations each backend implements; [`Store`] dispatches to them.
+pub(crate) trait Backend {
+    fn ping(&self) -> impl Future<Output = Result<()>> + Send;
+    fn migrations_applied(&self) -> impl Future<Output = Result<bool>> + Send;
+    fn insert_trace(&self, t: PreparedTrace) -> impl Future<Output = Result<InsertOutcome>> + Send;
+    fn get_trace(&self, id: &str) -> impl Future<Output = Result<Option<TraceMeta>>> + Send;
+    fn samples_blob(&self, id: &str) -> impl Future<Output = Result<Option<Vec<u8>>>> + Send;
+    fn insert_fit(
+        &self,
+        trace_id: &str,
+        model_version: &str,
+        fit: &NewFit,
+    ) -> impl Future<Output = Result<FitWrite>> + Send;
+    fn get_fit(&self, trace_id: &str) -> impl Future<Output = Result<Option<FitRecord>>> + Send;
+    fn list_vehicles(&self) -> impl Future<Output = Result<Vec<VehicleSummary>>> + Send;
+    fn get_vehicle(&self, id: &str) -> impl Future<Output = Result<Option<VehicleDetail>>> + Send;
+    fn joint_history(
+        &self,
+        serial: &str,
+        joint: &str,
+    ) -> impl Future<Output = Result<Vec<JointPoint>>> + Send;
+    fn fleet_health(
+        &self,
+        filter: &FleetFilter,
+        page: Page,
+    ) -> impl Future<Output = Result<FleetPage>> + Send;
+    fn enqueue(
+        &self,
+        trace_id: &str,
+        model_version: &str,
+    ) -> impl Future<Output = Result<Option<i64>>> + Send;
+    fn claim(
+        &self,
+        worker: &str,
+        lease: Duration,
+    ) -> impl Future<Output = Result<Option<Job>>> + Send;
+    fn complete(
+        &self,
+        job_id: i64,
+        worker: &str,
+        fit: &NewFit,
+    ) -> impl Future<Output = Result<CompleteOutcome>> + Send;
+    fn fail(
+        &self,
+        job_id: i64,
+        worker: &str,
+        error: &str,
+        retry: bool,
+    ) -> impl Future<Output = Result<FailOutcome>> + Send;
+    fn requeue(
+        &self,
+        vehicle_id: Option<&str>,
+        model_version: &str,
+    ) -> impl Future<Output = Result<u64>> + Send;
+    fn get_job(&self, id: i64) -> impl Future<Output = Result<Option<Job>>> + Send;
+    fn latest_job(&self, trace_id: &str) -> impl Future<Output = Result<Option<Job>>> + Send;
+    fn job_counts(&self) -> impl Future<Output = Result<JobCounts>> + Send;
+    fn insert_api_key(
+        &self,
+        prefix: &str,
+        hash: &str,
+        role: Role,
+        label: &str,
+    ) -> impl Future<Output = Result<ApiKey>> + Send;
+    /// Unrevoked keys with this prefix, with their hashes.
+    fn keys_by_prefix(
+        &self,
+        prefix: &str,
+    ) -> impl Future<Output = Result<Vec<(ApiKey, String)>>> + Send;
+    fn revoke_api_key(&self, id: i64) -> impl Future<Output = Result<bool>> + Send;
+    fn list_api_keys(&self) -> impl Future<Output = Result<Vec<ApiKey>>> + Send;
+    fn close(&self) -> impl Future<Output = ()> + Send;
+}
+
+/// The store: SQLite or PostgreSQL behind the same methods.
+#[derive(Debug, Clone)]
+pub enum Store {
+    Sqlite(SqliteStore),
+    Postgres(PgStore),
+}
+
+macro_rules! dispatch {
+    ($self:ident, $s:ident => $e:expr) => {
+        match $self {
+            Store::Sqlite($s) => $e,
+            Store::Postgres($s) => $e,
+        }
+    };
+}
+
+impl Store {
+    /// Opens the database named by `url` and applies pending migrations.
+    ///
+    /// `postgres://…` / `postgresql://…` → PostgreSQL; anything else is a SQLite file path or
+    /// `sqlite:` URL, created if missing (WAL, foreign keys on, `synchronous=FULL` so that an
+    /// accepted upload survives a power cut).
+    pub async fn connect(url: &str) -> Result<Store> {
+        if url.starts_with("postgres://") || url.starts_with("postgresql://") {
+            Ok(Store::Postgres(PgStore::connect(url).await?))
+        } else {
+            Ok(Store::Sqlite(SqliteStore::connect(url).await?))
+        }
+    }
+
+    /// Which backend this is.
+    pub fn kind(&self) -> BackendKind {
+        match self {
+            Store::Sqlite(_) => BackendKind::Sqlite,
+            Store::Postgres(_) => BackendKind::Postgres,
+        }
+    }
+
+    /// A round trip to the database.
+    pub async fn ping(&self) -> Result<()> {
+        dispatch!(self, s => s.ping().await)
+    }
+
+    /// True when every embedded migration is applied (for `/readyz`).
+    pub async fn migrations_applied(&self) -> Result<bool> {
+        dispatch!(self, s => s.migrations_applied().await)
+    }
+
+    /// Stores a trace and enqueues its fit job, atomically. Same id and hash → `Existing`;
+    /// same id, other hash → `Conflict`; neither writes anything.
+    pub async fn insert_trace(&self, trace: NewTrace) -> Result<InsertOutcome> {
+        let prepared = prepare_trace(trace).await?;
+        dispatch!(self, s => s.insert_trace(prepared).await)
+    }
+
+    /// Metadata of a trace.
+    pub async fn get_trace(&self, trace_id: &str) -> Result<Option<TraceMeta>> {
+        dispatch!(self, s => s.get_trace(trace_id).await)
+    }
+
+    /// Decoded, checksum-verified channels of a trace (decoded off the async runtime).
+    pub async fn get_samples(&self, trace_id: &str) -> Result<Option<Channels>> {
+        let Some(blob) = dispatch!(self, s => s.samples_blob(trace_id).await)? else {
+            return Ok(None);
+        };
+        let channels = tokio::task::spawn_blocking(move || samples::decode(&blob))
+            .await
+            .map_err(|e| StoreError::Task(e.to_string()))??;
+        Ok(Some(channels))
+    }
+
+    /// Writes the fit of (trace, model version) once; later calls return the existing id.
+    pub async fn insert_fit(
+        &self,
+        trace_id: &str,
+        model_version: &str,
+        fit: &NewFit,
+    ) -> Result<FitWrite> {
+        dispatch!(self, s => s.insert_fit(trace_id, model_version, fit).await)
+    }
+
+    /// The trace's current fit (the most recently written, whatever the model version).
+    pub async fn get_fit(&self, trace_id: &str) -> Result<Option<FitRecord>> {
+        dispatch!(self, s => s.get_fit(trace_id).await)
+    }
+
+    /// All vehicles, by id.
+    pub async fn list_vehicles(&self) -> Result<Vec<VehicleSummary>> {
+        dispatch!(self, s => s.list_vehicles().await)
+    }
+
+    /// A vehicle, its current pantographs and each joint's latest status.
+    pub async fn get_vehicle(&self, vehicle_id: &str) -> Result<Option<VehicleDetail>> {
+        dispatch!(self, s => s.get_vehicle(vehicle_id).await)
+    }
+
+    /// The joint's fit in every trace of this pantograph (each trace's current fit),
+    /// ordered by `recorded_at` then trace id.
+    pub async fn joint_history(&self, serial: &str, joint: &str) -> Result<Vec<JointPoint>> {
+        dispatch!(self, s => s.joint_history(serial, joint).await)
+    }
+
+    /// A row per pantograph: worst latest status, joints not ok, last test; filtered, paged.
+    pub async fn fleet_health(&self, filter: &FleetFilter, page: Page) -> Result<FleetPage> {
+        dispatch!(self, s => s.fleet_health(filter, page).await)
+    }
+
+    /// Queues a fit of (trace, model version). `None` when a live (queued or running) job for
+    /// the pair exists or the fit is already written.
+    pub async fn enqueue(&self, trace_id: &str, model_version: &str) -> Result<Option<i64>> {
+        dispatch!(self, s => s.enqueue(trace_id, model_version).await)
+    }
+
+    /// Leases the oldest claimable job (queued, or running with an expired lease) to `worker`.
+    /// Jobs whose lease expired `MAX_ATTEMPTS` times are failed instead.
+    pub async fn claim(&self, worker: &str, lease: Duration) -> Result<Option<Job>> {
+        dispatch!(self, s => s.claim(worker, lease).await)
+    }
+
+    /// Writes the fit and marks the job done in one transaction, if `worker` still holds it.
+    pub async fn complete(
+        &self,
+        job_id: i64,
+        worker: &str,
+        fit: &NewFit,
+    ) -> Result<CompleteOutcome> {
+        dispatch!(self, s => s.complete(job_id, worker, fit).await)
+    }
+
+    /// Records an error; requeues if `retry` and attempts remain, else fails the job.
+    pub async fn fail(
+        &self,
+        job_id: i64,
+        worker: &str,
+        error: &str,
+        retry: bool,
+    ) -> Result<FailOutcome> {
+        dispatch!(self, s => s.fail(job_id, worker, error, retry).await)
+    }
+
+    /// Queues a fit at `model_version` for every trace without one; returns jobs created.
+    pub async fn requeue_all(&self, model_version: &str) -> Result<u64> {
+        dispatch!(self, s => s.requeue(None, model_version).await)
+    }
+
+    /// As [`Store::requeue_all`], for the traces of one vehicle.
+    pub async fn requeue_vehicle(&self, vehicle_id: &str, model_version: &str) -> Result<u64> {
+        dispatch!(self, s => s.requeue(Some(vehicle_id), model_version).await)
+    }
+
+    /// A job by id.
+    pub async fn get_job(&self, job_id: i64) -> Result<Option<Job>> {
+        dispatch!(self, s => s.get_job(job_id).await)
+    }
+
+    /// The trace's most recent job (for "fit pending / failed" answers).
+    pub async fn latest_job(&self, trace_id: &str) -> Result<Option<Job>> {
+        dispatch!(self, s => s.latest_job(trace_id).await)
+    }
+
+    /// Jobs per state (metrics, progress).
+    pub async fn job_counts(&self) -> Result<JobCounts> {
+        dispatch!(self, s => s.job_counts().await)
+    }
+
+    /// Creates a key; returns its record and the key itself, which is not stored.
+    pub async fn create_api_key(&self, role: Role, label: &str) -> Result<(ApiKey, String)> {
+        let secret = keys::generate()?;
+        let prefix = keys::prefix(&secret)
+            .ok_or_else(|| StoreError::Invalid("generated key too short".into()))?;
+        let hash = keys::hash(&secret);
+        let key = dispatch!(self, s => s.insert_api_key(prefix, &hash, role, label).await)?;
+        Ok((key, secret))
+    }
+
+    /// The unrevoked key matching `secret` (hash compared in constant time), if any.
+    pub async fn verify_api_key(&self, secret: &str) -> Result<Option<ApiKey>> {
+        let Some(prefix) = keys::prefix(secret) else {
+            return Ok(None);
+        };
+        let hash = keys::hash(secret);
+        let candidates = dispatch!(self, s => s.keys_by_prefix(prefix).await)?;
+        let mut found = None;
+        for (key, stored) in candidates {
+            if keys::hashes_equal(&stored, &hash) {
+                found = Some(key);
+            }
+        }
+        Ok(found)
+    }
+
+    /// Revokes a key; false if it does not exist or was already revoked.
+    pub async fn revoke_api_key(&self, key_id: i64) -> Result<bool> {
+        dispatch!(self, s => s.revoke_api_key(key_id).await)
+    }
+
+    /// All keys, revoked included, by id.
+    pub async fn list_api_keys(&self) -> Result<Vec<ApiKey>> {
+        dispatch!(self, s => s.list_api_keys().await)
+    }
+
+    /// Closes the connection pool (waits for connections in use).
+    pub async fn close(&self) {
+        dispatch!(self, s => s.close().await)
+    }
+}
+
+fn non_empty(what: &str, v: &str) -> Result<()> {
+    if v.trim().is_empty() {
+        return Err(StoreError::Invalid(format!("{what} is empty")));
+    }
+    Ok(())
+}
+
+/// Validates, chooses the id, normalises the time and encodes samples (off the runtime).
+async fn prepare_trace(t: NewTrace) -> Result<PreparedTrace> {
+    non_empty("vehicle_id", &t.vehicle_id)?;
+    non_empty("pantograph.model", &t.model)?;
+    non_empty("test.kind", &t.kind)?;
+    if let Some(s) = &t.serial {
+        non_empty("pantograph.serial", s)?;
+    }
+    let sha = t.content_sha256.to_ascii_lowercase();
+    if sha.len() != 64 || !sha.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(StoreError::Invalid(
+            "content_sha256 is not 64 hex digits".into(),
+        ));
+    }
+    if serde_json::from_str::<serde_json::Value>(&t.test_json).is_err() {
+        return Err(StoreError::Invalid("test_json is not JSON".into()));
+    }
+    let trace_id = match t.trace_id {
+        Some(id) => {
+            non_empty("trace_id", &id)?;
+            id
+        }
+        None => keys::new_uuid()?,
+    };
+    let sample_count = t.channels.first().map_or(0, |(_, v)| v.len());
+    if t.channels.iter().any(|(_, v)| v.len() != sample_count) {
+        return Err(StoreError::Invalid("channels differ in length".into()));
+    }
+    let names: Vec<&str> = t.channels.iter().map(|(n, _)| n.as_str()).collect();
+    let channel_names =
+        serde_json::to_string(&names).map_err(|e| StoreError::Invalid(e.to_string()))?;
+    let channels = t.channels;
+    let samples = tokio::task::spawn_blocking(move || samples::encode(&channels))
+        .await
+        .map_err(|e| StoreError::Task(e.to_string()))??;
+    Ok(PreparedTrace {
+        trace_id,
+        vehicle_id: t.vehicle_id,
+        serial: t.serial,
+        model: t.model,
+        recorded_at: t.recorded_at.trunc_subsecs(6),
+        kind: t.kind,
+        joint: t.joint,
+        test_json: t.test_json,
+        content_sha256: sha,
+        samples,
+        sample_count: i64::try_from(sample_count)
+            .map_err(|_| StoreError::Invalid("too many samples".into()))?,
+        channel_names,
+        model_version: t.model_version,
+    })
+}
+
+/// What to do with the mount history when a trace says `serial` was on `vehicle` at `at`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum MountAction {
+    /// History already agrees.
+    Keep,
+    /// Open a mount at `at`.
+    Insert,
+    /// The next mount is on the same vehicle: move its start back to `at`.
+    MoveNext { since: DateTime<Utc> },
+}
+
+/// `in_effect`: the latest mount with `since <= at`; `next`: the earliest with `since > at`.
+pub(crate) fn mount_action(
+    vehicle: &str,
+    at: DateTime<Utc>,
+    in_effect: Option<(&str, DateTime<Utc>)>,
+    next: Option<(&str, DateTime<Utc>)>,
+) -> MountAction {
+    match in_effect {
+        Some((v, _)) if v == vehicle => MountAction::Keep,
+        // Two vehicles claim the serial at the same instant: the first upload wins.
+        Some((_, since)) if since == at => MountAction::Keep,
+        _ => match next {
+            Some((v, since)) if v == vehicle => MountAction::MoveNext { since },
+            _ => MountAction::Insert,
+        },
+    }
+}
+
+/// Column accessors shared by the row mappers; SQLite stores timestamps as text.
+pub(crate) trait RowExt {
+    fn text(&self, c: &str) -> Result<String>;
+    fn opt_text(&self, c: &str) -> Result<Option<String>>;
+    fn int(&self, c: &str) -> Result<i64>;
+    fn opt_int(&self, c: &str) -> Result<Option<i64>>;
+    fn opt_real(&self, c: &str) -> Result<Option<f64>>;
+    fn flag(&self, c: &str) -> Result<bool>;
+    fn ts(&self, c: &str) -> Result<DateTime<Utc>>;
+    fn opt_ts(&self, c: &str) -> Result<Option<DateTime<Utc>>>;
+}
+
+fn parse_enum<T: FromStr<Err = StoreError>>(s: &str) -> Result<T> {
+    s.parse::<T>()
+        .map_err(|e| StoreError::Corrupt(e.to_string()))
+}
+
+pub(crate) fn trace_from<R: RowExt>(r: &R) -> Result<TraceMeta> {
+    let names = r.text("channel_names")?;
+    Ok(TraceMeta {
+        trace_id: r.text("trace_id")?,
+        vehicle_id: r.text("vehicle_id")?,
+        serial: r.opt_text("serial")?,
+        model: r.text("model")?,
+        recorded_at: r.ts("recorded_at")?,
+        kind: r.text("kind")?,
+        joint: r.opt_text("joint")?,
+        test_json: r.text("test_json")?,
+        content_sha256: r.text("content_sha256")?,
+        sample_count: r.int("sample_count")?,
+        channel_names: serde_json::from_str(&names)
+            .map_err(|e| StoreError::Corrupt(format!("channel_names: {e}")))?,
+        samples_bytes: r.int("samples_bytes")?,
+        created_at: r.ts("created_at")?,
+    })
+}
+
+pub(crate) fn joint_fit_from<R: RowExt>(r: &R) -> Result<JointFit> {
+    Ok(JointFit {
+        joint: r.text("joint")?,
+        viscous: r.opt_real("viscous")?,
+        viscous_lo: r.opt_real("viscous_lo")?,
+        viscous_hi: r.opt_real("viscous_hi")?,
+        dry: r.opt_real("dry")?,
+        dry_lo: r.opt_real("dry_lo")?,
+        dry_hi: r.opt_real("dry_hi")?,
+        identifiable: r.flag("identifiable")?,
+        status: parse_enum(&r.text("status")?)?,
+    })
+}
+
+pub(crate) fn joint_point_from<R: RowExt>(r: &R) -> Result<JointPoint> {
+    Ok(JointPoint {
+        trace_id: r.text("trace_id")?,
+        vehicle_id: r.text("vehicle_id")?,
+        recorded_at: r.ts("recorded_at")?,
+        model_version: r.text("model_version")?,
+        fit_id: r.int("fit_id")?,
+        fitted_at: r.ts("fitted_at")?,
+        fit: joint_fit_from(r)?,
+    })
+}
+
+pub(crate) fn fit_from<R: RowExt>(r: &R, joints: Vec<JointFit>) -> Result<FitRecord> {
+    let text = r.text("result_json")?;
+    Ok(FitRecord {
+        id: r.int("id")?,
+        trace_id: r.text("trace_id")?,
+        model_version: r.text("model_version")?,
+        created_at: r.ts("created_at")?,
+        result: serde_json::from_str(&text)
+            .map_err(|e| StoreError::Corrupt(format!("result_json: {e}")))?,
+        rmse: r.opt_real("rmse")?,
+        status: r.opt_text("status")?.map(|s| parse_enum(&s)).transpose()?,
+        joints,
+    })
+}
+
+pub(crate) fn job_from<R: RowExt>(r: &R) -> Result<Job> {
+    Ok(Job {
+        id: r.int("id")?,
+        trace_id: r.text("trace_id")?,
+        model_version: r.text("model_version")?,
+        state: parse_enum(&r.text("state")?)?,
+        attempts: r.int("attempts")?,
+        lease_until: r.opt_ts("lease_until")?,
+        worker: r.opt_text("worker")?,
+        last_error: r.opt_text("last_error")?,
+        created_at: r.ts("created_at")?,
+        updated_at: r.ts("updated_at")?,
+    })
+}
+
+pub(crate) fn api_key_from<R: RowExt>(r: &R) -> Result<ApiKey> {
+    Ok(ApiKey {
+        id: r.int("id")?,
+        prefix: r.text("prefix")?,
+        role: parse_enum(&r.text("role")?)?,
+        label: r.text("label")?,
+        created_at: r.ts("created_at")?,
+        revoked_at: r.opt_ts("revoked_at")?,
+    })
+}
+
+pub(crate) fn vehicle_from<R: RowExt>(r: &R) -> Result<VehicleSummary> {
+    Ok(VehicleSummary {
+        vehicle_id: r.text("id")?,
+        created_at: r.ts("created_at")?,
+        pantographs: r.int("pantographs")?,
+        traces: r.int("traces")?,
+        last_test: r.opt_ts("last_test")?,
+    })
+}
+
+/// `not_ok` is `joint:status` pairs joined by U+001F (unit separator); split on the last `:`.
+pub(crate) fn fleet_row_from<R: RowExt>(r: &R) -> Result<FleetRow> {
+    let mut not_ok = Vec::new();
+    if let Some(list) = r.opt_text("not_ok")? {
+        for pair in list.split('\u{1f}').filter(|p| !p.is_empty()) {
+            let (joint, status) = pair
+                .rsplit_once(':')
+                .ok_or_else(|| StoreError::Corrupt(format!("not_ok entry {pair:?}")))?;
+            not_ok.push(JointStatus {
+                joint: joint.to_owned(),
+                status: parse_enum(status)?,
+            });
+        }
+    }
+    not_ok.sort_by(|a, b| b.status.cmp(&a.status).then_with(|| a.joint.cmp(&b.joint)));
+    Ok(FleetRow {
+        serial: r.text("serial")?,
+        model: r.text("model")?,
+        vehicle_id: r.opt_text("vehicle_id")?,
+        worst_status: r.opt_int("worst")?.map(Status::from_rank).transpose()?,
+        not_ok,
+        last_test: r.opt_ts("last_test")?,
+    })
+}
+
+/// Builds a [`PantographState`] from its mount row and its latest joint points.
+pub(crate) fn pantograph_state(
+    serial: String,
+    model: String,
+    since: DateTime<Utc>,
+    last_test: Option<DateTime<Utc>>,
+    joints: Vec<JointPoint>,
+) -> PantographState {
+    PantographState {
+        worst_status: joints.iter().map(|j| j.fit.status).max(),
+        serial,
+        model,
+        since,
+        last_test,
+        joints,
+    }
+}
+
+/// Fixed-width UTC text used for SQLite timestamps (text order = time order).
+pub(crate) fn ts_text(t: DateTime<Utc>) -> String {
+    t.format("%Y-%m-%dT%H:%M:%S%.6fZ").to_string()
+}
+
+pub(crate) fn parse_ts_text(s: &str) -> Result<DateTime<Utc>> {
+    DateTime::parse_from_rfc3339(s)
+        .map(|t| t.with_timezone(&Utc))
+        .map_err(|e| StoreError::Corrupt(format!("timestamp {s:?}: {e}")))
+}
+
+/// A lease length as a chrono duration (saturating).
+pub(crate) fn lease_delta(lease: Duration) -> chrono::TimeDelta {
+    chrono::TimeDelta::from_std(lease).unwrap_or(chrono::TimeDelta::MAX)
+}
+
+#[cfg(test)]
+mod unit {
+    use super::*;
+    use chrono::TimeZone;
+
+    fn t(h: u32) -> DateTime<Utc> {
+        Utc.with_ymd_and_hms(2026, 1, 1, h, 0, 0)
+            .single()
+            .expect("time")
+    }
+
+    #[test]
+    fn mount_decisions() {
+        use MountAction::*;
+        assert_eq!(mount_action("A", t(5), None, None), Insert);
+        assert_eq!(mount_action("A", t(5), Some(("A", t(1))), None), Keep);
+        assert_eq!(mount_action("B", t(5), Some(("A", t(1))), None), Insert);
+        assert_eq!(mount_action("B", t(1), Some(("A", t(1))), None), Keep);
+        assert_eq!(
+            mount_action("A", t(0), None, Some(("A", t(1)))),
+            MoveNext { since: t(1) }
+        );
+        assert_eq!(mount_action("B", t(0), None, Some(("A", t(1)))), Insert);
+        assert_eq!(
+            mount_action("B", t(3), Some(("A", t(1))), Some(("B", t(4)))),
+            MoveNext { since: t(4) }
+        );
+    }
+
+    #[test]
+    fn fit_from_contract_json() {
+        let v = serde_json::json!({
+            "trace_id": "x",
+            "joints": [
+                { "joint": "J1",
+                  "viscous": { "value": 0.036, "ci95": [0.031, 0.041] },
+                  "dry": { "value": 0.024, "ci95": [0.021, 0.027] },
+                  "identifiable": true, "status": "watch" },
+                { "joint": "J2", "identifiable": false, "status": "ok" }
+            ],
+            "rmse": { "value": 0.42, "unit": "deg" }
+        });
+        let f = NewFit::from_result(v).expect("fit");
+        assert_eq!(f.rmse, Some(0.42));
+        assert_eq!(f.status(), Some(Status::Watch));
+        assert_eq!(f.joints[0].viscous_hi, Some(0.041));
+        assert_eq!(f.joints[1].dry, None);
+        assert!(NewFit::from_result(serde_json::json!({})).is_err());
+        let bad = serde_json::json!({"joints": [{"joint": "J1", "status": "bad"}]});
+        assert!(NewFit::from_result(bad).is_err());
+    }
+
+    #[test]
+    fn timestamps_sort_as_text() {
+        let a = ts_text(t(1));
+        let b = ts_text(t(1) + chrono::TimeDelta::microseconds(1));
+        assert!(a < b);
+        assert_eq!(parse_ts_text(&a).expect("parse"), t(1));
+        assert_eq!(a, "2026-01-01T01:00:00.000000Z");
+    }
+}

@@ -1,0 +1,790 @@
+//! PostgreSQL backend: timestamps are `timestamptz` set by the server clock, fit results JSONB;
+//! the job queue claims with `FOR UPDATE SKIP LOCKED` so concurrent workers never wait or collide.
+
+use std::time::Duration;
+
+use chrono::{DateTime, Utc};
+use sqlx::migrate::{Migrate, Migrator};
+use sqlx::postgres::{PgConnection, PgPool, PgPoolOptions, PgRow};
+use sqlx::{Row, query, query_scalar};
+
+use super::*;
+
+static MIGRATOR: Migrator = sqlx::migrate!("../migrations/postgres");
+
+/// Current time, from the server clock (the same clock for every worker).
+macro_rules! now {
+    () => {
+        "now()"
+    };
+}
+
+/// Every joint point from each trace's current fit; `$extra` narrows the trace/joint set.
+macro_rules! points_cte {
+    ($extra:literal) => {
+        concat!(
+            "WITH cur AS (
+                SELECT f.id, f.trace_id, f.model_version, f.created_at
+                FROM fits f
+                WHERE f.id = (SELECT max(f2.id) FROM fits f2 WHERE f2.trace_id = f.trace_id)
+            ),
+            pts AS (
+                SELECT t.serial, t.vehicle_id, t.trace_id, t.recorded_at, cur.model_version,
+                       cur.id AS fit_id, cur.created_at AS fitted_at,
+                       j.joint, j.viscous, j.viscous_lo, j.viscous_hi, j.dry, j.dry_lo, j.dry_hi,
+                       j.identifiable, j.status,
+                       ROW_NUMBER() OVER (PARTITION BY t.serial, j.joint
+                                          ORDER BY t.recorded_at DESC, t.trace_id DESC) AS rn
+                FROM cur
+                JOIN traces t ON t.trace_id = cur.trace_id
+                JOIN fit_joints j ON j.fit_id = cur.id
+                WHERE t.serial IS NOT NULL ",
+            $extra,
+            ") "
+        )
+    };
+}
+
+/// The mount in effect now for each serial.
+macro_rules! current_mount {
+    () => {
+        "m.since = (SELECT max(m2.since) FROM pantograph_mounts m2 WHERE m2.serial = m.serial)"
+    };
+}
+
+/// Fleet rows with the filters `$1` (worst rank) and `$2` (current vehicle).
+macro_rules! fleet_cte {
+    () => {
+        concat!(
+            points_cte!(""),
+            ", latest AS (SELECT serial, joint, status FROM pts WHERE rn = 1),
+            agg AS (
+                SELECT serial,
+                       max(CASE status WHEN 'alarm' THEN 2 WHEN 'watch' THEN 1 ELSE 0 END)::bigint
+                           AS worst,
+                       string_agg(CASE WHEN status <> 'ok' THEN joint || ':' || status END,
+                                  chr(31)) AS not_ok
+                FROM latest GROUP BY serial
+            ),
+            mount AS (SELECT m.serial, m.vehicle_id FROM pantograph_mounts m WHERE ",
+            current_mount!(),
+            "),
+            lt AS (SELECT serial, max(recorded_at) AS last_test FROM traces
+                   WHERE serial IS NOT NULL GROUP BY serial),
+            fleet AS (
+                SELECT p.serial, p.model, mount.vehicle_id, agg.worst, agg.not_ok, lt.last_test
+                FROM pantographs p
+                LEFT JOIN mount ON mount.serial = p.serial
+                LEFT JOIN agg ON agg.serial = p.serial
+                LEFT JOIN lt ON lt.serial = p.serial
+                WHERE ($1::bigint IS NULL OR agg.worst = $1::bigint)
+                  AND ($2::text IS NULL OR mount.vehicle_id = $2::text)
+            ) "
+        )
+    };
+}
+
+macro_rules! job_cols {
+    () => {
+        " id, trace_id, model_version, state, attempts, lease_until, worker, last_error,
+          created_at, updated_at "
+    };
+}
+
+/// PostgreSQL implementation of the store.
+#[derive(Debug, Clone)]
+pub struct PgStore {
+    pool: PgPool,
+}
+
+impl PgStore {
+    /// Connects to the `postgres://` URL and migrates (concurrent migrators take a lock).
+    pub async fn connect(url: &str) -> Result<Self> {
+        let pool = PgPoolOptions::new()
+            .max_connections(10)
+            .acquire_timeout(Duration::from_secs(10))
+            .connect(url)
+            .await?;
+        MIGRATOR.run(&pool).await?;
+        Ok(PgStore { pool })
+    }
+
+    /// The underlying pool.
+    pub fn pool(&self) -> &PgPool {
+        &self.pool
+    }
+
+    async fn begin(&self) -> Result<sqlx::Transaction<'static, sqlx::Postgres>> {
+        Ok(self.pool.begin().await?)
+    }
+}
+
+impl RowExt for PgRow {
+    fn text(&self, c: &str) -> Result<String> {
+        Ok(self.try_get(c)?)
+    }
+    fn opt_text(&self, c: &str) -> Result<Option<String>> {
+        Ok(self.try_get(c)?)
+    }
+    fn int(&self, c: &str) -> Result<i64> {
+        Ok(self.try_get(c)?)
+    }
+    fn opt_int(&self, c: &str) -> Result<Option<i64>> {
+        Ok(self.try_get(c)?)
+    }
+    fn opt_real(&self, c: &str) -> Result<Option<f64>> {
+        Ok(self.try_get(c)?)
+    }
+    fn flag(&self, c: &str) -> Result<bool> {
+        Ok(self.try_get(c)?)
+    }
+    fn ts(&self, c: &str) -> Result<DateTime<Utc>> {
+        Ok(self.try_get(c)?)
+    }
+    fn opt_ts(&self, c: &str) -> Result<Option<DateTime<Utc>>> {
+        Ok(self.try_get(c)?)
+    }
+}
+
+fn mount_row(r: Option<PgRow>) -> Result<Option<(String, DateTime<Utc>)>> {
+    r.map(|r| Ok((r.text("vehicle_id")?, r.ts("since")?)))
+        .transpose()
+}
+
+/// Writes the fit for (trace, model version) once, inside the caller's transaction.
+async fn insert_fit_tx(
+    conn: &mut PgConnection,
+    trace_id: &str,
+    model_version: &str,
+    fit: &NewFit,
+) -> Result<FitWrite> {
+    let result = serde_json::to_string(&fit.result)
+        .map_err(|e| StoreError::Invalid(format!("fit result: {e}")))?;
+    let id: Option<i64> = query_scalar(
+        "INSERT INTO fits (trace_id, model_version, result_json, rmse, status)
+         VALUES ($1, $2, $3::jsonb, $4, $5)
+         ON CONFLICT (trace_id, model_version) DO NOTHING
+         RETURNING id",
+    )
+    .bind(trace_id)
+    .bind(model_version)
+    .bind(result)
+    .bind(fit.rmse)
+    .bind(fit.status().map(Status::as_str))
+    .fetch_optional(&mut *conn)
+    .await?;
+    let Some(fit_id) = id else {
+        let fit_id: i64 =
+            query_scalar("SELECT id FROM fits WHERE trace_id = $1 AND model_version = $2")
+                .bind(trace_id)
+                .bind(model_version)
+                .fetch_one(&mut *conn)
+                .await?;
+        return Ok(FitWrite {
+            fit_id,
+            created: false,
+        });
+    };
+    for j in &fit.joints {
+        query(
+            "INSERT INTO fit_joints (fit_id, joint, viscous, viscous_lo, viscous_hi,
+                                     dry, dry_lo, dry_hi, identifiable, status)
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
+        )
+        .bind(fit_id)
+        .bind(&j.joint)
+        .bind(j.viscous)
+        .bind(j.viscous_lo)
+        .bind(j.viscous_hi)
+        .bind(j.dry)
+        .bind(j.dry_lo)
+        .bind(j.dry_hi)
+        .bind(j.identifiable)
+        .bind(j.status.as_str())
+        .execute(&mut *conn)
+        .await?;
+    }
+    Ok(FitWrite {
+        fit_id,
+        created: true,
+    })
+}
+
+impl Backend for PgStore {
+    async fn ping(&self) -> Result<()> {
+        query("SELECT 1").execute(&self.pool).await?;
+        Ok(())
+    }
+
+    async fn migrations_applied(&self) -> Result<bool> {
+        let mut conn = self.pool.acquire().await?;
+        let table = &MIGRATOR.table_name;
+        if conn.dirty_version(table).await?.is_some() {
+            return Ok(false);
+        }
+        let applied = conn.list_applied_migrations(table).await?;
+        Ok(MIGRATOR
+            .iter()
+            .filter(|m| m.migration_type.is_up_migration())
+            .all(|m| {
+                applied
+                    .iter()
+                    .any(|a| a.version == m.version && a.checksum == m.checksum)
+            }))
+    }
+
+    async fn insert_trace(&self, t: PreparedTrace) -> Result<InsertOutcome> {
+        let mut tx = self.begin().await?;
+        let existing: Option<String> =
+            query_scalar("SELECT content_sha256 FROM traces WHERE trace_id = $1")
+                .bind(&t.trace_id)
+                .fetch_optional(&mut *tx)
+                .await?;
+        if let Some(sha) = existing {
+            tx.rollback().await?;
+            return Ok(if sha == t.content_sha256 {
+                InsertOutcome::Existing {
+                    trace_id: t.trace_id,
+                }
+            } else {
+                InsertOutcome::Conflict {
+                    trace_id: t.trace_id,
+                }
+            });
+        }
+        query("INSERT INTO vehicles (id) VALUES ($1) ON CONFLICT (id) DO NOTHING")
+            .bind(&t.vehicle_id)
+            .execute(&mut *tx)
+            .await?;
+        let recorded = t.recorded_at;
+        if let Some(serial) = &t.serial {
+            query("INSERT INTO pantographs (serial, model) VALUES ($1, $2) ON CONFLICT (serial) DO NOTHING")
+                .bind(serial)
+                .bind(&t.model)
+                .execute(&mut *tx)
+                .await?;
+            // Serialise uploads of the same pantograph while its mount history is decided.
+            query("SELECT serial FROM pantographs WHERE serial = $1 FOR UPDATE")
+                .bind(serial)
+                .execute(&mut *tx)
+                .await?;
+            let in_effect = mount_row(
+                query(
+                    "SELECT vehicle_id, since FROM pantograph_mounts
+                     WHERE serial = $1 AND since <= $2 ORDER BY since DESC LIMIT 1",
+                )
+                .bind(serial)
+                .bind(recorded)
+                .fetch_optional(&mut *tx)
+                .await?,
+            )?;
+            let next = mount_row(
+                query(
+                    "SELECT vehicle_id, since FROM pantograph_mounts
+                     WHERE serial = $1 AND since > $2 ORDER BY since ASC LIMIT 1",
+                )
+                .bind(serial)
+                .bind(recorded)
+                .fetch_optional(&mut *tx)
+                .await?,
+            )?;
+            let action = mount_action(
+                &t.vehicle_id,
+                t.recorded_at,
+                in_effect.as_ref().map(|(v, s)| (v.as_str(), *s)),
+                next.as_ref().map(|(v, s)| (v.as_str(), *s)),
+            );
+            match action {
+                MountAction::Keep => {}
+                MountAction::Insert => {
+                    query(
+                        "INSERT INTO pantograph_mounts (serial, vehicle_id, since) VALUES ($1, $2, $3)",
+                    )
+                    .bind(serial)
+                    .bind(&t.vehicle_id)
+                    .bind(recorded)
+                    .execute(&mut *tx)
+                    .await?;
+                }
+                MountAction::MoveNext { since } => {
+                    query(
+                        "UPDATE pantograph_mounts SET since = $1 WHERE serial = $2 AND since = $3",
+                    )
+                    .bind(recorded)
+                    .bind(serial)
+                    .bind(since)
+                    .execute(&mut *tx)
+                    .await?;
+                }
+            }
+        }
+        let inserted = query(
+            "INSERT INTO traces (trace_id, vehicle_id, serial, model, recorded_at, kind, joint,
+                                 test_json, content_sha256, samples, sample_count, channel_names)
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)
+             ON CONFLICT (trace_id) DO NOTHING",
+        )
+        .bind(&t.trace_id)
+        .bind(&t.vehicle_id)
+        .bind(&t.serial)
+        .bind(&t.model)
+        .bind(recorded)
+        .bind(&t.kind)
+        .bind(&t.joint)
+        .bind(&t.test_json)
+        .bind(&t.content_sha256)
+        .bind(&t.samples)
+        .bind(t.sample_count)
+        .bind(&t.channel_names)
+        .execute(&mut *tx)
+        .await?
+        .rows_affected();
+        if inserted == 0 {
+            // A concurrent upload of the same id committed first: answer as if it were earlier.
+            tx.rollback().await?;
+            let sha: String = query_scalar("SELECT content_sha256 FROM traces WHERE trace_id = $1")
+                .bind(&t.trace_id)
+                .fetch_one(&self.pool)
+                .await?;
+            return Ok(if sha == t.content_sha256 {
+                InsertOutcome::Existing {
+                    trace_id: t.trace_id,
+                }
+            } else {
+                InsertOutcome::Conflict {
+                    trace_id: t.trace_id,
+                }
+            });
+        }
+        let job_id: Option<i64> = query_scalar(
+            "INSERT INTO jobs (trace_id, model_version) VALUES ($1, $2)
+             ON CONFLICT DO NOTHING RETURNING id",
+        )
+        .bind(&t.trace_id)
+        .bind(&t.model_version)
+        .fetch_optional(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(InsertOutcome::Created {
+            trace_id: t.trace_id,
+            job_id,
+        })
+    }
+
+    async fn get_trace(&self, id: &str) -> Result<Option<TraceMeta>> {
+        query(
+            "SELECT trace_id, vehicle_id, serial, model, recorded_at, kind, joint, test_json,
+                    content_sha256, sample_count, channel_names,
+                    octet_length(samples)::bigint AS samples_bytes, created_at
+             FROM traces WHERE trace_id = $1",
+        )
+        .bind(id)
+        .fetch_optional(&self.pool)
+        .await?
+        .map(|r| trace_from(&r))
+        .transpose()
+    }
+
+    async fn samples_blob(&self, id: &str) -> Result<Option<Vec<u8>>> {
+        Ok(
+            query_scalar("SELECT samples FROM traces WHERE trace_id = $1")
+                .bind(id)
+                .fetch_optional(&self.pool)
+                .await?,
+        )
+    }
+
+    async fn insert_fit(
+        &self,
+        trace_id: &str,
+        model_version: &str,
+        fit: &NewFit,
+    ) -> Result<FitWrite> {
+        let mut tx = self.begin().await?;
+        let w = insert_fit_tx(&mut tx, trace_id, model_version, fit).await?;
+        tx.commit().await?;
+        Ok(w)
+    }
+
+    async fn get_fit(&self, trace_id: &str) -> Result<Option<FitRecord>> {
+        let Some(row) = query(
+            "SELECT id, trace_id, model_version, created_at, result_json::text AS result_json,
+                    rmse, status
+             FROM fits WHERE trace_id = $1 ORDER BY id DESC LIMIT 1",
+        )
+        .bind(trace_id)
+        .fetch_optional(&self.pool)
+        .await?
+        else {
+            return Ok(None);
+        };
+        let joints = query(
+            "SELECT joint, viscous, viscous_lo, viscous_hi, dry, dry_lo, dry_hi, identifiable, status
+             FROM fit_joints WHERE fit_id = $1 ORDER BY joint",
+        )
+        .bind(row.int("id")?)
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(joint_fit_from)
+        .collect::<Result<Vec<_>>>()?;
+        fit_from(&row, joints).map(Some)
+    }
+
+    async fn list_vehicles(&self) -> Result<Vec<VehicleSummary>> {
+        query(concat!(
+            "SELECT v.id, v.created_at,
+                    (SELECT count(*) FROM pantograph_mounts m
+                     WHERE m.vehicle_id = v.id AND ",
+            current_mount!(),
+            ") AS pantographs,
+                    (SELECT count(*) FROM traces t WHERE t.vehicle_id = v.id) AS traces,
+                    (SELECT max(t.recorded_at) FROM traces t WHERE t.vehicle_id = v.id) AS last_test
+             FROM vehicles v ORDER BY v.id"
+        ))
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(vehicle_from)
+        .collect()
+    }
+
+    async fn get_vehicle(&self, id: &str) -> Result<Option<VehicleDetail>> {
+        let Some(v) = query("SELECT id, created_at FROM vehicles WHERE id = $1")
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?
+        else {
+            return Ok(None);
+        };
+        let mounted = query(concat!(
+            "SELECT p.serial, p.model, m.since,
+                    (SELECT max(t.recorded_at) FROM traces t WHERE t.serial = p.serial) AS last_test
+             FROM pantograph_mounts m JOIN pantographs p ON p.serial = m.serial
+             WHERE m.vehicle_id = $1 AND ",
+            current_mount!(),
+            " ORDER BY p.serial"
+        ))
+        .bind(id)
+        .fetch_all(&self.pool)
+        .await?;
+        let mut points = query(concat!(
+            points_cte!(
+                "AND t.serial IN (SELECT m.serial FROM pantograph_mounts m
+                                  WHERE m.vehicle_id = $1 AND
+                                  m.since = (SELECT max(m2.since) FROM pantograph_mounts m2
+                                             WHERE m2.serial = m.serial))"
+            ),
+            "SELECT * FROM pts WHERE rn = 1 ORDER BY serial, joint"
+        ))
+        .bind(id)
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(|r| Ok((r.text("serial")?, joint_point_from(r)?)))
+        .collect::<Result<Vec<_>>>()?;
+        let mut pantographs = Vec::with_capacity(mounted.len());
+        for m in &mounted {
+            let serial = m.text("serial")?;
+            let joints = points
+                .extract_if(.., |(s, _)| *s == serial)
+                .map(|(_, p)| p)
+                .collect();
+            pantographs.push(pantograph_state(
+                serial,
+                m.text("model")?,
+                m.ts("since")?,
+                m.opt_ts("last_test")?,
+                joints,
+            ));
+        }
+        Ok(Some(VehicleDetail {
+            vehicle_id: v.text("id")?,
+            created_at: v.ts("created_at")?,
+            pantographs,
+        }))
+    }
+
+    async fn joint_history(&self, serial: &str, joint: &str) -> Result<Vec<JointPoint>> {
+        query(concat!(
+            points_cte!("AND t.serial = $1 AND j.joint = $2"),
+            "SELECT * FROM pts ORDER BY recorded_at, trace_id"
+        ))
+        .bind(serial)
+        .bind(joint)
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(joint_point_from)
+        .collect()
+    }
+
+    async fn fleet_health(&self, filter: &FleetFilter, page: Page) -> Result<FleetPage> {
+        let rank = filter.status.map(Status::rank);
+        let total: i64 = query_scalar(concat!(fleet_cte!(), "SELECT count(*) FROM fleet"))
+            .bind(rank)
+            .bind(&filter.vehicle_id)
+            .fetch_one(&self.pool)
+            .await?;
+        let rows = query(concat!(
+            fleet_cte!(),
+            "SELECT * FROM fleet ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4"
+        ))
+        .bind(rank)
+        .bind(&filter.vehicle_id)
+        .bind(i64::from(page.limit))
+        .bind(i64::try_from(page.offset).unwrap_or(i64::MAX))
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(fleet_row_from)
+        .collect::<Result<Vec<_>>>()?;
+        Ok(FleetPage {
+            total: u64::try_from(total).unwrap_or(0),
+            rows,
+        })
+    }
+
+    async fn enqueue(&self, trace_id: &str, model_version: &str) -> Result<Option<i64>> {
+        let mut tx = self.begin().await?;
+        let id: Option<i64> = query_scalar(
+            "INSERT INTO jobs (trace_id, model_version)
+             SELECT $1::text, $2::text WHERE NOT EXISTS
+                (SELECT 1 FROM fits WHERE trace_id = $1 AND model_version = $2)
+             ON CONFLICT DO NOTHING RETURNING id",
+        )
+        .bind(trace_id)
+        .bind(model_version)
+        .fetch_optional(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(id)
+    }
+
+    async fn claim(&self, worker: &str, lease: Duration) -> Result<Option<Job>> {
+        let mut tx = self.begin().await?;
+        query(
+            "UPDATE jobs SET state = 'failed', lease_until = NULL, updated_at = now(),
+                             last_error = 'lease expired ' || attempts || ' times (worker died?)'
+             WHERE id IN (SELECT id FROM jobs
+                          WHERE state = 'running' AND lease_until < now() AND attempts >= $1
+                          FOR UPDATE SKIP LOCKED)",
+        )
+        .bind(MAX_ATTEMPTS)
+        .execute(&mut *tx)
+        .await?;
+        let row = query(concat!(
+            "UPDATE jobs SET state = 'running', attempts = attempts + 1, worker = $1,
+                             lease_until = now() + make_interval(secs => $2), updated_at = now()
+             WHERE id = (SELECT id FROM jobs
+                         WHERE state = 'queued'
+                            OR (state = 'running' AND lease_until < now() AND attempts < $3)
+                         ORDER BY id LIMIT 1
+                         FOR UPDATE SKIP LOCKED)
+             RETURNING",
+            job_cols!()
+        ))
+        .bind(worker)
+        .bind(lease.as_secs_f64())
+        .bind(MAX_ATTEMPTS)
+        .fetch_optional(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        row.map(|r| job_from(&r)).transpose()
+    }
+
+    async fn complete(&self, job_id: i64, worker: &str, fit: &NewFit) -> Result<CompleteOutcome> {
+        let mut tx = self.begin().await?;
+        let Some(job) = query(
+            "SELECT trace_id, model_version FROM jobs
+             WHERE id = $1 AND state = 'running' AND worker = $2
+             FOR UPDATE",
+        )
+        .bind(job_id)
+        .bind(worker)
+        .fetch_optional(&mut *tx)
+        .await?
+        else {
+            tx.rollback().await?;
+            return Ok(CompleteOutcome::LeaseLost);
+        };
+        let w = insert_fit_tx(
+            &mut tx,
+            &job.text("trace_id")?,
+            &job.text("model_version")?,
+            fit,
+        )
+        .await?;
+        query(concat!(
+            "UPDATE jobs SET state = 'done', lease_until = NULL, last_error = NULL, updated_at = ",
+            now!(),
+            " WHERE id = $1"
+        ))
+        .bind(job_id)
+        .execute(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(CompleteOutcome::Completed(w))
+    }
+
+    async fn fail(
+        &self,
+        job_id: i64,
+        worker: &str,
+        error: &str,
+        retry: bool,
+    ) -> Result<FailOutcome> {
+        let mut tx = self.begin().await?;
+        let Some(attempts): Option<i64> = query_scalar(
+            "SELECT attempts FROM jobs WHERE id = $1 AND state = 'running' AND worker = $2
+             FOR UPDATE",
+        )
+        .bind(job_id)
+        .bind(worker)
+        .fetch_optional(&mut *tx)
+        .await?
+        else {
+            tx.rollback().await?;
+            return Ok(FailOutcome::LeaseLost);
+        };
+        let outcome = if retry && attempts < MAX_ATTEMPTS {
+            FailOutcome::Requeued
+        } else {
+            FailOutcome::Failed
+        };
+        let state = match outcome {
+            FailOutcome::Requeued => JobState::Queued,
+            _ => JobState::Failed,
+        };
+        query(concat!(
+            "UPDATE jobs SET state = $2, lease_until = NULL, last_error = $3, updated_at = ",
+            now!(),
+            " WHERE id = $1"
+        ))
+        .bind(job_id)
+        .bind(state.as_str())
+        .bind(error)
+        .execute(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(outcome)
+    }
+
+    async fn requeue(&self, vehicle_id: Option<&str>, model_version: &str) -> Result<u64> {
+        let mut tx = self.begin().await?;
+        let n = query(
+            "INSERT INTO jobs (trace_id, model_version)
+             SELECT t.trace_id, $1 FROM traces t
+             WHERE ($2::text IS NULL OR t.vehicle_id = $2::text)
+               AND NOT EXISTS (SELECT 1 FROM fits f
+                               WHERE f.trace_id = t.trace_id AND f.model_version = $1)
+             ORDER BY t.recorded_at, t.trace_id
+             ON CONFLICT DO NOTHING",
+        )
+        .bind(model_version)
+        .bind(vehicle_id)
+        .execute(&mut *tx)
+        .await?
+        .rows_affected();
+        tx.commit().await?;
+        Ok(n)
+    }
+
+    async fn get_job(&self, id: i64) -> Result<Option<Job>> {
+        query(concat!("SELECT", job_cols!(), "FROM jobs WHERE id = $1"))
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?
+            .map(|r| job_from(&r))
+            .transpose()
+    }
+
+    async fn latest_job(&self, trace_id: &str) -> Result<Option<Job>> {
+        query(concat!(
+            "SELECT",
+            job_cols!(),
+            "FROM jobs WHERE trace_id = $1 ORDER BY id DESC LIMIT 1"
+        ))
+        .bind(trace_id)
+        .fetch_optional(&self.pool)
+        .await?
+        .map(|r| job_from(&r))
+        .transpose()
+    }
+
+    async fn job_counts(&self) -> Result<JobCounts> {
+        let mut c = JobCounts::default();
+        for r in query("SELECT state, count(*) AS n FROM jobs GROUP BY state")
+            .fetch_all(&self.pool)
+            .await?
+        {
+            let n = r.int("n")?;
+            match parse_enum::<JobState>(&r.text("state")?)? {
+                JobState::Queued => c.queued = n,
+                JobState::Running => c.running = n,
+                JobState::Done => c.done = n,
+                JobState::Failed => c.failed = n,
+            }
+        }
+        Ok(c)
+    }
+
+    async fn insert_api_key(
+        &self,
+        prefix: &str,
+        hash: &str,
+        role: Role,
+        label: &str,
+    ) -> Result<ApiKey> {
+        let r = query(
+            "INSERT INTO api_keys (prefix, key_sha256, role, label) VALUES ($1, $2, $3, $4)
+             RETURNING id, prefix, role, label, created_at, revoked_at",
+        )
+        .bind(prefix)
+        .bind(hash)
+        .bind(role.as_str())
+        .bind(label)
+        .fetch_one(&self.pool)
+        .await?;
+        api_key_from(&r)
+    }
+
+    async fn keys_by_prefix(&self, prefix: &str) -> Result<Vec<(ApiKey, String)>> {
+        query(
+            "SELECT id, prefix, role, label, created_at, revoked_at, key_sha256 FROM api_keys
+             WHERE prefix = $1 AND revoked_at IS NULL",
+        )
+        .bind(prefix)
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(|r| Ok((api_key_from(r)?, r.text("key_sha256")?)))
+        .collect()
+    }
+
+    async fn revoke_api_key(&self, id: i64) -> Result<bool> {
+        let n = query(concat!(
+            "UPDATE api_keys SET revoked_at = ",
+            now!(),
+            " WHERE id = $1 AND revoked_at IS NULL"
+        ))
+        .bind(id)
+        .execute(&self.pool)
+        .await?
+        .rows_affected();
+        Ok(n > 0)
+    }
+
+    async fn list_api_keys(&self) -> Result<Vec<ApiKey>> {
+        query("SELECT id, prefix, role, label, created_at, revoked_at FROM api_keys ORDER BY id")
+            .fetch_all(&self.pool)
+            .await?
+            .iter()
+            .map(api_key_from)
+            .collect()
+    }
+
+    async fn close(&self) {
+        self.pool.close().await;
+    }
+}
