@@ -4,7 +4,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::dynamics::Dof;
-use crate::signal::{half_window, local_cubic};
+use crate::signal::{half_window, local_cubic, local_cubic_at};
 
 /// Starting values for the output-error fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -43,10 +43,11 @@ pub fn inverse_dynamics(
     let stride = (n / 800).max(1);
     let mut rows: Vec<([f64; 3], f64)> = Vec::with_capacity(n / stride + 1);
     let mut vmax: f64 = 0.0;
-    let pts: Vec<(f64, f64, f64, f64)> = (half..n.saturating_sub(half))
-        .step_by(stride)
-        .map(|i| {
-            let (q, v, a) = local_cubic(t, y, i, half);
+    let idx: Vec<usize> = (half..n.saturating_sub(half)).step_by(stride).collect();
+    let pts: Vec<(f64, f64, f64, f64)> = local_cubic_at(t, y, &idx, half)
+        .into_iter()
+        .zip(&idx)
+        .map(|((q, v, a), &i)| {
             vmax = vmax.max((v / scale).abs());
             (t[i], q / scale, v / scale, a / scale)
         })

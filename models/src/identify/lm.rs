@@ -30,6 +30,8 @@ pub enum Termination {
     StepConverged,
     /// Scaled gradient below `gtol` (a stationary point, possibly on a bound).
     GradientConverged,
+    /// The Gauss–Newton step would move the parameters by less than `dtol` standard errors.
+    DecrementConverged,
     /// The damping grew without finding a better point.
     NoProgress,
     MaxIterations,
@@ -54,6 +56,10 @@ pub struct LmOptions {
     pub ftol: f64,
     pub xtol: f64,
     pub gtol: f64,
+    /// Stop when an undamped step's predicted reduction is at most dtol²·cost/m: with the
+    /// residual variance s² ≈ 2·cost/m, that step moves the parameters by at most dtol standard
+    /// errors (in the norm of JᵀJ/s²). 0 disables the test.
+    pub dtol: f64,
 }
 
 impl Default for LmOptions {
@@ -63,6 +69,7 @@ impl Default for LmOptions {
             ftol: 1e-10,
             xtol: 1e-10,
             gtol: 1e-10,
+            dtol: 0.0,
         }
     }
 }
@@ -174,6 +181,14 @@ pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport
             let step_v = DVector::from_column_slice(&step);
             // Predicted reduction of the quadratic model for the projected step.
             let pred = -(step_v.dot(&g) + 0.5 * step_v.dot(&(&a * &step_v)));
+            if opts.dtol > 0.0
+                && lambda <= 1e-4
+                && pred >= 0.0
+                && pred <= opts.dtol * opts.dtol * cost / m as f64
+            {
+                termination = Termination::DecrementConverged;
+                break 'outer;
+            }
             evaluations += 1;
             let ok = p.eval(&x_try, &mut r_try, &mut jac_try).is_ok();
             let cost_try = if ok {
@@ -286,6 +301,7 @@ mod tests {
                 ftol: 1e-15,
                 xtol: 1e-15,
                 gtol: 1e-15,
+                dtol: 0.0,
                 max_iter: 500,
             },
         );

@@ -3,7 +3,7 @@
 //! A workshop pendulum is often held by hand while the logger already records: the first
 //! samples are not free motion. Free motion starts at the release, near a turning point.
 
-use crate::signal::{half_window, local_cubic};
+use crate::signal::{half_window, local_cubic, local_cubic_at};
 
 /// Index of the first sample of free motion.
 ///
@@ -20,7 +20,10 @@ pub fn detect_release(t: &[f64], y: &[f64]) -> usize {
     let half = half_window(t, 0.02);
     let stride = (half / 2).max(1);
     let idx: Vec<usize> = (0..n).step_by(stride).collect();
-    let rate: Vec<f64> = idx.iter().map(|&i| local_cubic(t, y, i, half).1).collect();
+    let rate: Vec<f64> = local_cubic_at(t, y, &idx, half)
+        .into_iter()
+        .map(|d| d.1)
+        .collect();
     let peak = rate.iter().fold(0.0f64, |m, r| m.max(r.abs()));
     if peak == 0.0 || rate[0].abs() < 0.05 * peak {
         return 0;

@@ -1,0 +1,119 @@
+//! The `pantowatch` binary as a user runs it: `simulate` writes a trace, `fit --json` returns
+//! the contract's fit result with the truth recovered, `--plot` writes an SVG, bad input names
+//! its field and exits non-zero.
+
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pantowatch"))
+}
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("pantowatch-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+#[test]
+fn simulate_then_fit_json_recovers_the_truth_in_contract_form() {
+    let trace = tmp("j3.json");
+    let st = bin()
+        .args([
+            "simulate",
+            "--kind",
+            "pendulum",
+            "--joint",
+            "J3",
+            "--viscous",
+            "0.03",
+            "--dry",
+            "0.36",
+            "--duration",
+            "20",
+            "--seed",
+            "11",
+            "--trace-id",
+            "cli-j3",
+        ])
+        .arg("-o")
+        .arg(&trace)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let svg = tmp("fit.svg");
+    let out = bin()
+        .arg("fit")
+        .arg(&trace)
+        .arg("--json")
+        .arg("--plot")
+        .arg(&svg)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // The contract's keys, exactly.
+    assert_eq!(v["trace_id"], "cli-j3");
+    let j = &v["joints"][0];
+    assert_eq!(j["joint"], "J3");
+    for (p, truth, tol) in [("viscous", 0.03, 0.15), ("dry", 0.36, 0.05)] {
+        let x = &j[p];
+        let value = x["value"].as_f64().unwrap();
+        let ci: Vec<f64> = x["ci95"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_f64().unwrap())
+            .collect();
+        assert!((value / truth - 1.0).abs() < tol, "{p}: {value} vs {truth}");
+        assert!(
+            ci[0] <= truth && truth <= ci[1],
+            "{p}: {truth} outside {ci:?}"
+        );
+        assert!(x["baseline"].is_f64() && x["unit"].is_string());
+    }
+    assert_eq!(j["dry"]["baseline"], 0.2);
+    assert_eq!(
+        j["status"], "watch",
+        "dry 1.8× Table 4 with a tight interval"
+    );
+    assert!(j["identifiable"].as_bool().unwrap());
+    assert_eq!(v["rmse"]["unit"], "deg");
+    assert!(v["rmse"]["value"].as_f64().unwrap() < 0.06);
+    for k in [
+        "rmse_before",
+        "rmse_after",
+        "holdout_rmse_before",
+        "holdout_rmse_after",
+    ] {
+        assert!(v["residual"][k].is_f64(), "{k}");
+    }
+    assert!(
+        v["residual"]["effects"].as_array().unwrap().is_empty(),
+        "{}",
+        v["residual"]
+    );
+    let svg = std::fs::read_to_string(&svg).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("residual"));
+}
+
+#[test]
+fn a_broken_document_is_refused_naming_the_field() {
+    let bad = tmp("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"format":"pantograph-trace/1","vehicle_id":"V","pantograph":{"model":"160EC"},"recorded_at":"2026-01-01T00:00:00Z",
+           "test":{"kind":"pendulum","joint":"J1"},"channels":{"t_s":[0,1,1],"alpha_deg":[1,2,3]}}"#,
+    )
+    .unwrap();
+    let out = bin().arg("fit").arg(&bad).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("channels.t_s[2]") && err.contains("strictly increasing"),
+        "{err}"
+    );
+}
