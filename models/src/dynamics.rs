@@ -156,7 +156,7 @@ impl Dof {
         match self.mech {
             Mechanism::Slider(r) => {
                 // Fn is constant: the equation is linear in a.
-                let fr = law.eval(v, s, r.normal_force_n, lever);
+                let fr = law.eval(q, v, s, r.normal_force_n, lever);
                 let a = (g - fr.value) / m_gen;
                 Ok(Accel {
                     a,
@@ -179,7 +179,7 @@ impl Dof {
                 let (sq, cq) = q.sin_cos();
                 let (md, mg) = (m * d, m * gr);
                 let (p, y) = (mg * sq, md * v * v + mg * cq);
-                let fr0 = law.eval(v, s, 0.0, lever);
+                let fr0 = law.eval(q, v, s, 0.0, lever);
                 let k = fr0.d_normal;
                 let c = fr0.value - g;
                 let den = m_gen * m_gen - k * k * md * md;
@@ -190,7 +190,7 @@ impl Dof {
                 let a = (-(m_gen * c - k * k * md * p) - k * sroot) / den;
                 let x = md * a + p;
                 let n = (x * x + y * y).sqrt();
-                let fr = law.eval(v, s, n, lever);
+                let fr = law.eval(q, v, s, n, lever);
                 let (n_q, n_v, n_a) = if n > 0.0 {
                     (
                         (x * mg * cq - y * mg * sq) / n,
@@ -224,15 +224,16 @@ impl Dof {
         law: &FrictionLaw,
         acc: &Accel,
         p: DynParam,
+        q: f64,
         v: f64,
         s: f64,
     ) -> f64 {
-        -law.d_param(p, v, s, acc.normal, self.lever()) / acc.f_a
+        -law.d_param(p, q, v, s, acc.normal, self.lever()) / acc.f_a
     }
 
     /// The static friction capacity at rest at q: lever · N_rest · μs.
     pub fn static_capacity(&self, law: &FrictionLaw, q: f64) -> f64 {
-        self.lever() * self.normal_at_rest(q) * law.static_mu()
+        self.lever() * self.normal_at_rest(q) * law.static_mu(q)
     }
 
     /// A time scale of the motion for step-size limits: the small-amplitude period, or
@@ -302,7 +303,7 @@ mod tests {
             let fd = (d.accel(&lp, q, v, s, 0.0).unwrap().a
                 - d.accel(&lm, q, v, s, 0.0).unwrap().a)
                 / (2.0 * h);
-            let an = d.accel_d_param(&law, &acc, p, v, s);
+            let an = d.accel_d_param(&law, &acc, p, q, v, s);
             assert!((fd - an).abs() < 1e-6, "{p:?}: {fd} vs {an}");
         }
     }

@@ -43,7 +43,10 @@ use report::FitResult;
 use testspec::Baseline;
 
 /// Identify a single-joint test end to end: release, first estimate, base fit with intervals,
-/// drift status against `baseline`, and the residual block.
+/// the residual loop (effects held out and judged), drift status against `baseline`.
+///
+/// When the residual loop accepts an effect, the joint's parameters are those of the model with
+/// the effect (the base model's would be biased by what it lacks); otherwise the base model's.
 pub fn fit_joint_test(
     test: &JointTest,
     baseline: &Baseline,
@@ -51,21 +54,35 @@ pub fn fit_joint_test(
     trace_id: &str,
     opts: &FitOptions,
 ) -> Result<(FitResult, FitOutcome), FitError> {
+    let (result, fit, _) = fit_joint_test_with_finding(test, baseline, thresholds, trace_id, opts)?;
+    Ok((result, fit))
+}
+
+/// As [`fit_joint_test`], also returning the residual loop's full finding (candidates tried,
+/// diagnosis, split fits) for reports.
+pub fn fit_joint_test_with_finding(
+    test: &JointTest,
+    baseline: &Baseline,
+    thresholds: &DriftThresholds,
+    trace_id: &str,
+    opts: &FitOptions,
+) -> Result<(FitResult, FitOutcome, residual::Finding), FitError> {
     let full = identify::fit_base(test, opts)?;
-    let residual = residual::base_residual(test, &full, opts)?;
+    let finding = residual::analyse(test, &full, opts)?;
+    let reported = finding.augmented.clone().unwrap_or(full);
     let units = match test.dof.mech {
         dynamics::Mechanism::Pendulum(_) => ("rad", "rad/s"),
         dynamics::Mechanism::Slider(_) => ("m", "m/s"),
     };
     let result = FitResult {
         trace_id: trace_id.to_string(),
-        joints: vec![report::joint_result(&full, baseline, thresholds)],
+        joints: vec![report::joint_result(&reported, baseline, thresholds)],
         rmse: report::Quantity {
-            value: full.rmse,
+            value: reported.rmse,
             unit: test.unit.to_string(),
         },
-        residual,
-        fit: report::details(&full, test.t_s[full.start], units, test.unit),
+        residual: finding.residual.clone(),
+        fit: report::details(&reported, test.t_s[reported.start], units, test.unit),
     };
-    Ok((result, full))
+    Ok((result, reported, finding))
 }

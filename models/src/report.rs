@@ -52,6 +52,9 @@ pub struct ResidualResult {
     /// `unexplained` when structure remains that no candidate explains; otherwise absent.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub verdict: Option<String>,
+    /// With `unexplained`: the signals the residual correlates with most (name, correlation).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub correlates_with: Vec<(String, f64)>,
 }
 
 /// How the fit was made: the release, the fitted start and sensor zero, the optimiser's end.

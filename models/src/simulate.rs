@@ -115,7 +115,7 @@ impl OdeSystem for Segment<'_> {
         for (j, p) in self.sens.iter().enumerate() {
             let (sq, sv) = (y[2 + j], y[2 + ns + j]);
             let a_p = match p {
-                SensParam::Dyn(dp) => self.dof.accel_d_param(self.law, &acc, *dp, v, self.s),
+                SensParam::Dyn(dp) => self.dof.accel_d_param(self.law, &acc, *dp, q, v, self.s),
                 _ => 0.0,
             };
             dy[2 + j] = sv;
@@ -239,7 +239,7 @@ pub fn simulate(
                 for (j, p) in opts.sens.iter().enumerate() {
                     let h_p = match p {
                         SensParam::Dyn(dp) => {
-                            -dof.lever() * dof.normal_at_rest(y[0]) * law.d_static_mu(*dp)
+                            -dof.lever() * dof.normal_at_rest(y[0]) * law.d_static_mu(*dp, y[0])
                         }
                         _ => 0.0,
                     };

@@ -8,6 +8,7 @@
 pub mod covariance;
 pub mod initial;
 pub mod lm;
+pub mod readout;
 pub mod release;
 
 use nalgebra::DMatrix;
@@ -19,6 +20,7 @@ use crate::simulate::{SensParam, SimError, SimOptions, Trajectory, simulate};
 pub use covariance::Covariance;
 pub use initial::InitialEstimate;
 pub use lm::{LmOptions, Termination};
+pub use readout::Readout;
 
 /// The measured signal of a single-joint test.
 #[derive(Debug, Clone)]
@@ -45,6 +47,10 @@ pub enum Param {
     V0,
     /// Sensor zero, channel units.
     Offset,
+    /// Sensor delay τ, s.
+    Delay,
+    /// Backlash half-width b, model units (rad or m).
+    Backlash,
 }
 
 /// What to fit.
@@ -56,6 +62,10 @@ pub struct FitSpec {
     pub free: Vec<DynParam>,
     /// Fit the sensor zero (off when the position has no reference, e.g. a slider without springs).
     pub fit_offset: bool,
+    /// Fit a sensor delay, from this starting value (s).
+    pub delay: Option<f64>,
+    /// Fit a backlash half-width, from this starting value (model units).
+    pub backlash: Option<f64>,
 }
 
 impl FitSpec {
@@ -65,12 +75,20 @@ impl FitSpec {
             law: FrictionLaw::base(viscous, dry),
             free: vec![DynParam::Viscous, DynParam::Dry],
             fit_offset,
+            delay: None,
+            backlash: None,
         }
     }
 
     pub fn params(&self) -> Vec<Param> {
         let mut p: Vec<Param> = self.free.iter().map(|d| Param::Dyn(*d)).collect();
         p.extend([Param::Q0, Param::V0]);
+        if self.delay.is_some() {
+            p.push(Param::Delay);
+        }
+        if self.backlash.is_some() {
+            p.push(Param::Backlash);
+        }
         if self.fit_offset {
             p.push(Param::Offset);
         }
@@ -132,6 +150,8 @@ pub struct FitOutcome {
     pub q0: f64,
     pub v0: f64,
     pub offset: f64,
+    /// Sensor-side effects at the optimum (offset included).
+    pub readout: Readout,
     pub start: usize,
     pub n_fit: usize,
     /// Root-mean-square residual over the fitted samples, channel units.
@@ -161,25 +181,32 @@ struct OutputError<'a> {
     test: &'a JointTest,
     spec: &'a FitSpec,
     params: Vec<Param>,
-    sens: Vec<SensParam>,
     times: &'a [f64],
     y: &'a [f64],
     sim: SimOptions,
+    last_traj: Option<Trajectory>,
 }
 
 impl OutputError<'_> {
-    fn unpack(&self, x: &[f64]) -> (FrictionLaw, f64, f64, f64) {
+    fn unpack(&self, x: &[f64]) -> (FrictionLaw, f64, f64, Readout) {
         let mut law = self.spec.law;
-        let (mut q0, mut v0, mut o) = (0.0, 0.0, 0.0);
+        let (mut q0, mut v0) = (0.0, 0.0);
+        let mut ro = Readout {
+            offset: 0.0,
+            delay_s: self.spec.delay.unwrap_or(0.0),
+            backlash: self.spec.backlash.unwrap_or(0.0),
+        };
         for (p, v) in self.params.iter().zip(x) {
             match p {
                 Param::Dyn(d) => law.set(*d, *v),
                 Param::Q0 => q0 = *v,
                 Param::V0 => v0 = *v,
-                Param::Offset => o = *v,
+                Param::Offset => ro.offset = *v,
+                Param::Delay => ro.delay_s = *v,
+                Param::Backlash => ro.backlash = *v,
             }
         }
-        (law, q0, v0, o)
+        (law, q0, v0, ro)
     }
 }
 
@@ -191,26 +218,36 @@ impl lm::Problem for OutputError<'_> {
         self.times.len()
     }
     fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
-        let (law, q0, v0, o) = self.unpack(x);
-        let tr = simulate(&self.test.dof, &law, q0, v0, self.times, &self.sim)
-            .map_err(|e| e.to_string())?;
-        let sc = self.test.scale;
-        let ns = self.sens.len();
+        let (law, q0, v0, ro) = self.unpack(x);
+        let rd = readout::read(
+            &self.test.dof,
+            &law,
+            q0,
+            v0,
+            &ro,
+            self.times,
+            &self.sim,
+            self.test.scale,
+            self.spec.delay.is_some(),
+            self.spec.backlash.is_some(),
+        )
+        .map_err(|e| e.to_string())?;
         for k in 0..self.times.len() {
-            r[k] = sc * tr.q[k] + o - self.y[k];
+            r[k] = rd.y[k] - self.y[k];
         }
-        let mut js = 0;
+        // Columns in parameter order; the reading's columns follow the same order minus the offset.
+        let mut jr = 0;
         for (j, p) in self.params.iter().enumerate() {
             if *p == Param::Offset {
                 jac.column_mut(j).fill(1.0);
             } else {
-                let col = jac.column_mut(j);
-                for (k, c) in col.into_iter().enumerate() {
-                    *c = sc * tr.dq[k * ns + js];
+                for (k, c) in jac.column_mut(j).iter_mut().enumerate() {
+                    *c = rd.dy[k * rd.m + jr];
                 }
-                js += 1;
+                jr += 1;
             }
         }
+        self.last_traj = Some(rd.traj);
         Ok(())
     }
     fn lower_bounds(&self) -> Vec<f64> {
@@ -219,11 +256,78 @@ impl lm::Problem for OutputError<'_> {
             .iter()
             .map(|p| match p {
                 Param::Dyn(DynParam::StribeckSpeed) => 1e-4,
+                // A Stribeck hump: static friction above the Coulomb level.
+                Param::Dyn(DynParam::StribeckRatio) => 1.0,
+                Param::Dyn(DynParam::PositionLinear | DynParam::PositionQuadratic) => {
+                    f64::NEG_INFINITY
+                }
                 Param::Dyn(_) => 0.0,
+                Param::Backlash => 0.0,
                 _ => f64::NEG_INFINITY,
             })
             .collect()
     }
+}
+
+/// The Jacobian of the readings with respect to `spec.params()` at the starting point `init`
+/// (effect parameters at their values in `spec`), over samples `start .. start + n_fit`.
+pub fn jacobian_at(
+    test: &JointTest,
+    start: usize,
+    n_fit: usize,
+    spec: &FitSpec,
+    init: &InitialEstimate,
+    opts: &FitOptions,
+) -> Result<DMatrix<f64>, FitError> {
+    let params = spec.params();
+    let sens = sens_params(&params);
+    let times = &test.t_s[start..start + n_fit];
+    let y = &test.y[start..start + n_fit];
+    let mut prob = OutputError {
+        test,
+        spec,
+        params: params.clone(),
+        times,
+        y,
+        sim: SimOptions {
+            tol: opts.tol,
+            sens,
+        },
+        last_traj: None,
+    };
+    let x = start_vector(&params, spec, init);
+    let mut r = vec![0.0; n_fit];
+    let mut jac = DMatrix::zeros(n_fit, params.len());
+    lm::Problem::eval(&mut prob, &x, &mut r, &mut jac).map_err(FitError::Start)?;
+    Ok(jac)
+}
+
+fn sens_params(params: &[Param]) -> Vec<SensParam> {
+    params
+        .iter()
+        .filter_map(|p| match p {
+            Param::Dyn(d) => Some(SensParam::Dyn(*d)),
+            Param::Q0 => Some(SensParam::Q0),
+            Param::V0 => Some(SensParam::V0),
+            Param::Offset | Param::Delay | Param::Backlash => None,
+        })
+        .collect()
+}
+
+fn start_vector(params: &[Param], spec: &FitSpec, init: &InitialEstimate) -> Vec<f64> {
+    params
+        .iter()
+        .map(|p| match p {
+            Param::Dyn(DynParam::Viscous) => init.viscous,
+            Param::Dyn(DynParam::Dry) => init.dry,
+            Param::Dyn(d) => spec.law.get(*d),
+            Param::Q0 => init.q0,
+            Param::V0 => init.v0,
+            Param::Offset => init.offset,
+            Param::Delay => spec.delay.unwrap_or(0.0),
+            Param::Backlash => spec.backlash.unwrap_or(0.0),
+        })
+        .collect()
 }
 
 /// Fit `spec` to samples `start .. start + n_fit` from the starting point `init`.
@@ -245,7 +349,7 @@ pub fn fit_window(
             Param::Dyn(d) => Some(SensParam::Dyn(*d)),
             Param::Q0 => Some(SensParam::Q0),
             Param::V0 => Some(SensParam::V0),
-            Param::Offset => None,
+            Param::Offset | Param::Delay | Param::Backlash => None,
         })
         .collect();
     let times = &test.t_s[start..start + n_fit];
@@ -254,13 +358,13 @@ pub fn fit_window(
         test,
         spec,
         params: params.clone(),
-        sens: sens.clone(),
         times,
         y,
         sim: SimOptions {
             tol: opts.tol,
             sens,
         },
+        last_traj: None,
     };
     let x0: Vec<f64> = params
         .iter()
@@ -271,6 +375,8 @@ pub fn fit_window(
             Param::Q0 => init.q0,
             Param::V0 => init.v0,
             Param::Offset => init.offset,
+            Param::Delay => spec.delay.unwrap_or(0.0),
+            Param::Backlash => spec.backlash.unwrap_or(0.0),
         })
         .collect();
     let rep = lm::minimize(&mut prob, &x0, &opts.lm);
@@ -287,10 +393,12 @@ pub fn fit_window(
         .zip(&lb)
         .map(|((x, s), l)| [(x - 1.96 * s).max(*l), (x + 1.96 * s).max(*l)])
         .collect();
-    let (law, q0, v0, offset) = prob.unpack(&rep.x);
+    let (law, q0, v0, readout) = prob.unpack(&rep.x);
+    let offset = readout.offset;
     let residual = rep.residuals.clone();
     let model_y: Vec<f64> = residual.iter().zip(y).map(|(r, y)| r + y).collect();
     let rmse = (residual.iter().map(|r| r * r).sum::<f64>() / n_fit as f64).sqrt();
+    // The motion at the optimum (the last evaluation may have been a rejected trial).
     let trajectory = simulate(
         &test.dof,
         &law,
@@ -302,6 +410,7 @@ pub fn fit_window(
             sens: vec![],
         },
     )?;
+    let _ = prob.last_traj.take();
     Ok(FitOutcome {
         spec_params: params,
         values: rep.x,
@@ -311,6 +420,7 @@ pub fn fit_window(
         q0,
         v0,
         offset,
+        readout,
         start,
         n_fit,
         rmse,
@@ -333,18 +443,23 @@ pub fn predict(
     opts: &FitOptions,
 ) -> Result<Vec<f64>, FitError> {
     let times = &test.t_s[fit.start..end];
-    let tr = simulate(
+    let sim = SimOptions {
+        tol: opts.tol,
+        sens: vec![],
+    };
+    Ok(readout::read(
         &test.dof,
         &fit.law,
         fit.q0,
         fit.v0,
+        &fit.readout,
         times,
-        &SimOptions {
-            tol: opts.tol,
-            sens: vec![],
-        },
-    )?;
-    Ok(tr.q.iter().map(|q| test.scale * q + fit.offset).collect())
+        &sim,
+        test.scale,
+        false,
+        false,
+    )?
+    .y)
 }
 
 /// Whether the sensor zero can be told apart from the release position: only with a restoring
