@@ -53,6 +53,10 @@ impl Input {
 pub struct Dof {
     pub mech: Mechanism,
     pub input: Option<Input>,
+    /// Extra linear restoring stiffness (N·m/rad or N/m) — a torsional spring in the joint.
+    /// The identified model holds it at 0 (the paper's model has none); the simulator uses it to
+    /// make traces with an effect outside the contract's vocabulary.
+    pub torsion: f64,
 }
 
 /// The acceleration and its partial derivatives at one state.
@@ -100,9 +104,17 @@ impl Dof {
         match self.mech {
             Mechanism::Pendulum(r) => {
                 let mgd = r.mass_kg * r.gravity_m_s2 * r.com_distance_m;
-                (-mgd * q.sin() + f, -mgd * q.cos(), df)
+                (
+                    -mgd * q.sin() - self.torsion * q + f,
+                    -mgd * q.cos() - self.torsion,
+                    df,
+                )
             }
-            Mechanism::Slider(r) => (-r.stiffness_n_per_m * q + f, -r.stiffness_n_per_m, df),
+            Mechanism::Slider(r) => (
+                -(r.stiffness_n_per_m + self.torsion) * q + f,
+                -(r.stiffness_n_per_m + self.torsion),
+                df,
+            ),
         }
     }
 
@@ -265,6 +277,7 @@ mod tests {
                 gravity_m_s2: 9.81,
             }),
             input: None,
+            torsion: 0.0,
         }
     }
 

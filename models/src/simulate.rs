@@ -451,6 +451,7 @@ mod tests {
                 gravity_m_s2: 9.81,
             }),
             input: None,
+            torsion: 0.0,
         }
     }
 
@@ -570,6 +571,7 @@ mod tests {
                 t_s: vec![0.0, 1.0, 2.0],
                 value: vec![0.0, 0.0, 10.0],
             }),
+            torsion: 0.0,
         };
         let law = FrictionLaw::base(3.99, 0.5);
         let t = grid(3.0, 500.0);

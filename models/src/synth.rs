@@ -50,3 +50,75 @@ pub fn grid(duration_s: f64, fs_hz: f64) -> Vec<f64> {
     let n = (duration_s * fs_hz).round() as usize;
     (0..=n).map(|i| i as f64 / fs_hz).collect()
 }
+
+/// What a synthetic trace is made with: the friction law (with any effects), the sensor-side
+/// effects, and friction that fades during the test (an effect outside the vocabulary).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Truth {
+    pub law: FrictionLaw,
+    pub readout: crate::identify::Readout,
+    /// Share of μ lost linearly over the trace (0: none).
+    pub dry_fade: f64,
+}
+
+/// Simulate `truth` and read through the sensor (noise and quantisation from `sensor`; the
+/// sensor zero from `truth.readout.offset` plus `sensor.offset`).
+pub fn measure_truth(
+    dof: &Dof,
+    truth: &Truth,
+    q0: f64,
+    v0: f64,
+    t_s: &[f64],
+    sensor: &Sensor,
+) -> Result<Vec<f64>, SimError> {
+    let clean: Vec<f64> = if truth.dry_fade == 0.0 {
+        crate::identify::readout::read(
+            dof,
+            &truth.law,
+            q0,
+            v0,
+            &truth.readout,
+            t_s,
+            &SimOptions::default(),
+            sensor.scale,
+            false,
+            false,
+        )?
+        .y
+    } else {
+        // Piecewise-constant μ over 0.25 s chunks, each continuing from the last state.
+        let (t0, t_end) = (t_s[0], t_s[t_s.len() - 1]);
+        let mut out = vec![0.0; t_s.len()];
+        let (mut q, mut v) = (q0, v0);
+        let mut a = 0;
+        out[0] = sensor.scale * q0 + truth.readout.offset;
+        while a + 1 < t_s.len() {
+            let b = t_s
+                .partition_point(|&t| t <= t_s[a] + 0.25)
+                .min(t_s.len() - 1)
+                .max(a + 1);
+            let mut law = truth.law;
+            law.dry *= 1.0 - truth.dry_fade * ((t_s[a] + t_s[b]) / 2.0 - t0) / (t_end - t0);
+            let tr = simulate(dof, &law, q, v, &t_s[a..=b], &SimOptions::default())?;
+            for k in a + 1..=b {
+                out[k] = sensor.scale * tr.q[k - a] + truth.readout.offset;
+            }
+            q = tr.q[b - a];
+            v = tr.v[b - a];
+            a = b;
+        }
+        out
+    };
+    let mut rng = Noise::new(sensor.seed);
+    Ok(clean
+        .iter()
+        .map(|c| {
+            let y = c + sensor.offset + sensor.noise_sigma * rng.normal();
+            if sensor.quantum > 0.0 {
+                (y / sensor.quantum).round() * sensor.quantum
+            } else {
+                y
+            }
+        })
+        .collect())
+}

@@ -126,6 +126,7 @@ impl PendulumSpec {
             dof: Dof {
                 mech: Mechanism::Pendulum(rig),
                 input: None,
+                torsion: 0.0,
             },
             t_s,
             y: alpha_deg,
@@ -189,6 +190,7 @@ impl SliderSpec {
             dof: Dof {
                 mech: Mechanism::Slider(rig),
                 input,
+                torsion: 0.0,
             },
             t_s,
             y: h_mm,

@@ -27,6 +27,7 @@ fn intervals_cover_the_truth_90_to_98_percent() {
         let dof = Dof {
             mech: Mechanism::Pendulum(rig),
             input: None,
+            torsion: 0.0,
         };
         let t = grid(15.0, 500.0);
         let sensor = Sensor {

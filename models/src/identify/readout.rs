@@ -69,7 +69,7 @@ pub fn read(
     // Backlash: the play operator on the sampled motion.
     if ro.backlash > 0.0 || d_backlash {
         let b = ro.backlash;
-        let jb = m - 1;
+        let jb = m.saturating_sub(1);
         let s0 = q
             .iter()
             .find(|&&x| x != q[0])
