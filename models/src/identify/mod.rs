@@ -184,7 +184,8 @@ struct OutputError<'a> {
     times: &'a [f64],
     y: &'a [f64],
     sim: SimOptions,
-    last_traj: Option<Trajectory>,
+    /// The parameters and motion of the last evaluation.
+    last_traj: Option<(Vec<f64>, Trajectory)>,
 }
 
 impl OutputError<'_> {
@@ -247,7 +248,7 @@ impl lm::Problem for OutputError<'_> {
                 jr += 1;
             }
         }
-        self.last_traj = Some(rd.traj);
+        self.last_traj = Some((x.to_vec(), rd.traj));
         Ok(())
     }
     fn lower_bounds(&self) -> Vec<f64> {
@@ -398,19 +399,23 @@ pub fn fit_window(
     let residual = rep.residuals.clone();
     let model_y: Vec<f64> = residual.iter().zip(y).map(|(r, y)| r + y).collect();
     let rmse = (residual.iter().map(|r| r * r).sum::<f64>() / n_fit as f64).sqrt();
-    // The motion at the optimum (the last evaluation may have been a rejected trial).
-    let trajectory = simulate(
-        &test.dof,
-        &law,
-        q0,
-        v0,
-        times,
-        &SimOptions {
-            tol: opts.tol,
-            sens: vec![],
-        },
-    )?;
-    let _ = prob.last_traj.take();
+    // The motion at the optimum: the last evaluation's when it was at the optimum (it may have
+    // been a rejected trial), else simulated again.
+    let trajectory = match prob.last_traj.take() {
+        // (with a delay the readout simulates at shifted times: not the sample times)
+        Some((x, tr)) if x == rep.x && spec.delay.is_none() => tr,
+        _ => simulate(
+            &test.dof,
+            &law,
+            q0,
+            v0,
+            times,
+            &SimOptions {
+                tol: opts.tol,
+                sens: vec![],
+            },
+        )?,
+    };
     Ok(FitOutcome {
         spec_params: params,
         values: rep.x,

@@ -45,6 +45,18 @@ pub fn read(
     d_backlash: bool,
 ) -> Result<Reading, SimError> {
     let n = times.len();
+    if ro.delay_s == 0.0 && ro.backlash == 0.0 && !d_delay && !d_backlash {
+        // No sensor-side effect: the readings are the motion, scaled (no copies).
+        let mut traj = simulate(dof, law, q0, v0, times, sim)?;
+        let y = traj.q.iter().map(|x| scale * x + ro.offset).collect();
+        let mut dy = std::mem::take(&mut traj.dq);
+        for d in dy.iter_mut() {
+            *d *= scale;
+        }
+        traj.dq = Vec::new();
+        let m = traj.n_sens;
+        return Ok(Reading { y, dy, m, traj });
+    }
     let t0 = times[0];
     // Sample k reads the motion at t_k − τ; before the release it reads the release state.
     let shifted: Vec<f64> = times.iter().map(|t| t - ro.delay_s).collect();
