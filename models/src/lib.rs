@@ -17,6 +17,7 @@
 //! - [`testspec`] — a test described as data, completed with the pantograph type's defaults.
 //! - [`report`] — the contract's fit result.
 //! - [`synth`] — synthetic traces: simulate, add sensor noise and quantisation.
+//! - [`trend`] — wear trends over a joint's history, forecasts of the alarm-band crossing.
 //! - [`noise`] — a small deterministic random source for synthetic traces.
 
 // Numerical kernels index several arrays with one counter; iterator chains would hide that.
@@ -36,6 +37,7 @@ pub mod signal;
 pub mod simulate;
 pub mod synth;
 pub mod testspec;
+pub mod trend;
 
 use drift::DriftThresholds;
 use identify::{FitError, FitOptions, FitOutcome, JointTest};
