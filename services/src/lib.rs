@@ -1,7 +1,15 @@
-//! pantowatch service library: trace storage, HTTP API, background fitting.
+//! pantowatch service library: trace documents, storage, the HTTP API, background fitting.
 //! The binary in `main.rs` wires these modules into the CLI.
 
+pub mod api;
 pub mod cli;
+pub mod config;
+pub mod fitting;
+pub mod ids;
+pub mod ingest;
 pub mod plot;
+pub mod server;
 pub mod store;
 pub mod trace;
+pub mod trace_csv;
+pub mod worker;

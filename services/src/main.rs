@@ -2,6 +2,7 @@
 
 use clap::{Parser, Subcommand};
 use pantowatch::cli;
+use pantowatch::config::{LogSettings, init_logging};
 use pantowatch_models::drift::DriftThresholds;
 
 #[derive(Debug, Parser)]
@@ -17,30 +18,51 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// A synthetic fleet's year on a fresh SQLite database: fit, fleet health, then serve the API.
+    Demo(cli::demo::DemoArgs),
+    /// Serve the REST API with fitting workers.
+    Serve(cli::serve::ServeArgs),
+    /// Run fitting workers only (against a shared database).
+    Worker(cli::serve::WorkerArgs),
+    /// Queue re-fits by the current model version (all traces, or one vehicle's).
+    Refit(cli::refit::RefitArgs),
+    /// Create, list or revoke API keys.
+    Keys(cli::keys::KeysArgs),
     /// Identify a trace's joint friction (viscous and dry, 95 % intervals, drift status).
     Fit(cli::fit::FitArgs),
     /// Write a synthetic trace document.
     Simulate(Box<cli::simulate::SimulateArgs>),
     /// Time the identification of trace files.
     Bench(cli::bench::BenchArgs),
-    /// Fit the example traces and show the results against their truth.
-    Demo,
+    /// Fit the shared example traces and show the results against their truth.
+    Examples,
 }
 
 fn main() {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
     let cli = Cli::parse();
     let thresholds = DriftThresholds::default();
     let res = match cli.command {
-        Command::Fit(a) => cli::fit::run(a, &thresholds),
-        Command::Simulate(a) => cli::simulate::run(*a),
-        Command::Bench(a) => cli::bench::run(a),
-        Command::Demo => cli::demo::run(&thresholds),
+        Command::Demo(a) => cli::demo::run(a),
+        Command::Serve(a) => cli::serve::serve(a),
+        Command::Worker(a) => cli::serve::worker(a),
+        Command::Refit(a) => cli::refit::run(a),
+        Command::Keys(a) => cli::keys::run(a),
+        Command::Fit(a) => {
+            init_logging(&LogSettings::default());
+            cli::fit::run(a, &thresholds)
+        }
+        Command::Simulate(a) => {
+            init_logging(&LogSettings::default());
+            cli::simulate::run(*a)
+        }
+        Command::Bench(a) => {
+            init_logging(&LogSettings::default());
+            cli::bench::run(a)
+        }
+        Command::Examples => {
+            init_logging(&LogSettings::default());
+            cli::examples::run(&thresholds)
+        }
     };
     if let Err(e) = res {
         eprintln!("error: {e:#}");

@@ -117,3 +117,63 @@ fn a_broken_document_is_refused_naming_the_field() {
         "{err}"
     );
 }
+
+/// `simulate --effect` makes a trace with an undeclared effect; `fit --json` names it with the
+/// error before and after, and `--report` writes the HTML for people.
+#[test]
+fn an_undeclared_effect_is_found_and_reported() {
+    let trace = tmp("drag.json");
+    let st = bin()
+        .args([
+            "simulate",
+            "--joint",
+            "J3",
+            "--effect",
+            "quadratic_drag:c=0.3",
+            "--duration",
+            "20",
+            "--seed",
+            "5",
+        ])
+        .arg("-o")
+        .arg(&trace)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let html = tmp("report.html");
+    let out = bin()
+        .arg("fit")
+        .arg(&trace)
+        .arg("--json")
+        .arg("--report")
+        .arg(&html)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let res = &v["residual"];
+    assert_eq!(res["effects"][0]["name"], "quadratic_drag", "{res}");
+    let c = res["effects"][0]["params"]["c_nms2_per_rad2"]
+        .as_f64()
+        .unwrap();
+    assert!((c / 0.3 - 1.0).abs() < 0.05, "C = {c}");
+    assert!(res["rmse_after"].as_f64().unwrap() <= 0.5 * res["rmse_before"].as_f64().unwrap());
+    let html = std::fs::read_to_string(&html).unwrap();
+    assert!(
+        html.contains("Candidates tried")
+            && html.contains("quadratic_drag")
+            && html.contains("<svg")
+    );
+    // An unknown effect name is refused.
+    let out = bin()
+        .args(["simulate", "--effect", "magic:x=1"])
+        .output()
+        .unwrap();
+    assert!(
+        !out.status.success() && String::from_utf8_lossy(&out.stderr).contains("unknown effect")
+    );
+}

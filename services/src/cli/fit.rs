@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use pantowatch_models::drift::DriftThresholds;
-use pantowatch_models::identify::{FitOptions, FitOutcome};
+use pantowatch_models::identify::FitOutcome;
 use pantowatch_models::report::FitResult;
 use plotters::style::RGBColor;
 
@@ -22,6 +22,9 @@ pub struct FitArgs {
     /// Draw measured vs fitted motion and the residual to this SVG file.
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Write the residual loop's report (base vs augmented fit, candidates tried) as HTML.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
 }
 
 /// Fit a validated document: the identification and the contract result.
@@ -29,10 +32,7 @@ pub fn fit_doc(
     doc: &TraceDoc,
     thresholds: &DriftThresholds,
 ) -> anyhow::Result<(FitResult, FitOutcome)> {
-    let (test, baseline) = doc.joint_test().map_err(|e| anyhow::anyhow!("{e}"))?;
-    let id = doc.trace_id.clone().unwrap_or_default();
-    pantowatch_models::fit_joint_test(&test, &baseline, thresholds, &id, &FitOptions::default())
-        .map_err(|e| anyhow::anyhow!("fit failed: {e}"))
+    crate::fitting::fit_with_outcome(doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))
 }
 
 fn fmt_opt(x: Option<f64>) -> String {
@@ -83,10 +83,17 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
     );
     let effects: Vec<&str> = r.residual.effects.iter().map(|e| e.name.as_str()).collect();
     s += &format!(
-        "residual: effects [{}]; fitted part {:.4}, held-out part {:.4} {}\n",
+        "residual: effects [{}]{}; RMSE fitted part {:.4} -> {:.4}, held-out part {:.4} -> {:.4} {}\n",
         effects.join(", "),
+        r.residual
+            .verdict
+            .as_deref()
+            .map(|v| format!(" ({v})"))
+            .unwrap_or_default(),
         r.residual.rmse_before,
+        r.residual.rmse_after,
         r.residual.holdout_rmse_before,
+        r.residual.holdout_rmse_after,
         r.rmse.unit
     );
     s
@@ -99,6 +106,11 @@ pub fn run(args: FitArgs, thresholds: &DriftThresholds) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&result)?);
     } else {
         print!("{}", table(&doc, &result));
+    }
+    if let Some(path) = &args.report {
+        std::fs::write(path, super::report::html(&doc, thresholds)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("report written to {}", path.display());
     }
     if let Some(path) = args.plot {
         let t = &doc.channel("t_s").unwrap_or_default()[fit.start..fit.start + fit.n_fit];

@@ -3,7 +3,12 @@
 
 pub mod bench;
 pub mod demo;
+pub mod examples;
 pub mod fit;
+pub mod report;
+pub mod keys;
+pub mod refit;
+pub mod serve;
 pub mod simulate;
 
 use std::path::Path;

@@ -5,8 +5,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use pantowatch_models::data::builtin_160ec;
-use pantowatch_models::friction::FrictionLaw;
-use pantowatch_models::synth::{Sensor, grid, measure};
+use pantowatch_models::friction::{FrictionLaw, PositionFriction, Stribeck};
+use pantowatch_models::identify::Readout;
+use pantowatch_models::synth::{Sensor, Truth, grid, measure_truth};
 use serde_json::json;
 
 use crate::trace::{FORMAT, TraceDoc};
@@ -54,6 +55,20 @@ pub struct SimulateArgs {
     pub trace_id: Option<String>,
     #[arg(long, default_value = "2026-01-01T00:00:00Z")]
     pub recorded_at: String,
+    /// An effect the paper's model lacks, `NAME:key=value,…` (repeatable). Vocabulary:
+    /// `stribeck:ratio=2,speed=0.3` (μs/μ, rad/s or m/s), `quadratic_drag:c=0.02`,
+    /// `position_friction:linear=0.5,quadratic=1.5` (μ·(1 + a·u + b·u²), u = q/(1 rad or 10 mm)),
+    /// `backlash:half_width=0.3` (channel units), `sensor_offset:offset=0.5` (channel units),
+    /// `sensor_delay:delay_s=0.008`; outside it: `torsional_spring:k=4` (N·m/rad or N/m),
+    /// `fading_friction:fade=0.5` (share of μ lost over the trace).
+    #[arg(long = "effect")]
+    pub effects: Vec<String>,
+    /// Slider only: hold the part with this pull (N) and release it at `--release-at` (the
+    /// paper's head test, Fig 14): adds the input channel `F_N`.
+    #[arg(long)]
+    pub pull: Option<f64>,
+    #[arg(long, default_value_t = 0.5)]
+    pub release_at: f64,
     /// Output file (default: stdout).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
@@ -80,16 +95,46 @@ pub fn simulate_doc(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     let sk = TraceDoc::from_value(&skeleton).map_err(|e| anyhow::anyhow!("{e}"))?;
     let (mut test, baseline) = sk.joint_test().map_err(|e| anyhow::anyhow!("{e}"))?;
     test.t_s = t.clone();
-    let law = FrictionLaw::base(
-        a.viscous.or(baseline.viscous).unwrap_or(0.0),
-        a.dry.or(baseline.dry).unwrap_or(0.0),
-    );
-    let release = match a.kind.as_str() {
+    let mut truth = Truth {
+        law: FrictionLaw::base(
+            a.viscous.or(baseline.viscous).unwrap_or(0.0),
+            a.dry.or(baseline.dry).unwrap_or(0.0),
+        ),
+        readout: Readout::default(),
+        dry_fade: 0.0,
+    };
+    for e in &a.effects {
+        apply_effect(
+            &mut truth,
+            &mut test.dof.torsion,
+            e,
+            test.scale,
+            a.kind == "slider",
+        )?;
+    }
+    let mut release = match a.kind.as_str() {
         "pendulum" => a
             .release
             .unwrap_or(data.rigs.get(&a.joint).map_or(60.0, |r| r.release_deg)),
         _ => a.release.unwrap_or(data.slider.release_mm),
     };
+    let mut force = None;
+    if let Some(pull) = a.pull {
+        let pantowatch_models::dynamics::Mechanism::Slider(rig) = test.dof.mech else {
+            anyhow::bail!("--pull is for slider tests")
+        };
+        let f: Vec<f64> = t
+            .iter()
+            .map(|&x| if x < a.release_at { -pull } else { 0.0 })
+            .collect();
+        test.dof.input = Some(pantowatch_models::dynamics::Input {
+            t_s: t.clone(),
+            value: f.clone(),
+        });
+        // At rest under the pull.
+        release = -pull / rig.stiffness_n_per_m * test.scale;
+        force = Some(f);
+    }
     let sensor = Sensor {
         scale: test.scale,
         noise_sigma: a.noise,
@@ -97,14 +142,67 @@ pub fn simulate_doc(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
         offset: a.offset,
         seed: a.seed,
     };
-    let (y, _) =
-        measure(&test.dof, &law, release / test.scale, 0.0, &t, &sensor).context("simulation")?;
+    let y = measure_truth(&test.dof, &truth, release / test.scale, 0.0, &t, &sensor)
+        .context("simulation")?;
     let mut doc_json = skeleton;
     doc_json["channels"] = json!({"t_s": t, channel: y});
+    if let Some(f) = force {
+        doc_json["channels"]["F_N"] = json!(f);
+    }
     if let Some(id) = &a.trace_id {
         doc_json["trace_id"] = json!(id);
     }
     TraceDoc::from_value(&doc_json).map_err(|e| anyhow::anyhow!("{e}"))
+}
+
+/// Apply one `--effect NAME:key=value,…` to the truth.
+fn apply_effect(
+    truth: &mut Truth,
+    torsion: &mut f64,
+    spec: &str,
+    scale: f64,
+    slider: bool,
+) -> anyhow::Result<()> {
+    let (name, rest) = spec.split_once(':').unwrap_or((spec, ""));
+    let mut kv = std::collections::BTreeMap::new();
+    for pair in rest.split(',').filter(|p| !p.is_empty()) {
+        let (k, v) = pair
+            .split_once('=')
+            .ok_or_else(|| anyhow::anyhow!("--effect {spec}: `{pair}` is not key=value"))?;
+        let v: f64 = v
+            .parse()
+            .map_err(|_| anyhow::anyhow!("--effect {spec}: `{v}` is not a number"))?;
+        anyhow::ensure!(v.is_finite(), "--effect {spec}: `{k}` must be finite");
+        kv.insert(k.to_string(), v);
+    }
+    let get = |k: &str| {
+        kv.get(k)
+            .copied()
+            .ok_or_else(|| anyhow::anyhow!("--effect {name}: needs `{k}=…`"))
+    };
+    match name {
+        "stribeck" => {
+            truth.law.stribeck = Some(Stribeck {
+                ratio: get("ratio")?,
+                speed: get("speed")?,
+            })
+        }
+        "quadratic_drag" => truth.law.quadratic_drag = Some(get("c")?),
+        "position_friction" => {
+            truth.law.position = Some(PositionFriction {
+                linear: kv.get("linear").copied().unwrap_or(0.0),
+                quadratic: kv.get("quadratic").copied().unwrap_or(0.0),
+                scale: if slider { 0.01 } else { 1.0 },
+            })
+        }
+        "backlash" => truth.readout.backlash = get("half_width")? / scale,
+        "sensor_offset" => truth.readout.offset = get("offset")?,
+        "sensor_delay" => truth.readout.delay_s = get("delay_s")?,
+        "torsional_spring" => *torsion = get("k")?,
+        "fading_friction" => truth.dry_fade = get("fade")?,
+        _ => anyhow::bail!("--effect: unknown effect `{name}`"),
+    }
+    Ok(())
 }
 
 pub fn run(a: SimulateArgs) -> anyhow::Result<()> {

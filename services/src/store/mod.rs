@@ -72,7 +72,10 @@ pub const MAX_ATTEMPTS: i64 = 3;
 macro_rules! text_enum {
     ($(#[$m:meta])* $name:ident { $($(#[$vm:meta])* $v:ident = $s:literal),+ $(,)? }) => {
         $(#[$m])*
-        #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+        #[derive(
+            Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize,
+            utoipa::ToSchema,
+        )]
         #[serde(rename_all = "lowercase")]
         pub enum $name { $($(#[$vm])* $v),+ }
 
@@ -103,8 +106,11 @@ macro_rules! text_enum {
 }
 
 text_enum!(
-    /// Health of a joint; ordered `Ok < Watch < Alarm` so `max` is the worst.
+    /// Health of a joint; ordered `Unknown < Ok < Watch < Alarm` so `max` is the worst
+    /// (the models' order: `unknown` says nothing is known to be wrong).
     Status {
+        /// Not judged: the trace cannot pin the joint down, or it has no baseline.
+        Unknown = "unknown",
         /// Within its baseline.
         Ok = "ok",
         /// Drifting: look at it at the next service.
@@ -139,15 +145,16 @@ text_enum!(
 );
 
 impl Status {
-    /// Rank used in SQL aggregates (`ok` 0, `watch` 1, `alarm` 2).
+    /// Rank used in SQL aggregates (`unknown` 0, `ok` 1, `watch` 2, `alarm` 3).
     pub fn rank(self) -> i64 {
         self as i64
     }
     fn from_rank(r: i64) -> Result<Self> {
         match r {
-            0 => Ok(Status::Ok),
-            1 => Ok(Status::Watch),
-            2 => Ok(Status::Alarm),
+            0 => Ok(Status::Unknown),
+            1 => Ok(Status::Ok),
+            2 => Ok(Status::Watch),
+            3 => Ok(Status::Alarm),
             _ => Err(StoreError::Corrupt(format!("status rank {r}"))),
         }
     }
@@ -232,7 +239,7 @@ pub struct TraceMeta {
 }
 
 /// One joint of a fit, flattened for queries.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct JointFit {
     pub joint: String,
     pub viscous: Option<f64>,
@@ -327,7 +334,7 @@ pub struct FitRecord {
 }
 
 /// A fit job.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, utoipa::ToSchema)]
 pub struct Job {
     pub id: i64,
     pub trace_id: String,
@@ -362,7 +369,7 @@ pub enum FailOutcome {
 }
 
 /// Number of jobs per state.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, utoipa::ToSchema)]
 pub struct JobCounts {
     pub queued: i64,
     pub running: i64,
@@ -370,8 +377,19 @@ pub struct JobCounts {
     pub failed: i64,
 }
 
+/// Rows per table (readiness detail, metrics, and the tests' "nothing was stored" checks).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, utoipa::ToSchema)]
+pub struct Counts {
+    pub vehicles: i64,
+    pub pantographs: i64,
+    pub traces: i64,
+    pub fits: i64,
+    pub jobs: i64,
+    pub api_keys: i64,
+}
+
 /// Stored API key (never the key itself).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, utoipa::ToSchema)]
 pub struct ApiKey {
     pub id: i64,
     pub prefix: String,
@@ -382,7 +400,7 @@ pub struct ApiKey {
 }
 
 /// A vehicle in the list.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, utoipa::ToSchema)]
 pub struct VehicleSummary {
     pub vehicle_id: String,
     pub created_at: DateTime<Utc>,
@@ -393,7 +411,7 @@ pub struct VehicleSummary {
 }
 
 /// A vehicle with its current pantographs.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct VehicleDetail {
     pub vehicle_id: String,
     pub created_at: DateTime<Utc>,
@@ -401,7 +419,7 @@ pub struct VehicleDetail {
 }
 
 /// A pantograph as mounted now, with each joint's latest status.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct PantographState {
     pub serial: String,
     pub model: String,
@@ -413,7 +431,7 @@ pub struct PantographState {
 }
 
 /// One joint's fit from one trace (a history point, or the latest state).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct JointPoint {
     pub trace_id: String,
     pub vehicle_id: String,
@@ -451,14 +469,14 @@ impl Default for Page {
 }
 
 /// A joint that is not `ok`.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, utoipa::ToSchema)]
 pub struct JointStatus {
     pub joint: String,
     pub status: Status,
 }
 
 /// One pantograph's health.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, utoipa::ToSchema)]
 pub struct FleetRow {
     pub serial: String,
     pub model: String,
@@ -471,7 +489,8 @@ pub struct FleetRow {
     pub last_test: Option<DateTime<Utc>>,
 }
 
-/// A page of fleet health, worst first (`alarm`, `watch`, `ok`, not yet fitted), then serial.
+/// A page of fleet health, worst first (`alarm`, `watch`, `ok`, `unknown`, not yet fitted), then
+/// serial.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct FleetPage {
     /// Rows matching the filter, over all pages.
@@ -554,6 +573,8 @@ pub(crate) trait Backend {
     fn get_job(&self, id: i64) -> impl Future<Output = Result<Option<Job>>> + Send;
     fn latest_job(&self, trace_id: &str) -> impl Future<Output = Result<Option<Job>>> + Send;
     fn job_counts(&self) -> impl Future<Output = Result<JobCounts>> + Send;
+    fn counts(&self) -> impl Future<Output = Result<Counts>> + Send;
+    fn pantograph_exists(&self, serial: &str) -> impl Future<Output = Result<bool>> + Send;
     fn insert_api_key(
         &self,
         prefix: &str,
@@ -734,6 +755,16 @@ impl Store {
     /// Jobs per state (metrics, progress).
     pub async fn job_counts(&self) -> Result<JobCounts> {
         dispatch!(self, s => s.job_counts().await)
+    }
+
+    /// True when a pantograph with this serial is stored.
+    pub async fn pantograph_exists(&self, serial: &str) -> Result<bool> {
+        dispatch!(self, s => s.pantograph_exists(serial).await)
+    }
+
+    /// Rows per table.
+    pub async fn counts(&self) -> Result<Counts> {
+        dispatch!(self, s => s.counts().await)
     }
 
     /// Creates a key; returns its record and the key itself, which is not stored.
@@ -970,6 +1001,26 @@ pub(crate) fn api_key_from<R: RowExt>(r: &R) -> Result<ApiKey> {
         revoked_at: r.opt_ts("revoked_at")?,
     })
 }
+
+pub(crate) fn counts_from<R: RowExt>(r: &R) -> Result<Counts> {
+    Ok(Counts {
+        vehicles: r.int("vehicles")?,
+        pantographs: r.int("pantographs")?,
+        traces: r.int("traces")?,
+        fits: r.int("fits")?,
+        jobs: r.int("jobs")?,
+        api_keys: r.int("api_keys")?,
+    })
+}
+
+/// Counts every table in one statement (both dialects).
+pub(crate) const COUNTS_SQL: &str = "SELECT
+    (SELECT count(*) FROM vehicles) AS vehicles,
+    (SELECT count(*) FROM pantographs) AS pantographs,
+    (SELECT count(*) FROM traces) AS traces,
+    (SELECT count(*) FROM fits) AS fits,
+    (SELECT count(*) FROM jobs) AS jobs,
+    (SELECT count(*) FROM api_keys) AS api_keys";
 
 pub(crate) fn vehicle_from<R: RowExt>(r: &R) -> Result<VehicleSummary> {
     Ok(VehicleSummary {

@@ -10,7 +10,7 @@ use sqlx::{Row, query, query_scalar};
 
 use super::*;
 
-static MIGRATOR: Migrator = sqlx::migrate!("../migrations/postgres");
+pub(crate) static MIGRATOR: Migrator = sqlx::migrate!("../migrations/postgres");
 
 /// Current time, from the server clock (the same clock for every worker).
 macro_rules! now {
@@ -60,7 +60,7 @@ macro_rules! fleet_cte {
             ", latest AS (SELECT serial, joint, status FROM pts WHERE rn = 1),
             agg AS (
                 SELECT serial,
-                       max(CASE status WHEN 'alarm' THEN 2 WHEN 'watch' THEN 1 ELSE 0 END)::bigint
+                       max(CASE status WHEN 'alarm' THEN 3 WHEN 'watch' THEN 2 WHEN 'ok' THEN 1 ELSE 0 END)::bigint
                            AS worst,
                        string_agg(CASE WHEN status <> 'ok' THEN joint || ':' || status END,
                                   chr(31)) AS not_ok
@@ -727,6 +727,19 @@ impl Backend for PgStore {
             }
         }
         Ok(c)
+    }
+
+    async fn counts(&self) -> Result<Counts> {
+        let r = query(COUNTS_SQL).fetch_one(&self.pool).await?;
+        counts_from(&r)
+    }
+
+    async fn pantograph_exists(&self, serial: &str) -> Result<bool> {
+        let n: i64 = query_scalar("SELECT count(*) FROM pantographs WHERE serial = $1")
+            .bind(serial)
+            .fetch_one(&self.pool)
+            .await?;
+        Ok(n > 0)
     }
 
     async fn insert_api_key(

@@ -14,7 +14,7 @@ use sqlx::{Row, query, query_scalar};
 
 use super::*;
 
-static MIGRATOR: Migrator = sqlx::migrate!("../migrations/sqlite");
+pub(crate) static MIGRATOR: Migrator = sqlx::migrate!("../migrations/sqlite");
 
 /// Current time in the stored text format, computed by SQLite.
 macro_rules! now {
@@ -64,7 +64,7 @@ macro_rules! fleet_cte {
             ", latest AS (SELECT serial, joint, status FROM pts WHERE rn = 1),
             agg AS (
                 SELECT serial,
-                       max(CASE status WHEN 'alarm' THEN 2 WHEN 'watch' THEN 1 ELSE 0 END) AS worst,
+                       max(CASE status WHEN 'alarm' THEN 3 WHEN 'watch' THEN 2 WHEN 'ok' THEN 1 ELSE 0 END) AS worst,
                        group_concat(CASE WHEN status <> 'ok' THEN joint || ':' || status END,
                                     char(31)) AS not_ok
                 FROM latest GROUP BY serial
@@ -722,6 +722,19 @@ impl Backend for SqliteStore {
             }
         }
         Ok(c)
+    }
+
+    async fn counts(&self) -> Result<Counts> {
+        let r = query(COUNTS_SQL).fetch_one(&self.pool).await?;
+        counts_from(&r)
+    }
+
+    async fn pantograph_exists(&self, serial: &str) -> Result<bool> {
+        let n: i64 = query_scalar("SELECT count(*) FROM pantographs WHERE serial = $1")
+            .bind(serial)
+            .fetch_one(&self.pool)
+            .await?;
+        Ok(n > 0)
     }
 
     async fn insert_api_key(

@@ -147,6 +147,7 @@ contract!(
     api_keys_create_verify_revoke,
     history_mounts_and_vehicles,
     fleet_health_filter_and_pagination,
+    unknown_status_and_counts,
 );
 
 // ---------------------------------------------------------------- fixtures
@@ -1111,4 +1112,179 @@ async fn sqlite_url_forms() {
     assert!(file.migrations_applied().await.expect("migrations"));
     file.close().await;
     assert!(dir.path().join("nested.db").exists());
+}
+
+async fn unknown_status_and_counts(store: &Store) {
+    assert_eq!(store.counts().await.expect("counts"), Counts::default());
+    // An unidentifiable joint is `unknown`: stored, ranked below `ok`, listed as not ok.
+    for (id, serial, joints) in [
+        ("u1", "PU", &[("J7", Status::Unknown)][..]),
+        (
+            "u2",
+            "PM",
+            &[("J1", Status::Ok), ("J6", Status::Unknown)][..],
+        ),
+    ] {
+        insert_ok(store, trace(id, "VU", Some(serial), "2026-05-01T10:00:00Z")).await;
+        let w = store
+            .insert_fit(id, "v1", &fit(id, joints))
+            .await
+            .expect("fit with an unknown joint");
+        assert!(w.created);
+    }
+    let f = store.get_fit("u1").await.expect("get").expect("fit");
+    assert_eq!(f.status, Some(Status::Unknown));
+    assert!(store.pantograph_exists("PU").await.expect("exists"));
+    assert!(!store.pantograph_exists("nope").await.expect("exists"));
+    assert_eq!(f.joints[0].status, Status::Unknown);
+    let page = store
+        .fleet_health(&FleetFilter::default(), Page::default())
+        .await
+        .expect("fleet");
+    let order: Vec<_> = page
+        .rows
+        .iter()
+        .map(|r| (r.serial.as_str(), r.worst_status))
+        .collect();
+    assert_eq!(
+        order,
+        [("PM", Some(Status::Ok)), ("PU", Some(Status::Unknown))]
+    );
+    assert_eq!(
+        page.rows[0].not_ok,
+        vec![JointStatus {
+            joint: "J6".into(),
+            status: Status::Unknown
+        }]
+    );
+    let only_unknown = store
+        .fleet_health(
+            &FleetFilter {
+                status: Some(Status::Unknown),
+                vehicle_id: None,
+            },
+            Page::default(),
+        )
+        .await
+        .expect("fleet");
+    assert_eq!(only_unknown.total, 1);
+    store.create_api_key(Role::Reader, "r").await.expect("key");
+    assert_eq!(
+        store.counts().await.expect("counts"),
+        Counts {
+            vehicles: 1,
+            pantographs: 2,
+            traces: 2,
+            fits: 2,
+            jobs: 2,
+            api_keys: 1,
+        }
+    );
+}
+
+/// A database migrated to 0001 with a fit in it upgrades to `unknown`-capable fit tables
+/// without losing or orphaning rows.
+async fn upgrade_from_0001(store_url: &str, blob: &str) {
+    let rows: &[&str] = &[
+        "INSERT INTO vehicles (id) VALUES ('V1')",
+        "INSERT INTO pantographs (serial, model) VALUES ('S1', '160EC')",
+        "INSERT INTO pantograph_mounts (serial, vehicle_id, since)
+             VALUES ('S1', 'V1', '2026-01-01T00:00:00.000000Z')",
+        // $BLOB is replaced by the backend's empty-blob literal.
+        "INSERT INTO traces (trace_id, vehicle_id, serial, model, recorded_at, kind, joint,
+                                 test_json, content_sha256, samples, sample_count, channel_names)
+             VALUES ('t1', 'V1', 'S1', '160EC', '2026-01-01T00:00:00.000000Z', 'pendulum', 'J1',
+                     '{}', 'aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa',
+                     $BLOB, 0, '[]')",
+        "INSERT INTO fits (trace_id, model_version, result_json, rmse, status)
+             VALUES ('t1', 'v1', '{\"joints\": []}', 0.5, 'watch')",
+        "INSERT INTO fit_joints (fit_id, joint, viscous, identifiable, status)
+             SELECT id, 'J1', 0.1, true, 'watch' FROM fits",
+    ];
+    if store_url.starts_with("postgres") {
+        let pool = sqlx::PgPool::connect(store_url).await.expect("pool");
+        crate::store::postgres::MIGRATOR
+            .run_to(1, &pool)
+            .await
+            .expect("0001");
+        for r in rows {
+            pool.execute(AssertSqlSafe(r.replace("$BLOB", blob)))
+                .await
+                .expect(r);
+        }
+        pool.close().await;
+    } else {
+        let opts = sqlx::sqlite::SqliteConnectOptions::new()
+            .filename(store_url)
+            .create_if_missing(true)
+            .foreign_keys(true);
+        let pool = sqlx::SqlitePool::connect_with(opts).await.expect("pool");
+        crate::store::sqlite::MIGRATOR
+            .run_to(1, &pool)
+            .await
+            .expect("0001");
+        for r in rows {
+            pool.execute(AssertSqlSafe(r.replace("$BLOB", blob)))
+                .await
+                .expect(r);
+        }
+        pool.close().await;
+    }
+    let store = Store::connect(store_url).await.expect("upgrade");
+    assert!(store.migrations_applied().await.expect("applied"));
+    let f = store.get_fit("t1").await.expect("get").expect("fit kept");
+    assert_eq!(f.status, Some(Status::Watch));
+    assert_eq!(f.joints.len(), 1);
+    // The rebuilt tables keep their keys: a second fit of the pair is refused, a new one with
+    // an unknown joint is accepted, and ids continue.
+    let again = store
+        .insert_fit("t1", "v1", &fit("t1", &[("J1", Status::Ok)]))
+        .await
+        .expect("again");
+    assert!(!again.created);
+    let w = store
+        .insert_fit("t1", "v2", &fit("t1", &[("J1", Status::Unknown)]))
+        .await
+        .expect("unknown after upgrade");
+    assert!(w.created && w.fit_id > f.id);
+    assert_eq!(count(&store, "fit_joints").await, 2);
+    if let Store::Sqlite(s) = &store {
+        let bad: Vec<sqlx::sqlite::SqliteRow> = sqlx::query("PRAGMA foreign_key_check")
+            .fetch_all(s.pool())
+            .await
+            .expect("fk check");
+        assert!(bad.is_empty(), "foreign keys intact");
+        let fk: i64 = sqlx::query_scalar("PRAGMA foreign_keys")
+            .fetch_one(s.pool())
+            .await
+            .expect("pragma");
+        assert_eq!(fk, 1);
+    }
+    store.close().await;
+}
+
+#[tokio::test]
+async fn sqlite_upgrade_from_0001() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("old.db");
+    upgrade_from_0001(path.to_str().expect("utf-8"), "x''").await;
+}
+
+#[tokio::test]
+async fn postgres_upgrade_from_0001() {
+    let admin_url = pg_admin_url();
+    let name = format!("pw_test_{}", hex::encode(rand_bytes()));
+    let mut admin = sqlx::PgConnection::connect(&admin_url)
+        .await
+        .unwrap_or_else(|e| panic!("PostgreSQL at {admin_url} is required for this test: {e}"));
+    admin
+        .execute(AssertSqlSafe(format!("CREATE DATABASE {name}")))
+        .await
+        .expect("CREATE DATABASE");
+    admin.close().await.ok();
+    let _guard = PgDrop {
+        admin_url: admin_url.clone(),
+        name: name.clone(),
+    };
+    upgrade_from_0001(&with_database(&admin_url, &name), "'\\x'::bytea").await;
 }

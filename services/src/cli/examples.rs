@@ -1,6 +1,5 @@
-//! `pantowatch demo`: for now, fit every example trace in `../shared/data/examples` with a
-//! progress bar and print the results against their truth. (The service issue replaces it with
-//! a synthetic fleet on SQLite.)
+//! `pantowatch examples`: fit every example trace in `../shared/data/examples` with a progress
+//! bar and print the results against their truth (`truth.json`) — the README's results table.
 
 use indicatif::{ProgressBar, ProgressStyle};
 use pantowatch_models::drift::DriftThresholds;

@@ -1,0 +1,246 @@
+//! One error type for every handler, answered as RFC 9457 problem JSON
+//! (`application/problem+json`: `type`, `title`, `status`, `detail`, `field`).
+//!
+//! Server faults are logged with `tracing` and answered without details; user input never
+//! produces a 5xx.
+
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde::Serialize;
+use utoipa::ToSchema;
+
+use crate::ids::IdError;
+use crate::ingest::IngestError;
+use crate::store::StoreError;
+use crate::trace::TraceError;
+
+/// Media type of every error answer.
+pub const PROBLEM_JSON: &str = "application/problem+json";
+
+/// An error answer (RFC 9457).
+#[derive(Debug, Clone, Serialize, ToSchema, PartialEq)]
+pub struct Problem {
+    /// A URI reference naming the kind of problem (`/problems/<slug>`).
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// Short summary of the kind of problem.
+    pub title: String,
+    /// The HTTP status code.
+    pub status: u16,
+    /// What went wrong with this request.
+    pub detail: String,
+    /// The offending field (`channels.t_s[17]`, `test.joint`, `Authorization`, …), if any.
+    pub field: Option<String>,
+    /// For `GET /v1/traces/{id}/fit` before the fit exists: the trace's fit job.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub job: Option<super::traces::JobView>,
+}
+
+/// Everything a handler can answer besides success.
+#[derive(Debug, thiserror::Error)]
+pub enum AppError {
+    #[error("{detail}")]
+    BadRequest {
+        field: Option<String>,
+        detail: String,
+    },
+    #[error("{detail}")]
+    Malformed {
+        field: Option<String>,
+        detail: String,
+    },
+    #[error("{detail}")]
+    Invalid {
+        field: Option<String>,
+        detail: String,
+    },
+    #[error("{0}")]
+    Unauthorized(String),
+    #[error("{0}")]
+    Forbidden(String),
+    #[error("{0}")]
+    NotFound(String),
+    #[error("{detail}")]
+    FitNotReady {
+        detail: String,
+        job: Option<super::traces::JobView>,
+    },
+    #[error("{0}")]
+    Conflict(String),
+    #[error("{0}")]
+    UnsupportedMediaType(String),
+    #[error("request body larger than {0} bytes")]
+    PayloadTooLarge(usize),
+    #[error("{0}")]
+    MethodNotAllowed(String),
+    #[error("{0}")]
+    Unavailable(String),
+    #[error("request took longer than {0} s")]
+    Timeout(u64),
+    /// A server fault: logged, never shown.
+    #[error("internal error: {0}")]
+    Internal(String),
+}
+
+impl AppError {
+    pub fn bad_field(field: impl Into<String>, detail: impl Into<String>) -> Self {
+        AppError::BadRequest {
+            field: Some(field.into()),
+            detail: detail.into(),
+        }
+    }
+
+    fn parts(&self) -> (StatusCode, &'static str, &'static str) {
+        use AppError::*;
+        match self {
+            BadRequest { .. } => (StatusCode::BAD_REQUEST, "bad-request", "Bad request"),
+            Malformed { .. } => (StatusCode::BAD_REQUEST, "malformed-body", "Malformed body"),
+            Invalid { .. } => (
+                StatusCode::UNPROCESSABLE_ENTITY,
+                "invalid-trace",
+                "The trace breaks a rule of the trace format",
+            ),
+            Unauthorized(_) => (StatusCode::UNAUTHORIZED, "unauthorized", "Unauthorized"),
+            Forbidden(_) => (StatusCode::FORBIDDEN, "forbidden", "Forbidden"),
+            NotFound(_) => (StatusCode::NOT_FOUND, "not-found", "Not found"),
+            FitNotReady { .. } => (StatusCode::NOT_FOUND, "fit-not-ready", "No fit yet"),
+            Conflict(_) => (StatusCode::CONFLICT, "conflict", "Conflict"),
+            UnsupportedMediaType(_) => (
+                StatusCode::UNSUPPORTED_MEDIA_TYPE,
+                "unsupported-media-type",
+                "Unsupported media type",
+            ),
+            PayloadTooLarge(_) => (
+                StatusCode::PAYLOAD_TOO_LARGE,
+                "payload-too-large",
+                "Request body too large",
+            ),
+            MethodNotAllowed(_) => (
+                StatusCode::METHOD_NOT_ALLOWED,
+                "method-not-allowed",
+                "Method not allowed",
+            ),
+            Unavailable(_) => (
+                StatusCode::SERVICE_UNAVAILABLE,
+                "unavailable",
+                "Service unavailable",
+            ),
+            Timeout(_) => (
+                StatusCode::SERVICE_UNAVAILABLE,
+                "timeout",
+                "Request timed out",
+            ),
+            Internal(_) => (
+                StatusCode::INTERNAL_SERVER_ERROR,
+                "internal",
+                "Internal server error",
+            ),
+        }
+    }
+
+    /// The problem document of this error.
+    pub fn problem(&self) -> Problem {
+        let (status, slug, title) = self.parts();
+        let (detail, field, job) = match self {
+            AppError::BadRequest { field, detail }
+            | AppError::Malformed { field, detail }
+            | AppError::Invalid { field, detail } => (detail.clone(), field.clone(), None),
+            AppError::Unauthorized(_) => (self.to_string(), Some("Authorization".into()), None),
+            AppError::FitNotReady { detail, job } => (detail.clone(), None, job.clone()),
+            AppError::Internal(_) => (
+                "the server failed to answer; the error is in its log".to_owned(),
+                None,
+                None,
+            ),
+            AppError::PayloadTooLarge(_) => (self.to_string(), Some("body".into()), None),
+            AppError::UnsupportedMediaType(_) => {
+                (self.to_string(), Some("Content-Type".into()), None)
+            }
+            _ => (self.to_string(), None, None),
+        };
+        Problem {
+            kind: format!("/problems/{slug}"),
+            title: title.to_owned(),
+            status: status.as_u16(),
+            detail,
+            field,
+            job,
+        }
+    }
+}
+
+/// A problem answer with its status and media type.
+pub fn problem_response(p: &Problem) -> Response {
+    let status = StatusCode::from_u16(p.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
+    let body = serde_json::to_vec(p).unwrap_or_default();
+    let mut resp = (status, body).into_response();
+    resp.headers_mut()
+        .insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
+    if status == StatusCode::UNAUTHORIZED {
+        resp.headers_mut().insert(
+            header::WWW_AUTHENTICATE,
+            HeaderValue::from_static("Bearer realm=\"pantowatch\""),
+        );
+    }
+    resp
+}
+
+impl IntoResponse for AppError {
+    fn into_response(self) -> Response {
+        if let AppError::Internal(e) = &self {
+            tracing::error!(error = %e, "request failed");
+        }
+        problem_response(&self.problem())
+    }
+}
+
+impl From<StoreError> for AppError {
+    fn from(e: StoreError) -> Self {
+        match e {
+            // The store refused a value: the caller's input (the trace checks come first, so
+            // this is rare), never a fault of ours.
+            StoreError::Invalid(m) => AppError::Invalid {
+                field: None,
+                detail: m,
+            },
+            other => AppError::Internal(other.to_string()),
+        }
+    }
+}
+
+impl From<IdError> for AppError {
+    fn from(e: IdError) -> Self {
+        AppError::BadRequest {
+            field: Some(e.field),
+            detail: e.message,
+        }
+    }
+}
+
+fn trace_error(e: TraceError, malformed: bool) -> AppError {
+    let detail = format!("`{}`: {}", e.field, e.message);
+    if malformed {
+        AppError::Malformed {
+            field: Some(e.field),
+            detail,
+        }
+    } else {
+        AppError::Invalid {
+            field: Some(e.field),
+            detail,
+        }
+    }
+}
+
+impl From<IngestError> for AppError {
+    fn from(e: IngestError) -> Self {
+        match e {
+            IngestError::Malformed(t) => trace_error(t, true),
+            IngestError::Invalid(t) => trace_error(t, false),
+            IngestError::Conflict(id) => AppError::Conflict(format!(
+                "trace `{id}` is already stored with other content; choose another trace_id"
+            )),
+            IngestError::Store(s) => s.into(),
+        }
+    }
+}

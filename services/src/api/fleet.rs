@@ -1,0 +1,203 @@
+//! The fleet: vehicles with their pantographs and each joint's latest status, a joint's history
+//! over time, and fleet health (a row per pantograph, worst first, filtered and paginated).
+
+use axum::Json;
+use axum::extract::State;
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
+
+use super::AppState;
+use super::auth::Reader;
+use super::error::{AppError, Problem};
+use super::extract::{ApiPath, ApiQuery};
+use crate::ids::{JointName, Serial, VehicleId};
+use crate::store::{
+    FleetFilter, FleetRow, JointPoint, Page, Status, VehicleDetail, VehicleSummary,
+};
+
+/// Largest page of `GET /v1/fleet/health`.
+pub const MAX_LIMIT: u32 = 500;
+
+pub fn router() -> OpenApiRouter<AppState> {
+    OpenApiRouter::new()
+        .routes(routes!(list_vehicles))
+        .routes(routes!(get_vehicle))
+        .routes(routes!(joint_history))
+        .routes(routes!(fleet_health))
+}
+
+/// Every vehicle.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct VehicleList {
+    pub vehicles: Vec<VehicleSummary>,
+}
+
+/// Every vehicle, by id, with its pantograph and trace counts and last test.
+#[utoipa::path(get, path = "/v1/vehicles", tag = "fleet",
+    responses((status = 200, body = VehicleList)),
+    security(("bearer" = [])))]
+pub async fn list_vehicles(
+    State(st): State<AppState>,
+    _auth: Reader,
+) -> Result<Json<VehicleList>, AppError> {
+    Ok(Json(VehicleList {
+        vehicles: st.store.list_vehicles().await?,
+    }))
+}
+
+/// A vehicle, its pantographs as mounted now, and each joint's latest status.
+#[utoipa::path(get, path = "/v1/vehicles/{id}", tag = "fleet",
+    params(("id" = String, Path, description = "vehicle id")),
+    responses(
+        (status = 200, body = VehicleDetail),
+        (status = 400, description = "Malformed vehicle id", body = Problem, content_type = "application/problem+json"),
+        (status = 404, body = Problem, content_type = "application/problem+json"),
+    ),
+    security(("bearer" = [])))]
+pub async fn get_vehicle(
+    State(st): State<AppState>,
+    _auth: Reader,
+    ApiPath(raw): ApiPath<String>,
+) -> Result<Json<VehicleDetail>, AppError> {
+    let id = VehicleId::parse("vehicle_id", &raw)?;
+    st.store
+        .get_vehicle(id.as_str())
+        .await?
+        .map(Json)
+        .ok_or_else(|| AppError::NotFound(format!("no vehicle `{id}`")))
+}
+
+/// A joint's fits over time.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct JointHistory {
+    pub serial: String,
+    pub joint: String,
+    /// One point per fitted trace of this joint, by `recorded_at`.
+    pub points: Vec<JointPoint>,
+}
+
+/// Every fit of one joint of one pantograph, oldest test first (the wear trend).
+#[utoipa::path(get, path = "/v1/pantographs/{serial}/joints/{joint}/history", tag = "fleet",
+    params(
+        ("serial" = String, Path, description = "pantograph serial"),
+        ("joint" = String, Path, description = "J1 … J9, J2', custom"),
+    ),
+    responses(
+        (status = 200, body = JointHistory),
+        (status = 400, description = "Malformed serial or unknown joint", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No such pantograph", body = Problem, content_type = "application/problem+json"),
+    ),
+    security(("bearer" = [])))]
+pub async fn joint_history(
+    State(st): State<AppState>,
+    _auth: Reader,
+    ApiPath((serial, joint)): ApiPath<(String, String)>,
+) -> Result<Json<JointHistory>, AppError> {
+    let serial = Serial::parse("serial", &serial)?;
+    let joint = JointName::parse("joint", &joint)?;
+    if !st.store.pantograph_exists(serial.as_str()).await? {
+        return Err(AppError::NotFound(format!("no pantograph `{serial}`")));
+    }
+    let points = st
+        .store
+        .joint_history(serial.as_str(), joint.as_str())
+        .await?;
+    Ok(Json(JointHistory {
+        serial: serial.to_string(),
+        joint: joint.to_string(),
+        points,
+    }))
+}
+
+/// Query of `GET /v1/fleet/health`.
+#[derive(Debug, Default, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct FleetQuery {
+    /// Only pantographs whose worst status is this: `alarm`, `watch`, `ok`, `unknown`.
+    pub status: Option<String>,
+    /// Only pantographs mounted on this vehicle now.
+    pub vehicle: Option<String>,
+    /// Page size, 1–500 (default 50).
+    pub limit: Option<String>,
+    /// Rows to skip (default 0).
+    pub offset: Option<String>,
+}
+
+/// A page of fleet health.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct FleetHealth {
+    /// Rows matching the filter over all pages.
+    pub total: u64,
+    pub limit: u32,
+    pub offset: u64,
+    /// Worst first (`alarm`, `watch`, `ok`, `unknown`, not yet fitted), then by serial.
+    pub rows: Vec<FleetRow>,
+}
+
+fn parse_num<T: std::str::FromStr>(field: &str, v: &str) -> Result<T, AppError> {
+    v.trim()
+        .parse::<T>()
+        .map_err(|_| AppError::bad_field(field, format!("`{v}` is not a whole number ≥ 0")))
+}
+
+/// A row per pantograph: worst latest joint status, the joints that are not ok, last test.
+#[utoipa::path(get, path = "/v1/fleet/health", tag = "fleet",
+    params(FleetQuery),
+    responses(
+        (status = 200, body = FleetHealth),
+        (status = 400, description = "A bad filter or page (`field` names it)", body = Problem, content_type = "application/problem+json"),
+    ),
+    security(("bearer" = [])))]
+pub async fn fleet_health(
+    State(st): State<AppState>,
+    _auth: Reader,
+    ApiQuery(q): ApiQuery<FleetQuery>,
+) -> Result<Json<FleetHealth>, AppError> {
+    let status = q
+        .status
+        .as_deref()
+        .filter(|s| !s.is_empty())
+        .map(|s| {
+            s.parse::<Status>().map_err(|_| {
+                AppError::bad_field("status", "must be one of alarm, watch, ok, unknown")
+            })
+        })
+        .transpose()?;
+    let vehicle_id = q
+        .vehicle
+        .as_deref()
+        .filter(|s| !s.is_empty())
+        .map(|v| VehicleId::parse("vehicle", v))
+        .transpose()?
+        .map(|v| v.to_string());
+    let limit = match q.limit.as_deref() {
+        None | Some("") => Page::default().limit,
+        Some(v) => parse_num::<u32>("limit", v)?,
+    };
+    if !(1..=MAX_LIMIT).contains(&limit) {
+        return Err(AppError::bad_field(
+            "limit",
+            format!("must be from 1 to {MAX_LIMIT}"),
+        ));
+    }
+    let offset = match q.offset.as_deref() {
+        None | Some("") => 0,
+        Some(v) => parse_num::<u64>("offset", v)?,
+    };
+    if offset > i64::MAX as u64 {
+        return Err(AppError::bad_field("offset", "too large"));
+    }
+    let page = st
+        .store
+        .fleet_health(&FleetFilter { status, vehicle_id }, Page { limit, offset })
+        .await?;
+    Ok(Json(FleetHealth {
+        total: page.total,
+        limit,
+        offset,
+        rows: page.rows,
+    }))
+}

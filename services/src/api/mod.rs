@@ -1,0 +1,170 @@
+//! The REST API: axum routes under `/v1` (traces, fleet, admin) plus `/healthz`, `/readyz`,
+//! `/metrics` and `/openapi.json`, the OpenAPI document generated from these handlers.
+//!
+//! Each module has a `router()`; [`router`] merges them in one place, adds the fallbacks and
+//! the layers (body limit, telemetry and timeout, panic guard) and the state.
+
+pub mod admin;
+pub mod auth;
+pub mod error;
+pub mod extract;
+pub mod fleet;
+pub mod ops;
+pub mod telemetry;
+pub mod traces;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::Router;
+use axum::extract::DefaultBodyLimit;
+use axum::http::{Method, Uri};
+use axum::middleware::from_fn_with_state;
+use axum::routing::get;
+use metrics_exporter_prometheus::PrometheusHandle;
+use tokio::sync::Notify;
+use tower_http::catch_panic::CatchPanicLayer;
+use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
+use utoipa::openapi::{ContentBuilder, Ref, RefOr, ResponseBuilder};
+use utoipa::{Modify, OpenApi};
+use utoipa_axum::router::OpenApiRouter;
+
+use crate::ingest::Intake;
+use crate::store::Store;
+use error::{AppError, PROBLEM_JSON, Problem};
+
+/// What every handler can reach.
+#[derive(Clone)]
+pub struct AppState {
+    pub store: Store,
+    pub intake: Intake,
+    /// Wakes in-process workers (uploads, re-fits).
+    pub wake: Arc<Notify>,
+    pub metrics: PrometheusHandle,
+    pub body_limit: usize,
+    pub timeout: Duration,
+}
+
+impl AppState {
+    pub fn new(store: Store, wake: Arc<Notify>, body_limit: usize, timeout: Duration) -> Self {
+        AppState {
+            intake: Intake::new(store.clone(), wake.clone()),
+            store,
+            wake,
+            metrics: telemetry::prometheus(),
+            body_limit,
+            timeout,
+        }
+    }
+}
+
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "pantowatch",
+        description = "Joint wear of railway pantographs: upload test traces, read each joint's \
+            fitted friction, its drift status and the fleet's health. Every `/v1` route needs \
+            `Authorization: Bearer <key>` (roles: reader < writer < admin). Errors are \
+            `application/problem+json` with `type`, `title`, `status`, `detail` and `field`."
+    ),
+    modifiers(&Security),
+    components(schemas(Problem)),
+    tags(
+        (name = "traces", description = "Upload traces, read them and their fits"),
+        (name = "fleet", description = "Vehicles, joint histories, fleet health"),
+        (name = "admin", description = "API keys and re-fits (admin keys)"),
+        (name = "ops", description = "Liveness, readiness, metrics (no key)"),
+    )
+)]
+struct ApiDoc;
+
+/// Adds the bearer scheme and the 401/403 answers shared by every `/v1` operation.
+struct Security;
+
+impl Modify for Security {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme(
+            "bearer",
+            SecurityScheme::Http(Http::new(HttpAuthScheme::Bearer)),
+        );
+        let problem = || {
+            ContentBuilder::new()
+                .schema(Some(Ref::from_schema_name("Problem")))
+                .build()
+        };
+        for (name, text) in [
+            ("Unauthorized", "No key, or an unknown or revoked key"),
+            ("Forbidden", "The key's role is too low for this route"),
+        ] {
+            components.responses.insert(
+                name.into(),
+                RefOr::T(
+                    ResponseBuilder::new()
+                        .description(text)
+                        .content(PROBLEM_JSON, problem())
+                        .build(),
+                ),
+            );
+        }
+        for (path, item) in openapi.paths.paths.iter_mut() {
+            if !path.starts_with("/v1/") {
+                continue;
+            }
+            for op in [
+                &mut item.get,
+                &mut item.post,
+                &mut item.put,
+                &mut item.delete,
+                &mut item.patch,
+            ]
+            .into_iter()
+            .flatten()
+            {
+                for (code, name) in [("401", "Unauthorized"), ("403", "Forbidden")] {
+                    op.responses
+                        .responses
+                        .insert(code.into(), RefOr::Ref(Ref::from_response_name(name)));
+                }
+            }
+        }
+    }
+}
+
+fn api_routes() -> OpenApiRouter<AppState> {
+    OpenApiRouter::with_openapi(ApiDoc::openapi())
+        .merge(traces::router())
+        .merge(fleet::router())
+        .merge(admin::router())
+        .merge(ops::router())
+}
+
+/// The OpenAPI document of the API (what `/openapi.json` serves).
+pub fn openapi() -> utoipa::openapi::OpenApi {
+    api_routes().split_for_parts().1
+}
+
+async fn not_found(method: Method, uri: Uri) -> AppError {
+    AppError::NotFound(format!("no route {method} {}", uri.path()))
+}
+
+/// The whole HTTP application.
+pub fn router(state: AppState) -> Router {
+    let (routes, doc) = api_routes().split_for_parts();
+    let doc = Arc::new(doc);
+    let limit = state.body_limit;
+    let timeout = state.timeout;
+    routes
+        .route(
+            "/openapi.json",
+            get(move || {
+                let doc = doc.clone();
+                async move { axum::Json(doc.as_ref().clone()) }
+            }),
+        )
+        .fallback(not_found)
+        .with_state(state)
+        .layer(DefaultBodyLimit::max(limit))
+        .layer(from_fn_with_state(timeout, telemetry::track))
+        .layer(CatchPanicLayer::custom(telemetry::panic_response))
+}

@@ -1,0 +1,228 @@
+//! The demo fleet: `vehicles` × 2 pantographs × 12 monthly workshop sessions over a year, each
+//! session two pendulum tests (joints rotating through J1–J7) and every third month a slider
+//! test (J8). A third of the pantographs have one joint wearing at its own rate; the rest stay at
+//! their Table 4 baseline. Everything is deterministic (fixed seeds).
+
+use serde_json::json;
+
+use crate::cli::simulate::SimulateArgs;
+use crate::trace::{FORMAT, TraceDoc};
+
+/// The pendulum joints the sessions rotate through.
+pub const PENDULUM_JOINTS: [&str; 7] = ["J1", "J2", "J3", "J4", "J5", "J6", "J7"];
+/// Months of tests.
+pub const MONTHS: usize = 12;
+/// First month of the year of tests.
+const START: (i32, u32) = (2025, 5);
+
+/// Which friction parameter wears.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Param {
+    Viscous,
+    Dry,
+}
+
+impl Param {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Param::Viscous => "viscous",
+            Param::Dry => "dry",
+        }
+    }
+}
+
+/// A joint that wears: its parameter grows linearly to `1 + rate` × baseline by the last month.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Wear {
+    pub joint: &'static str,
+    pub param: Param,
+    pub rate: f64,
+}
+
+impl Wear {
+    /// The true factor over baseline in month `m` (0-based).
+    pub fn factor(&self, m: usize) -> f64 {
+        1.0 + self.rate * m as f64 / (MONTHS - 1) as f64
+    }
+}
+
+/// One pantograph of the fleet.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pantograph {
+    pub vehicle_id: String,
+    pub serial: String,
+    /// Index in the fleet (`2·vehicle + position`).
+    pub index: usize,
+    pub wear: Option<Wear>,
+}
+
+/// The fleet's pantographs, in vehicle order.
+pub fn pantographs(vehicles: usize) -> Vec<Pantograph> {
+    (0..vehicles)
+        .flat_map(|v| {
+            (0..2).map(move |p| {
+                let k = 2 * v + p;
+                Pantograph {
+                    vehicle_id: format!("EN57-{:04}", 2001 + v),
+                    serial: format!("160EC-{:04}", 101 + k),
+                    index: k,
+                    wear: wear_of(k),
+                }
+            })
+        })
+        .collect()
+}
+
+/// The wear plan: dry friction rising on every sixth pantograph (to 1.7–2.5×), viscous damping
+/// on every tenth (to 1.9–2.6×), the head slider's dry friction on every fifteenth (to 1.9×).
+fn wear_of(k: usize) -> Option<Wear> {
+    if k % 6 == 1 {
+        Some(Wear {
+            joint: PENDULUM_JOINTS[(k / 6) % 7],
+            param: Param::Dry,
+            rate: [0.7, 1.1, 1.5][(k / 6) % 3],
+        })
+    } else if k % 10 == 4 {
+        // J6's damping is too small to watch (10⁻³ N·m·s): its neighbour wears instead.
+        let j = match PENDULUM_JOINTS[(k / 10 + 3) % 7] {
+            "J6" => "J5",
+            j => j,
+        };
+        Some(Wear {
+            joint: j,
+            param: Param::Viscous,
+            rate: [0.9, 1.6][(k / 10) % 2],
+        })
+    } else if k % 15 == 8 {
+        Some(Wear {
+            joint: "J8",
+            param: Param::Dry,
+            rate: 0.9,
+        })
+    } else {
+        None
+    }
+}
+
+/// One test to synthesise.
+#[derive(Debug, Clone)]
+pub struct PlannedTest {
+    pub args: SimulateArgs,
+    /// True factor of the worn parameter when this test is of the worn joint.
+    pub true_factor: Option<(Param, f64)>,
+}
+
+/// Table 4 baseline (viscous, dry) of a joint, as the fit will use it.
+pub fn baseline(joint: &str) -> anyhow::Result<(f64, f64)> {
+    let (kind, channel) = if joint == "J8" {
+        ("slider", "h_mm")
+    } else {
+        ("pendulum", "alpha_deg")
+    };
+    let v = json!({"format": FORMAT, "vehicle_id": "x", "pantograph": {"model": "160EC"},
+        "recorded_at": "2026-01-01T00:00:00Z", "test": {"kind": kind, "joint": joint, "rig": {}},
+        "channels": {"t_s": [0.0, 1.0], channel: [0.0, 0.0]}});
+    let doc = TraceDoc::from_value(&v).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (_, b) = doc.joint_test().map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok((b.viscous.unwrap_or(0.0), b.dry.unwrap_or(0.0)))
+}
+
+/// Every test of the year, in time order within each pantograph.
+pub fn plan(vehicles: usize) -> anyhow::Result<Vec<PlannedTest>> {
+    let mut baselines = std::collections::HashMap::new();
+    for j in PENDULUM_JOINTS.iter().chain(&["J8"]) {
+        baselines.insert(*j, baseline(j)?);
+    }
+    // `pantowatch simulate`'s defaults for every option the plan does not set.
+    let defaults = {
+        #[derive(clap::Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            args: SimulateArgs,
+        }
+        <Defaults as clap::Parser>::try_parse_from(["simulate"])?.args
+    };
+    let mut out = Vec::new();
+    for p in pantographs(vehicles) {
+        let k = p.index;
+        for m in 0..MONTHS {
+            let (y, mo) = {
+                let z = START.1 as usize - 1 + m;
+                (START.0 + (z / 12) as i32, (z % 12) as u32 + 1)
+            };
+            let day = 1 + (k / 2 * 7 + m) % 27;
+            let hour = 6 + 3 * (k % 2);
+            let mut joints: Vec<&'static str> = vec![
+                PENDULUM_JOINTS[(2 * m + k) % 7],
+                PENDULUM_JOINTS[(2 * m + 1 + k) % 7],
+            ];
+            if (m + k) % 3 == 0 {
+                joints.push("J8");
+            }
+            for (slot, joint) in joints.into_iter().enumerate() {
+                let (bv, bd) = baselines[joint];
+                let (mut viscous, mut dry) = (bv, bd);
+                let mut true_factor = None;
+                if let Some(w) = p.wear.as_ref().filter(|w| w.joint == joint) {
+                    let f = w.factor(m);
+                    match w.param {
+                        Param::Viscous => viscous *= f,
+                        Param::Dry => dry *= f,
+                    }
+                    true_factor = Some((w.param, f));
+                }
+                let slider = joint == "J8";
+                let args = SimulateArgs {
+                    kind: if slider { "slider" } else { "pendulum" }.into(),
+                    joint: joint.into(),
+                    viscous: Some(viscous),
+                    dry: Some(dry),
+                    // Pendulums: an encoder of 0.05° noise, 250 Hz for 15 s (J7's dry friction
+                    // is not pinned down in 12 s). The head slider rings out in ~2 s: 500 Hz for
+                    // 5 s, a displacement sensor of 0.02 mm noise (at 0.05 mm the slider fit
+                    // falls into a wrong minimum for ~1 trace in 6).
+                    noise: if slider { 0.02 } else { 0.05 },
+                    quantum: if slider { 0.005 } else { 0.01 },
+                    offset: 0.0,
+                    fs: if slider { 500.0 } else { 250.0 },
+                    duration: if slider { 5.0 } else { 15.0 },
+                    seed: (k * 1000 + m * 10 + slot + 1) as u64,
+                    vehicle: p.vehicle_id.clone(),
+                    serial: p.serial.clone(),
+                    trace_id: Some(format!("{}-{y}{mo:02}-{joint}", p.serial)),
+                    recorded_at: format!("{y}-{mo:02}-{day:02}T{hour:02}:{:02}:00Z", slot * 20),
+                    ..defaults.clone()
+                };
+                out.push(PlannedTest { args, true_factor });
+            }
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_plan_is_a_fleet_year() {
+        let ps = pantographs(30);
+        assert_eq!(ps.len(), 60);
+        let worn = ps.iter().filter(|p| p.wear.is_some()).count();
+        assert!((15..=25).contains(&worn), "{worn} worn");
+        let plan = plan(30).expect("plan");
+        assert_eq!(plan.len(), 60 * 12 * 2 + 60 * 12 / 3);
+        let ids: std::collections::HashSet<_> =
+            plan.iter().map(|t| t.args.trace_id.clone()).collect();
+        assert_eq!(ids.len(), plan.len(), "trace ids are unique");
+        // Every pendulum joint is tested on every pantograph during the year.
+        for p in &ps {
+            for j in PENDULUM_JOINTS {
+                assert!(
+                    plan.iter()
+                        .any(|t| t.args.serial == p.serial && t.args.joint == j)
+                );
+            }
+        }
+    }
+}

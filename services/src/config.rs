@@ -1,0 +1,395 @@
+//! Service configuration, layered: built-in defaults → a TOML file (`--config`) → environment
+//! variables `PANTOWATCH__<SECTION>__<KEY>` (`__` nests) → command-line flags.
+//!
+//! Environment values are read as TOML values when they parse as one (`4`, `true`,
+//! `[0.67, 1.5]`) and as strings otherwise. Unknown keys are errors, so a typo never silently
+//! falls back to a default. The database URL is a [`SecretString`]: it is never logged.
+
+use std::fmt;
+use std::net::SocketAddr;
+use std::path::Path;
+use std::time::Duration;
+
+use pantowatch_models::drift::DriftThresholds;
+use serde::Deserialize;
+
+/// Prefix of the environment variables read by [`Settings::load`].
+pub const ENV_PREFIX: &str = "PANTOWATCH__";
+
+/// A string that is never printed: `Debug` and `Display` show `[redacted]`.
+#[derive(Clone, Default, Deserialize, PartialEq, Eq)]
+#[serde(transparent)]
+pub struct SecretString(String);
+
+impl SecretString {
+    pub fn new(s: impl Into<String>) -> Self {
+        SecretString(s.into())
+    }
+    /// The secret itself, for the one place that needs it (connecting).
+    pub fn expose_secret(&self) -> &str {
+        &self.0
+    }
+}
+
+impl fmt::Debug for SecretString {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("SecretString([redacted])")
+    }
+}
+
+impl fmt::Display for SecretString {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("[redacted]")
+    }
+}
+
+/// Everything `pantowatch serve` / `worker` reads.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct Settings {
+    /// Address the HTTP server binds.
+    pub listen: SocketAddr,
+    /// Fitting workers started with the server (0: the API only).
+    pub workers: usize,
+    pub database: DatabaseSettings,
+    pub worker: WorkerSettings,
+    pub http: HttpSettings,
+    pub drift: DriftSettings,
+    pub log: LogSettings,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct DatabaseSettings {
+    /// `postgres://…` for PostgreSQL; otherwise a SQLite file path (created if missing).
+    pub url: SecretString,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct WorkerSettings {
+    /// How long a claimed job is a worker's before another may take it over, seconds.
+    pub lease_secs: u64,
+    /// How often an idle worker looks for jobs queued by other processes, milliseconds.
+    pub poll_ms: u64,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct HttpSettings {
+    /// Largest accepted request body, MiB.
+    pub body_limit_mib: u64,
+    /// Longest a request may take before it is answered 503, seconds.
+    pub request_timeout_secs: u64,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct DriftSettings {
+    /// `watch` when the 95 % interval lies wholly outside `[lo, hi]` × baseline.
+    pub watch: [f64; 2],
+    /// `alarm` when the 95 % interval lies wholly outside `[lo, hi]` × baseline.
+    pub alarm: [f64; 2],
+}
+
+/// Log line format.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LogFormat {
+    /// Human-readable lines.
+    #[default]
+    Text,
+    /// One JSON object per line.
+    Json,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct LogSettings {
+    pub format: LogFormat,
+    /// `tracing` filter directives (`info`, `pantowatch=debug,sqlx=warn`); `RUST_LOG` wins.
+    pub filter: String,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            listen: SocketAddr::from(([127, 0, 0, 1], 8080)),
+            workers: 2,
+            database: DatabaseSettings::default(),
+            worker: WorkerSettings::default(),
+            http: HttpSettings::default(),
+            drift: DriftSettings::default(),
+            log: LogSettings::default(),
+        }
+    }
+}
+
+impl Default for DatabaseSettings {
+    fn default() -> Self {
+        DatabaseSettings {
+            url: SecretString::new("pantowatch.db"),
+        }
+    }
+}
+
+impl Default for WorkerSettings {
+    fn default() -> Self {
+        WorkerSettings {
+            lease_secs: 60,
+            poll_ms: 500,
+        }
+    }
+}
+
+impl Default for HttpSettings {
+    fn default() -> Self {
+        HttpSettings {
+            body_limit_mib: 64,
+            request_timeout_secs: 60,
+        }
+    }
+}
+
+impl Default for DriftSettings {
+    fn default() -> Self {
+        let d = DriftThresholds::default();
+        DriftSettings {
+            watch: d.watch,
+            alarm: d.alarm,
+        }
+    }
+}
+
+impl Default for LogSettings {
+    fn default() -> Self {
+        LogSettings {
+            format: LogFormat::Text,
+            filter: "info".into(),
+        }
+    }
+}
+
+/// A configuration that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("reading {path}: {source}")]
+    Read {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{origin}: {message}")]
+    Invalid { origin: String, message: String },
+}
+
+fn invalid(origin: impl Into<String>, message: impl fmt::Display) -> ConfigError {
+    ConfigError::Invalid {
+        origin: origin.into(),
+        message: message.to_string(),
+    }
+}
+
+/// Deep merge: tables merge key by key, anything else in `over` replaces `base`.
+fn merge(base: &mut toml::Table, over: toml::Table) {
+    for (k, v) in over {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
+/// The `PANTOWATCH__…` variables as a TOML table.
+fn env_table(vars: impl IntoIterator<Item = (String, String)>) -> Result<toml::Table, ConfigError> {
+    let mut root = toml::Table::new();
+    for (name, raw) in vars {
+        let Some(path) = name.strip_prefix(ENV_PREFIX) else {
+            continue;
+        };
+        let keys: Vec<String> = path.split("__").map(str::to_ascii_lowercase).collect();
+        if keys.iter().any(String::is_empty) {
+            return Err(invalid(&name, "empty key segment"));
+        }
+        let value = toml::from_str::<toml::Table>(&format!("v = {raw}"))
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .unwrap_or_else(|| toml::Value::String(raw.clone()));
+        let mut table = &mut root;
+        let (last, parents) = keys.split_last().ok_or_else(|| invalid(&name, "no key"))?;
+        for k in parents {
+            let entry = table
+                .entry(k.clone())
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            table = entry
+                .as_table_mut()
+                .ok_or_else(|| invalid(&name, format!("`{k}` is not a section")))?;
+        }
+        table.insert(last.clone(), value);
+    }
+    Ok(root)
+}
+
+impl Settings {
+    /// Defaults, then `file` if given, then the process environment.
+    pub fn load(file: Option<&Path>) -> Result<Settings, ConfigError> {
+        Self::load_from(file, std::env::vars())
+    }
+
+    /// As [`Settings::load`] with an explicit environment (tests).
+    pub fn load_from(
+        file: Option<&Path>,
+        env: impl IntoIterator<Item = (String, String)>,
+    ) -> Result<Settings, ConfigError> {
+        let mut table = toml::Table::new();
+        let mut origin = "defaults".to_owned();
+        if let Some(path) = file {
+            let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+                path: path.display().to_string(),
+                source,
+            })?;
+            let file_table: toml::Table =
+                toml::from_str(&text).map_err(|e| invalid(path.display().to_string(), e))?;
+            merge(&mut table, file_table);
+            origin = path.display().to_string();
+        }
+        let env = env_table(env)?;
+        if !env.is_empty() {
+            origin = format!("{origin} + {ENV_PREFIX}* environment");
+        }
+        merge(&mut table, env);
+        let settings: Settings = toml::Value::Table(table)
+            .try_into()
+            .map_err(|e| invalid(&origin, e))?;
+        settings.validate().map_err(|m| invalid(origin, m))?;
+        Ok(settings)
+    }
+
+    /// Checks values that parse but cannot work.
+    pub fn validate(&self) -> Result<(), String> {
+        self.thresholds().validate()?;
+        if self.database.url.expose_secret().trim().is_empty() {
+            return Err("database.url is empty".into());
+        }
+        if self.worker.lease_secs == 0 || self.worker.poll_ms == 0 {
+            return Err("worker.lease_secs and worker.poll_ms must be > 0".into());
+        }
+        if self.http.body_limit_mib == 0 || self.http.request_timeout_secs == 0 {
+            return Err("http.body_limit_mib and http.request_timeout_secs must be > 0".into());
+        }
+        Ok(())
+    }
+
+    /// The drift bands as the models take them.
+    pub fn thresholds(&self) -> DriftThresholds {
+        DriftThresholds {
+            watch: self.drift.watch,
+            alarm: self.drift.alarm,
+        }
+    }
+
+    /// Body limit in bytes.
+    pub fn body_limit_bytes(&self) -> usize {
+        usize::try_from(self.http.body_limit_mib.saturating_mul(1 << 20)).unwrap_or(usize::MAX)
+    }
+
+    pub fn lease(&self) -> Duration {
+        Duration::from_secs(self.worker.lease_secs)
+    }
+
+    pub fn poll(&self) -> Duration {
+        Duration::from_millis(self.worker.poll_ms)
+    }
+}
+
+/// Which backend a database URL selects (what may be logged about it).
+pub fn backend_name(url: &SecretString) -> &'static str {
+    let u = url.expose_secret();
+    if u.starts_with("postgres://") || u.starts_with("postgresql://") {
+        "postgresql"
+    } else {
+        "sqlite"
+    }
+}
+
+/// Installs the global `tracing` subscriber (stderr; `RUST_LOG` overrides the filter).
+pub fn init_logging(log: &LogSettings) {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .or_else(|_| tracing_subscriber::EnvFilter::try_new(&log.filter))
+        .unwrap_or_else(|_| "info".into());
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .with_writer(std::io::stderr);
+    // A second call (tests, demo → serve) keeps the first subscriber.
+    let _ = match log.format {
+        LogFormat::Json => builder.json().try_init(),
+        LogFormat::Text => builder.try_init(),
+    };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn env(pairs: &[(&str, &str)]) -> Vec<(String, String)> {
+        pairs
+            .iter()
+            .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
+            .collect()
+    }
+
+    #[test]
+    fn layers_defaults_file_env() {
+        let dir = tempfile::tempdir().expect("dir");
+        let file = dir.path().join("pw.toml");
+        std::fs::write(
+            &file,
+            "workers = 3\n[database]\nurl = \"file.db\"\n[drift]\nwatch = [0.7, 1.4]\n",
+        )
+        .expect("write");
+        let s = Settings::load_from(
+            Some(&file),
+            env(&[
+                ("PANTOWATCH__WORKERS", "5"),
+                ("PANTOWATCH__DATABASE__URL", "postgres://u:p@h/db"),
+                ("PANTOWATCH__LOG__FORMAT", "json"),
+                ("PANTOWATCH_EXAMPLES", "ignored"),
+            ]),
+        )
+        .expect("settings");
+        assert_eq!(s.workers, 5);
+        assert_eq!(s.database.url.expose_secret(), "postgres://u:p@h/db");
+        assert_eq!(s.drift.watch, [0.7, 1.4]);
+        assert_eq!(s.drift.alarm, [0.5, 2.0]);
+        assert_eq!(s.log.format, LogFormat::Json);
+        assert_eq!(s.listen, Settings::default().listen);
+        assert!(
+            !format!("{s:?}").contains("u:p"),
+            "the URL is never printed"
+        );
+        assert_eq!(backend_name(&s.database.url), "postgresql");
+    }
+
+    #[test]
+    fn the_example_file_is_the_defaults() {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/pantowatch.example.toml");
+        let s = Settings::load_from(Some(&file), Vec::new()).expect("example config");
+        assert_eq!(s, Settings::default());
+    }
+
+    #[test]
+    fn errors_name_the_key() {
+        let e = Settings::load_from(None, env(&[("PANTOWATCH__WORKRS", "2")])).unwrap_err();
+        assert!(e.to_string().contains("workrs"), "{e}");
+        let e = Settings::load_from(None, env(&[("PANTOWATCH__DRIFT__WATCH", "[1.2, 1.5]")]))
+            .unwrap_err();
+        assert!(e.to_string().contains("drift bands"), "{e}");
+        let e = Settings::load_from(None, env(&[("PANTOWATCH__LISTEN", "nowhere")])).unwrap_err();
+        assert!(
+            e.to_string().contains("listen") || e.to_string().contains("address"),
+            "{e}"
+        );
+    }
+}

@@ -1,0 +1,129 @@
+//! The service process: the HTTP API and the fitting workers on one runtime, started by [`run`]
+//! on a bound listener and stopped gracefully when the shutdown future resolves (in-flight
+//! requests are answered, each worker finishes its current fit).
+
+use std::future::Future;
+use std::sync::Arc;
+use std::time::Duration;
+
+use pantowatch_models::report::MODEL_VERSION;
+use tokio::net::TcpListener;
+use tokio::sync::{Notify, watch};
+
+use crate::api::{self, AppState};
+use crate::config::Settings;
+use crate::store::{BackendKind, Store};
+use crate::worker::{WorkerOptions, WorkerPool};
+
+/// The workers' options from the settings, with `workers` tasks.
+pub fn worker_options(settings: &Settings, workers: usize) -> WorkerOptions {
+    WorkerOptions {
+        workers,
+        lease: settings.lease(),
+        poll: settings.poll(),
+        thresholds: settings.thresholds(),
+    }
+}
+
+/// `sqlite` or `postgresql`: what may be logged about the database.
+pub fn backend_label(store: &Store) -> &'static str {
+    match store.kind() {
+        BackendKind::Sqlite => "sqlite",
+        BackendKind::Postgres => "postgresql",
+    }
+}
+
+/// Serves the API on `listener` with `settings.workers` fitting workers until `shutdown`
+/// resolves; then stops accepting, answers what is in flight and waits for the workers.
+/// The store stays open (the caller closes it).
+pub async fn run(
+    listener: TcpListener,
+    store: Store,
+    settings: &Settings,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> anyhow::Result<()> {
+    let (stop_tx, stop_rx) = watch::channel(false);
+    tokio::spawn(async move {
+        shutdown.await;
+        let _ = stop_tx.send(true);
+    });
+    let wake = Arc::new(Notify::new());
+    let pool = WorkerPool::spawn(
+        store.clone(),
+        worker_options(settings, settings.workers),
+        wake.clone(),
+        stop_rx.clone(),
+        None,
+    );
+    let state = AppState::new(
+        store.clone(),
+        wake,
+        settings.body_limit_bytes(),
+        Duration::from_secs(settings.http.request_timeout_secs),
+    );
+    let addr = listener.local_addr()?;
+    tracing::info!(%addr, workers = settings.workers, database = backend_label(&store),
+        model_version = MODEL_VERSION, "pantowatch serving");
+    let mut stop = stop_rx;
+    let served = axum::serve(listener, api::router(state))
+        .with_graceful_shutdown(async move {
+            let _ = stop.wait_for(|s| *s).await;
+            tracing::info!("shutting down: finishing requests and fits in flight");
+        })
+        .await;
+    pool.join().await;
+    tracing::info!("pantowatch stopped");
+    served.map_err(Into::into)
+}
+
+/// Runs only the fitting workers until `shutdown` resolves.
+pub async fn run_workers(
+    store: Store,
+    settings: &Settings,
+    workers: usize,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) {
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let pool = WorkerPool::spawn(
+        store.clone(),
+        worker_options(settings, workers),
+        Arc::new(Notify::new()),
+        stop_rx,
+        None,
+    );
+    tracing::info!(
+        workers,
+        database = backend_label(&store),
+        model_version = MODEL_VERSION,
+        "pantowatch workers running"
+    );
+    shutdown.await;
+    tracing::info!("shutting down: finishing fits in flight");
+    let _ = stop_tx.send(true);
+    pool.join().await;
+    tracing::info!("workers stopped");
+}
+
+/// Resolves on Ctrl-C (SIGINT) or SIGTERM.
+pub async fn shutdown_signal() {
+    let ctrl_c = async {
+        if tokio::signal::ctrl_c().await.is_err() {
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        _ = ctrl_c => {}
+        _ = term => {}
+    }
+}

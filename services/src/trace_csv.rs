@@ -1,0 +1,298 @@
+//! Traces as CSV, the shape a data logger writes: `# key: value` metadata lines, a header row
+//! of channel names (`t_s` first), then one row per sample. Read into the same [`TraceDoc`].
+//!
+//! ```text
+//! # format: pantograph-trace/1
+//! # trace_id: EN57-1021-J1-2026-03-02
+//! # vehicle_id: EN57-1021
+//! # pantograph.model: 160EC
+//! # pantograph.serial: 160EC-0042
+//! # recorded_at: 2026-03-02T07:15:00Z
+//! # test.kind: pendulum
+//! # test.joint: J1
+//! # test.rig: {"pin_radius_m": 0.01}
+//! t_s,alpha_deg
+//! 0,74.2
+//! 0.002,74.19
+//! ```
+//!
+//! Metadata keys are the contract's field paths; `test.rig` is a JSON object. Values are
+//! comma-separated decimal numbers (`.` as the decimal point; `nan`/`inf` are rejected like any
+//! non-finite value). Blank lines are ignored; `\r\n` line ends are accepted. The document built
+//! from the file is validated by [`TraceDoc::from_value`], exactly like a JSON upload.
+
+use std::fmt::Write as _;
+
+use serde_json::{Map, Value};
+
+use crate::trace::{MAX_CHANNELS, MAX_SAMPLES, TraceDoc, TraceError};
+
+/// Metadata keys accepted in the `# key: value` header.
+pub const META_KEYS: [&str; 9] = [
+    "format",
+    "trace_id",
+    "vehicle_id",
+    "pantograph.model",
+    "pantograph.serial",
+    "recorded_at",
+    "test.kind",
+    "test.joint",
+    "test.rig",
+];
+
+/// Why a CSV body was refused: its structure (`Malformed`) or a contract rule (`Invalid`).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CsvError {
+    #[error("{0}")]
+    Malformed(TraceError),
+    #[error("{0}")]
+    Invalid(TraceError),
+}
+
+fn malformed(field: impl Into<String>, message: impl Into<String>) -> CsvError {
+    CsvError::Malformed(TraceError {
+        field: field.into(),
+        message: message.into(),
+    })
+}
+
+/// Parses a CSV trace into a validated document.
+pub fn parse(bytes: &[u8]) -> Result<TraceDoc, CsvError> {
+    let v = to_value(bytes)?;
+    TraceDoc::from_value(&v).map_err(CsvError::Invalid)
+}
+
+/// The CSV as the contract's JSON document (not yet validated).
+pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
+    let text = std::str::from_utf8(bytes)
+        .map_err(|e| malformed("body", format!("not UTF-8 text: {e}")))?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let mut root = Map::new();
+    let mut panto = Map::new();
+    let mut test = Map::new();
+    let mut header: Option<Vec<String>> = None;
+    let mut columns: Vec<Vec<Value>> = Vec::new();
+    for (i, raw) in text.split('\n').enumerate() {
+        let line_no = i + 1;
+        let line = raw.strip_suffix('\r').unwrap_or(raw);
+        if line.trim().is_empty() {
+            continue;
+        }
+        if let Some(meta) = line.strip_prefix('#') {
+            if header.is_some() {
+                return Err(malformed(
+                    format!("csv.line[{line_no}]"),
+                    "metadata (`# key: value`) must come before the header row",
+                ));
+            }
+            let (key, value) = meta.split_once(':').ok_or_else(|| {
+                malformed(
+                    format!("csv.line[{line_no}]"),
+                    "a metadata line is `# key: value`",
+                )
+            })?;
+            let (key, value) = (key.trim(), value.trim());
+            if !META_KEYS.contains(&key) {
+                return Err(malformed(
+                    key.chars().take(64).collect::<String>(),
+                    format!("unknown metadata key (allowed: {})", META_KEYS.join(", ")),
+                ));
+            }
+            let value = if key == "test.rig" {
+                serde_json::from_str::<Value>(value)
+                    .map_err(|e| malformed("test.rig", format!("not valid JSON: {e}")))?
+            } else {
+                Value::String(value.to_owned())
+            };
+            let slot = match key.split_once('.') {
+                Some(("pantograph", k)) => panto.insert(k.to_owned(), value),
+                Some(("test", k)) => test.insert(k.to_owned(), value),
+                _ => root.insert(key.to_owned(), value),
+            };
+            if slot.is_some() {
+                return Err(malformed(key, "given twice"));
+            }
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        match &header {
+            None => {
+                if fields.len() > MAX_CHANNELS {
+                    return Err(malformed(
+                        "channels",
+                        format!("{} channels, more than {MAX_CHANNELS}", fields.len()),
+                    ));
+                }
+                if fields.first() != Some(&"t_s") {
+                    return Err(malformed(
+                        format!("csv.line[{line_no}]"),
+                        "the header row must start with the channel `t_s`",
+                    ));
+                }
+                let mut seen = std::collections::HashSet::new();
+                for f in &fields {
+                    if !seen.insert(*f) {
+                        return Err(malformed(
+                            format!("channels.{f}"),
+                            "channel named twice in the header row",
+                        ));
+                    }
+                }
+                columns = vec![Vec::new(); fields.len()];
+                header = Some(fields.iter().map(|s| (*s).to_owned()).collect());
+            }
+            Some(names) => {
+                if fields.len() != names.len() {
+                    return Err(malformed(
+                        format!("csv.line[{line_no}]"),
+                        format!(
+                            "{} values, but the header has {} channels",
+                            fields.len(),
+                            names.len()
+                        ),
+                    ));
+                }
+                let row = columns.first().map_or(0, Vec::len);
+                if row >= MAX_SAMPLES {
+                    return Err(malformed(
+                        "channels.t_s",
+                        format!("more than the limit of {MAX_SAMPLES} samples"),
+                    ));
+                }
+                for ((col, name), f) in columns.iter_mut().zip(names).zip(&fields) {
+                    let x = f.parse::<f64>().ok().filter(|x| x.is_finite());
+                    let n = x.and_then(serde_json::Number::from_f64).ok_or_else(|| {
+                        CsvError::Invalid(TraceError {
+                            field: format!("channels.{name}[{row}]"),
+                            message: format!(
+                                "`{}` is not a finite number (line {line_no})",
+                                f.chars().take(32).collect::<String>()
+                            ),
+                        })
+                    })?;
+                    col.push(Value::Number(n));
+                }
+            }
+        }
+    }
+    let Some(names) = header else {
+        return Err(malformed(
+            "channels",
+            "no header row (channel names, `t_s` first) after the metadata",
+        ));
+    };
+    if !panto.is_empty() {
+        root.insert("pantograph".into(), panto.into());
+    }
+    if !test.is_empty() {
+        root.insert("test".into(), test.into());
+    }
+    let channels: Map<String, Value> = names
+        .into_iter()
+        .zip(columns)
+        .map(|(n, c)| (n, Value::Array(c)))
+        .collect();
+    root.insert("channels".into(), channels.into());
+    Ok(root.into())
+}
+
+/// Writes a document in the CSV shape that [`parse`] reads (numbers in Rust's shortest
+/// round-trip form, so the values read back bit-identical).
+pub fn write(doc: &TraceDoc) -> String {
+    let mut s = String::new();
+    let mut meta = |k: &str, v: &str| {
+        let _ = writeln!(s, "# {k}: {v}");
+    };
+    meta("format", crate::trace::FORMAT);
+    if let Some(id) = &doc.trace_id {
+        meta("trace_id", id);
+    }
+    meta("vehicle_id", &doc.vehicle_id);
+    meta("pantograph.model", &doc.pantograph_model);
+    if let Some(serial) = &doc.pantograph_serial {
+        meta("pantograph.serial", serial);
+    }
+    meta("recorded_at", &doc.recorded_at);
+    meta("test.kind", doc.kind.as_str());
+    if let Some(j) = &doc.joint {
+        meta("test.joint", j);
+    }
+    if let Some(rig) = doc.test.get("rig") {
+        meta("test.rig", &rig.to_string());
+    }
+    let names: Vec<&str> = doc.channels.iter().map(|(n, _)| n.as_str()).collect();
+    let _ = writeln!(s, "{}", names.join(","));
+    let n = doc.channels.first().map_or(0, |(_, v)| v.len());
+    for i in 0..n {
+        for (k, (_, v)) in doc.channels.iter().enumerate() {
+            if k > 0 {
+                s.push(',');
+            }
+            let _ = write!(s, "{:?}", v.get(i).copied().unwrap_or(f64::NAN));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CSV: &str = "# format: pantograph-trace/1\r\n# trace_id: t-1\n# vehicle_id: EN57-1021\n\
+        # pantograph.model: 160EC\n# pantograph.serial: 160EC-0042\n# recorded_at: 2026-03-02T07:15:00Z\n\
+        # test.kind: pendulum\n# test.joint: J1\n# test.rig: {}\n\nt_s,alpha_deg\n0,74.2\n0.002,74.19\r\n0.004, 74.17\n";
+
+    #[test]
+    fn reads_the_documented_shape_and_round_trips() {
+        let d = parse(CSV.as_bytes()).expect("valid CSV");
+        assert_eq!(d.trace_id.as_deref(), Some("t-1"));
+        assert_eq!(d.channel("alpha_deg"), Some(&[74.2, 74.19, 74.17][..]));
+        let again = parse(write(&d).as_bytes()).expect("round trip");
+        assert_eq!(again, d);
+        // Same document as JSON.
+        assert_eq!(TraceDoc::from_value(&d.to_value()).expect("json"), d);
+    }
+
+    #[test]
+    fn errors_name_the_field() {
+        let field = |s: &str| match parse(s.as_bytes()) {
+            Err(CsvError::Malformed(e) | CsvError::Invalid(e)) => e.field,
+            Ok(_) => panic!("accepted: {s}"),
+        };
+        assert_eq!(
+            field(&CSV.replace("0.002,74.19", "0.002,NaN")),
+            "channels.alpha_deg[1]"
+        );
+        assert_eq!(
+            field(&CSV.replace("0.002,74.19", "0.002,x")),
+            "channels.alpha_deg[1]"
+        );
+        assert_eq!(field(&CSV.replace("0.004, 74.17", "0.004")), "csv.line[14]");
+        assert_eq!(
+            field(&CSV.replace("# test.joint: J1", "# test.joint: J12")),
+            "test.joint"
+        );
+        assert_eq!(
+            field(&CSV.replace("# vehicle_id: EN57-1021\n", "")),
+            "vehicle_id"
+        );
+        assert_eq!(
+            field(&CSV.replace("# test.rig: {}", "# test.rig: {")),
+            "test.rig"
+        );
+        assert_eq!(
+            field(&CSV.replace("# test.rig: {}", "# colour: red")),
+            "colour"
+        );
+        assert_eq!(
+            field(&CSV.replace("0.004, 74.17", "0.001, 74.17")),
+            "channels.t_s[2]"
+        );
+        assert_eq!(
+            field(&CSV.replace("t_s,alpha_deg", "alpha_deg,t_s")),
+            "csv.line[11]"
+        );
+        assert_eq!(field("# format: pantograph-trace/1\n"), "channels");
+    }
+}

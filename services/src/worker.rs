@@ -1,0 +1,247 @@
+//! Background fitting: a pool of workers that claim jobs from the durable queue under a lease,
+//! fit off the async runtime (`spawn_blocking`) and write each result once with `complete`.
+//!
+//! A worker that dies keeps its job only until the lease runs out; then another claims it.
+//! On shutdown a worker finishes the fit it is running (milliseconds) and stops.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use pantowatch_models::drift::DriftThresholds;
+use tokio::sync::{Notify, watch};
+use tokio::task::JoinSet;
+
+use crate::fitting::{self, FitFailure};
+use crate::ingest::stored_doc;
+use crate::store::{CompleteOutcome, FailOutcome, NewFit, Status, Store, StoreError};
+
+/// How the pool works.
+#[derive(Debug, Clone)]
+pub struct WorkerOptions {
+    /// Number of worker tasks (each runs one fit at a time).
+    pub workers: usize,
+    /// Lease of a claimed job.
+    pub lease: Duration,
+    /// Idle poll interval (jobs queued by other processes; in-process uploads wake at once).
+    pub poll: Duration,
+    pub thresholds: DriftThresholds,
+}
+
+/// What happened to one claimed job.
+#[derive(Debug, Clone, PartialEq)]
+pub enum JobEvent {
+    /// Fit written (or found written) and the job done.
+    Done {
+        trace_id: String,
+        status: Option<Status>,
+        fit_seconds: f64,
+    },
+    /// The job failed for good with this message (e.g. a `lift` trace).
+    Failed { trace_id: String, error: String },
+    /// Another worker took the job over after this one's lease ran out: nothing written.
+    LeaseLost { trace_id: String },
+}
+
+/// Called after every job (the demo's progress bar; only the CLI knows about terminals).
+pub type OnJob = Arc<dyn Fn(&JobEvent) + Send + Sync>;
+
+/// Running workers.
+pub struct WorkerPool {
+    tasks: JoinSet<()>,
+}
+
+impl WorkerPool {
+    /// Starts `opts.workers` workers; they stop when `shutdown` turns true.
+    pub fn spawn(
+        store: Store,
+        opts: WorkerOptions,
+        wake: Arc<Notify>,
+        shutdown: watch::Receiver<bool>,
+        on_job: Option<OnJob>,
+    ) -> WorkerPool {
+        let mut tasks = JoinSet::new();
+        let tag = instance_tag();
+        for n in 0..opts.workers {
+            let id = format!("{tag}-{n}");
+            tasks.spawn(run_worker(
+                store.clone(),
+                id,
+                opts.clone(),
+                wake.clone(),
+                shutdown.clone(),
+                on_job.clone(),
+            ));
+        }
+        WorkerPool { tasks }
+    }
+
+    /// Waits until every worker has stopped.
+    pub async fn join(mut self) {
+        while let Some(r) = self.tasks.join_next().await {
+            if let Err(e) = r {
+                tracing::error!(error = %e, "worker task ended abnormally");
+            }
+        }
+    }
+}
+
+/// `host-pid-random`: unique per process start, so a restarted service never holds the jobs of
+/// its previous life.
+fn instance_tag() -> String {
+    let mut b = [0u8; 3];
+    let _ = getrandom::fill(&mut b);
+    let host = std::env::var("HOSTNAME").unwrap_or_else(|_| "pw".into());
+    format!("{host}-{}-{}", std::process::id(), hex::encode(b))
+}
+
+async fn run_worker(
+    store: Store,
+    id: String,
+    opts: WorkerOptions,
+    wake: Arc<Notify>,
+    mut shutdown: watch::Receiver<bool>,
+    on_job: Option<OnJob>,
+) {
+    tracing::debug!(worker = %id, "worker started");
+    let mut backoff = opts.poll;
+    loop {
+        if *shutdown.borrow() {
+            break;
+        }
+        // Register for wake-ups before looking, so an upload between the claim and the wait
+        // is not missed.
+        let notified = wake.notified();
+        tokio::pin!(notified);
+        notified.as_mut().enable();
+        match process_next(&store, &id, &opts).await {
+            Ok(Some(ev)) => {
+                backoff = opts.poll;
+                if let Some(cb) = &on_job {
+                    cb(&ev);
+                }
+                continue;
+            }
+            Ok(None) => {
+                tokio::select! {
+                    _ = notified => {}
+                    _ = tokio::time::sleep(opts.poll) => {}
+                    _ = shutdown.changed() => {}
+                }
+            }
+            Err(e) => {
+                // The database is unreachable or failed: the job (if any) stays leased and is
+                // reclaimed when the lease runs out. Back off up to 30 s.
+                tracing::error!(worker = %id, error = %e, "job processing failed");
+                tokio::select! {
+                    _ = tokio::time::sleep(backoff) => {}
+                    _ = shutdown.changed() => {}
+                }
+                backoff = (backoff * 2).min(Duration::from_secs(30));
+            }
+        }
+    }
+    tracing::debug!(worker = %id, "worker stopped");
+}
+
+/// Claims one job and processes it; `None` when the queue is empty.
+pub async fn process_next(
+    store: &Store,
+    worker: &str,
+    opts: &WorkerOptions,
+) -> Result<Option<JobEvent>, StoreError> {
+    let Some(job) = store.claim(worker, opts.lease).await? else {
+        return Ok(None);
+    };
+    let trace_id = job.trace_id.clone();
+    let doc = match (
+        store.get_trace(&trace_id).await?,
+        load_samples(store, &trace_id).await?,
+    ) {
+        (Some(meta), Ok(Some(channels))) => stored_doc(&meta, channels),
+        (None, _) | (_, Ok(None)) => Err("trace or its samples are missing".to_owned()),
+        (_, Err(e)) => Err(e),
+    };
+    let doc = match doc {
+        Ok(d) => d,
+        Err(msg) => return fail(store, worker, job.id, trace_id, msg).await.map(Some),
+    };
+    let thresholds = opts.thresholds;
+    let t0 = Instant::now();
+    let fitted =
+        tokio::task::spawn_blocking(move || fitting::fit_document(&doc, &thresholds)).await;
+    let fit_seconds = t0.elapsed().as_secs_f64();
+    metrics::histogram!("pantowatch_fit_duration_seconds").record(fit_seconds);
+    let result = match fitted {
+        Ok(Ok(r)) => r,
+        Ok(Err(f)) => {
+            let msg = match &f {
+                FitFailure::Unsupported(m) => m.clone(),
+                other => other.to_string(),
+            };
+            return fail(store, worker, job.id, trace_id, msg).await.map(Some);
+        }
+        Err(e) => {
+            let msg = format!("the fit panicked or was cancelled: {e}");
+            return fail(store, worker, job.id, trace_id, msg).await.map(Some);
+        }
+    };
+    let json = serde_json::to_value(&result)
+        .map_err(|e| StoreError::Invalid(format!("fit result: {e}")))?;
+    let fit = match NewFit::from_result(json) {
+        Ok(f) => f,
+        Err(e) => {
+            return fail(store, worker, job.id, trace_id, e.to_string())
+                .await
+                .map(Some);
+        }
+    };
+    let status = fit.status();
+    match store.complete(job.id, worker, &fit).await? {
+        CompleteOutcome::Completed(w) => {
+            metrics::counter!("pantowatch_jobs_processed_total", "outcome" => "done").increment(1);
+            tracing::info!(job = job.id, trace = %trace_id, fit_id = w.fit_id,
+                status = status.map_or("none", Status::as_str), ms = fit_seconds * 1e3, "fit written");
+            Ok(Some(JobEvent::Done {
+                trace_id,
+                status,
+                fit_seconds,
+            }))
+        }
+        CompleteOutcome::LeaseLost => {
+            metrics::counter!("pantowatch_jobs_processed_total", "outcome" => "lease_lost")
+                .increment(1);
+            tracing::warn!(job = job.id, trace = %trace_id, "lease lost: another worker took the job");
+            Ok(Some(JobEvent::LeaseLost { trace_id }))
+        }
+    }
+}
+
+/// Samples, with an undecodable blob (checksum, codec) as a job failure rather than an outage.
+async fn load_samples(
+    store: &Store,
+    trace_id: &str,
+) -> Result<Result<Option<Vec<(String, Vec<f64>)>>, String>, StoreError> {
+    match store.get_samples(trace_id).await {
+        Ok(c) => Ok(Ok(c)),
+        Err(StoreError::Codec(e)) => Ok(Err(format!("stored samples unreadable: {e}"))),
+        Err(e) => Err(e),
+    }
+}
+
+async fn fail(
+    store: &Store,
+    worker: &str,
+    job_id: i64,
+    trace_id: String,
+    error: String,
+) -> Result<JobEvent, StoreError> {
+    match store.fail(job_id, worker, &error, false).await? {
+        FailOutcome::Failed | FailOutcome::Requeued => {
+            metrics::counter!("pantowatch_jobs_processed_total", "outcome" => "failed")
+                .increment(1);
+            tracing::warn!(job = job_id, trace = %trace_id, %error, "fit job failed");
+            Ok(JobEvent::Failed { trace_id, error })
+        }
+        FailOutcome::LeaseLost => Ok(JobEvent::LeaseLost { trace_id }),
+    }
+}

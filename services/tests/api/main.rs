@@ -1,0 +1,50 @@
+//! HTTP tests of the service: the real server on 127.0.0.1:0 against a fresh SQLite file and,
+//! with the same cases, a fresh PostgreSQL database (`PANTOWATCH_TEST_PG_URL`, default
+//! `postgres://postgres@127.0.0.1:5432/postgres`; unreachable PostgreSQL fails the tests).
+//!
+//! `PANTOWATCH_BLESS=1 cargo test -p pantowatch --test api openapi` rewrites the committed
+//! OpenAPI snapshot `services/openapi.json` from the served document.
+
+mod cases;
+mod harness;
+
+use harness::Backend;
+
+macro_rules! suite {
+    ($($case:ident),+ $(,)?) => {
+        mod sqlite {
+            $(
+                #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+                async fn $case() {
+                    crate::cases::$case(crate::Backend::Sqlite).await;
+                }
+            )+
+        }
+        mod postgres {
+            $(
+                #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+                async fn $case() {
+                    crate::cases::$case(crate::Backend::Postgres).await;
+                }
+            )+
+        }
+    };
+}
+
+suite!(
+    upload_fit_status_history_fleet,
+    idempotent_upload_and_conflict,
+    csv_upload_and_samples_round_trip,
+    every_route_every_role,
+    rejections_answer_problems_and_store_nothing,
+    stopped_between_upload_and_fit_fits_once,
+    dead_worker_job_is_reclaimed_after_its_lease,
+    lift_trace_fails_clearly_and_refit_requeues,
+    keys_created_and_revoked_over_http,
+    readiness_and_metrics,
+);
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn openapi_snapshot() {
+    cases::openapi_snapshot(Backend::Sqlite).await;
+}
