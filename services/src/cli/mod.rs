@@ -5,9 +5,9 @@ pub mod bench;
 pub mod demo;
 pub mod examples;
 pub mod fit;
-pub mod report;
 pub mod keys;
 pub mod refit;
+pub mod report;
 pub mod serve;
 pub mod simulate;
 
