@@ -13,6 +13,7 @@
 //! - [`simulate`] — event-driven stick–slip simulation with forward sensitivities.
 //! - [`signal`] — local polynomial smoothing and differentiation of sampled signals.
 //! - [`identify`] — first estimate by inverse dynamics, bounded Levenberg–Marquardt, intervals.
+//! - [`lift`] — the complete pantograph: closed-chain multibody model, lift-test simulation.
 //! - [`drift`] — drift status of identified parameters against the Table 4 baseline.
 //! - [`testspec`] — a test described as data, completed with the pantograph type's defaults.
 //! - [`report`] — the contract's fit result.
@@ -28,6 +29,7 @@ pub mod drift;
 pub mod dynamics;
 pub mod friction;
 pub mod identify;
+pub mod lift;
 pub mod noise;
 pub mod ode;
 pub mod report;

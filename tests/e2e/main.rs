@@ -3,4 +3,5 @@
 
 mod coverage;
 mod examples;
+mod lift;
 mod residual;

@@ -478,7 +478,8 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
     let start = if test.initial_rate.is_some() {
         0
     } else {
-        release::detect_release(&test.t_s, &test.y)
+        let span = test.t_s[test.t_s.len() - 1] - test.t_s[0];
+        release::detect_release(&test.t_s, &test.y, test.dof.period_s(span))
     };
     let n_fit = test.t_s.len() - start;
     if n_fit < 20 {
@@ -494,12 +495,35 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
         test.initial_rate,
         fit_offset,
     );
-    fit_window(
-        test,
-        start,
-        n_fit,
-        &FitSpec::base(init.viscous, init.dry, fit_offset),
-        &init,
-        opts,
-    )
+    let spec = FitSpec::base(init.viscous, init.dry, fit_offset);
+    let first = fit_window(test, start, n_fit, &spec, &init, opts)?;
+    // Stick–slip makes the cost piecewise: which reversal sticks jumps with the parameters, and
+    // the time at rest weighs in. A fit that leaves a structured residual may sit in the wrong
+    // piece: restart from the other sides of the first estimate and keep the best.
+    // Trigger: the residual is structured (Ljung–Box) or its RMS exceeds the sensor noise
+    // (from first differences) by more than 8 %.
+    let lags = 20;
+    let r = &first.residual;
+    let noise = (r.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>()
+        / (2.0 * (r.len() - 1) as f64))
+        .sqrt();
+    let white = crate::residual::ljung_box(r, lags) <= crate::residual::chi2_critical_001(lags);
+    if white && first.rmse <= 1.08 * noise {
+        return Ok(first);
+    }
+    // A small grid around the first estimate (its viscous part is the less certain one).
+    let mut best = first;
+    for fv in [0.6, 0.8, 1.25, 1.6] {
+        for fd in [0.9, 1.1, 1.25] {
+            let mut start_at = init;
+            start_at.viscous = (init.viscous * fv).max(1e-9);
+            start_at.dry = (init.dry * fd).max(1e-9);
+            if let Ok(f) = fit_window(test, start, n_fit, &spec, &start_at, opts)
+                && f.rmse < best.rmse * (1.0 - 1e-6)
+            {
+                best = f;
+            }
+        }
+    }
+    Ok(best)
 }

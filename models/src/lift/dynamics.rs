@@ -1,0 +1,769 @@
+//! Equations of motion of the complete pantograph in the minimal coordinates (α, h), with every
+//! joint's reaction force from the Newton–Euler equations of the bodies (the Lagrange
+//! multipliers of the closed chain) and every joint's friction driven by its own reaction.
+//!
+//! Kane's form: M(α, h)·[α̈, ḧ] = b, with M and b summed over the bodies' partial velocities,
+//! so the constraint forces drop out; they are then recovered body by body, loop by loop,
+//! each loop a 2×2 solve (a Lagrange multiplier per constraint, in closed form).
+
+use super::geometry::Geometry;
+use super::kinematics::{AssemblyError, HeadKin, Linkage, LinkagePose};
+use super::topology::{BodyId, N_REV, RevJoint};
+use super::vec2::V2;
+
+/// How dry friction's sign(v) is evaluated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SignLaw {
+    /// tanh(ω/ω₀) for the revolute joints and tanh(v/v₀) for J8, as the reference lift
+    /// simulation does (`lift-example.meta.json`: ω₀ = 10⁻³ rad/s, v₀ = 10⁻³ m/s). Smooth, so
+    /// an explicit integrator can step through reversals; near rest the mechanism creeps at
+    /// up to ~ω₀ instead of sticking.
+    Tanh { omega0_rad_s: f64, v0_m_s: f64 },
+    /// The exact sign, with the direction of (impending) motion given: +1 raising, −1
+    /// lowering. For statics, where the rate is zero and the direction is the question asked.
+    Exact { direction: f64 },
+}
+
+impl SignLaw {
+    /// The reference simulator's smoothing.
+    pub const REFERENCE: SignLaw = SignLaw::Tanh {
+        omega0_rad_s: 1e-3,
+        v0_m_s: 1e-3,
+    };
+
+    /// sign of a revolute joint's relative rate `w` = `r`·α̇ (`r` its rate coefficient).
+    #[inline]
+    fn revolute(self, w: f64, r: f64) -> f64 {
+        match self {
+            SignLaw::Tanh { omega0_rad_s, .. } => (w / omega0_rad_s).tanh(),
+            SignLaw::Exact { direction } => sign0(r * direction),
+        }
+    }
+    #[inline]
+    fn slide(self, v: f64) -> f64 {
+        match self {
+            SignLaw::Tanh { v0_m_s, .. } => (v / v0_m_s).tanh(),
+            // Statics: the head slide's state is taken at its frictionless equilibrium.
+            SignLaw::Exact { .. } => 0.0,
+        }
+    }
+}
+
+/// sign(x) with sign(0) = 0.
+#[inline]
+pub(super) fn sign0(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// The friction parameters identification estimates (Table 4 baseline by default).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrictionParams {
+    /// Revolute joints, [`RevJoint`] order: D (N·m·s/rad) and μ.
+    pub viscous_nms_per_rad: [f64; N_REV],
+    pub dry_mu: [f64; N_REV],
+    /// J8, per slide (Table 4): viscous N·s/m and μ.
+    pub j8_viscous_ns_per_m_each: f64,
+    pub j8_dry_mu: f64,
+    /// J9, per spring (Table 4): damping N·s/m.
+    pub j9_damping_ns_per_m_each: f64,
+}
+
+impl FrictionParams {
+    pub fn baseline(g: &Geometry) -> Self {
+        let mut viscous = [0.0; N_REV];
+        let mut dry = [0.0; N_REV];
+        for j in RevJoint::ALL {
+            viscous[j.index()] = g.revolute[j.index()].viscous_nms_per_rad;
+            dry[j.index()] = g.revolute[j.index()].dry_mu;
+        }
+        Self {
+            viscous_nms_per_rad: viscous,
+            dry_mu: dry,
+            j8_viscous_ns_per_m_each: g.slide.j8_viscous_ns_per_m_each,
+            j8_dry_mu: g.slide.j8_dry_mu,
+            j9_damping_ns_per_m_each: g.slide.j9_damping_ns_per_m_each,
+        }
+    }
+
+    /// No friction anywhere (energy-conservation checks, frictionless statics).
+    pub fn frictionless() -> Self {
+        Self {
+            viscous_nms_per_rad: [0.0; N_REV],
+            dry_mu: [0.0; N_REV],
+            j8_viscous_ns_per_m_each: 0.0,
+            j8_dry_mu: 0.0,
+            j9_damping_ns_per_m_each: 0.0,
+        }
+    }
+}
+
+/// Loads on the mechanism besides gravity.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Loads {
+    /// Drive torque on the lower arm about J1, reacted by the frame; positive raises.
+    pub drive_torque_nm: f64,
+    /// Vertical force pressing the strip down (external lowering spring Fs + suspended weight
+    /// Fm), applied at the strip point.
+    pub strip_load_n: f64,
+}
+
+/// State in the minimal coordinates.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct State {
+    pub alpha_rad: f64,
+    pub h_m: f64,
+    pub alpha_dot_rad_s: f64,
+    pub h_dot_m_s: f64,
+}
+
+/// Joint reaction forces (the Lagrange multipliers in physical form).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Reactions {
+    /// Revolute joints, [`RevJoint`] order: force the first body exerts on the second, N.
+    pub force_n: [V2; N_REV],
+    /// J6 (locked in the plane): the couple the shaft exerts on the suspension, N·m.
+    pub j6_couple_nm: f64,
+    /// J8: the constraint force the suspension exerts on the head, N (perpendicular to the slide).
+    pub j8_force_n: V2,
+}
+
+/// Everything one evaluation of the equations of motion yields.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Eval {
+    pub alpha_ddot_rad_s2: f64,
+    pub h_ddot_m_s2: f64,
+    pub reactions: Reactions,
+    /// Revolute joints: relative rate ω_rel = θ̇(second) − θ̇(first), rad/s.
+    pub rel_rate_rad_s: [f64; N_REV],
+    /// Revolute joints: viscous and dry parts of the friction torque, N·m (opposing ω_rel).
+    pub viscous_torque_nm: [f64; N_REV],
+    pub dry_torque_nm: [f64; N_REV],
+    /// Normal force N = |reaction| used in each revolute joint's dry friction, N.
+    pub normal_n: [f64; N_REV],
+    /// J8 friction force on the head (opposing ḣ): viscous and dry, N.
+    pub j8_viscous_n: f64,
+    pub j8_dry_n: f64,
+    /// J9 spring force on the head along the slide (preload − k·h) and its damping, N.
+    pub j9_spring_n: f64,
+    pub j9_damping_n: f64,
+    /// Fixed-point iterations taken to make friction and reactions consistent.
+    pub iterations: u32,
+}
+
+impl Eval {
+    /// Power dissipated by each revolute joint's viscous and dry friction, W.
+    pub fn revolute_power_w(&self, j: RevJoint) -> (f64, f64) {
+        let i = j.index();
+        let w = self.rel_rate_rad_s[i];
+        (self.viscous_torque_nm[i] * w, self.dry_torque_nm[i] * w)
+    }
+}
+
+/// The friction–reaction coupling did not settle (it is a strong contraction for Table 4
+/// friction; this means friction coefficients far beyond any physical value).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DynamicsError {
+    #[error(transparent)]
+    Assembly(#[from] AssemblyError),
+    #[error("friction and reaction forces do not converge at alpha = {alpha_rad} rad")]
+    FrictionNotConverged { alpha_rad: f64 },
+    #[error("singular mass matrix at alpha = {alpha_rad} rad")]
+    Singular { alpha_rad: f64 },
+}
+
+/// The complete pantograph's dynamic model.
+#[derive(Debug, Clone)]
+pub struct LiftModel {
+    pub linkage: Linkage,
+    /// Masses and centroidal inertias, [`BodyId`] order.
+    pub mass_kg: [f64; 7],
+    pub inertia_kgm2: [f64; 7],
+    pub gravity: V2,
+    /// Pin radii R of the revolute joints.
+    pub pin_radius_m: [f64; N_REV],
+    /// J8: number of slides and the constant normal force of each (Section 4.2).
+    pub j8_count: f64,
+    pub j8_normal_n_each: f64,
+    /// J9: number of springs, stiffness of each, preload (spring force at h = 0).
+    pub j9_count: f64,
+    pub j9_stiffness_n_per_m_each: f64,
+    pub preload_n: f64,
+    pub friction: FrictionParams,
+    pub sign_law: SignLaw,
+    /// Lower-arm range searched for static states (`[range]`), rad.
+    pub alpha_range_rad: (f64, f64),
+}
+
+/// Kane's equations of a state before the revolute joints' friction is added.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Kane {
+    pub m_aa: f64,
+    pub m_ah: f64,
+    pub m_hh: f64,
+    pub b_a: f64,
+    pub b_h: f64,
+    /// Force along the slide on the head (J9 spring and damper, J8 friction), N.
+    pub f_axial: f64,
+}
+
+/// Number of generalised friction inputs: the revolute torques, the slide force, the drive.
+pub const N_Q: usize = N_REV + 2;
+/// Index of the slide's axial force on the head in q.
+pub const Q_SLIDE: usize = N_REV;
+/// Index of the drive torque in q.
+pub const Q_DRIVE: usize = N_REV + 1;
+
+/// Iteration limit and tolerance of the friction–reaction fixed point.
+const MAX_ITER: u32 = 60;
+const ITER_RTOL: f64 = 1e-14;
+
+impl LiftModel {
+    /// The model of a geometry with Table 4 friction and the reference tanh sign law.
+    pub fn new(g: &Geometry) -> Self {
+        let mut mass_kg = [0.0; 7];
+        let mut inertia_kgm2 = [0.0; 7];
+        for b in BodyId::ALL {
+            mass_kg[b.index()] = g.body(b).mass_kg;
+            inertia_kgm2[b.index()] = g.body(b).inertia_cm_kgm2;
+        }
+        let mut pin_radius_m = [0.0; N_REV];
+        for j in RevJoint::ALL {
+            pin_radius_m[j.index()] = g.revolute[j.index()].pin_radius_m;
+        }
+        Self {
+            linkage: Linkage::new(g),
+            mass_kg,
+            inertia_kgm2,
+            gravity: V2::new(0.0, -g.gravity_m_s2),
+            pin_radius_m,
+            j8_count: g.slide.j8_count,
+            j8_normal_n_each: g.slide.j8_normal_force_n_each,
+            j9_count: g.slide.j9_count,
+            j9_stiffness_n_per_m_each: g.slide.j9_stiffness_n_per_m_each,
+            preload_n: g.slide.preload_n,
+            friction: FrictionParams::baseline(g),
+            sign_law: SignLaw::REFERENCE,
+            alpha_range_rad: (g.alpha_min_rad, g.alpha_max_rad),
+        }
+    }
+
+    /// The sign law's value for a revolute joint at relative rate `w` (0 for exact statics).
+    pub(super) fn sign_law_revolute(&self, w: f64) -> f64 {
+        match self.sign_law {
+            SignLaw::Exact { .. } => sign0(w),
+            law => law.revolute(w, 0.0),
+        }
+    }
+
+    /// The sign law's value for the slide at rate `v`.
+    pub(super) fn sign_law_slide(&self, v: f64) -> f64 {
+        self.sign_law.slide(v)
+    }
+
+    /// Total J9 stiffness, N/m.
+    pub fn j9_stiffness_n_per_m(&self) -> f64 {
+        self.j9_count * self.j9_stiffness_n_per_m_each
+    }
+
+    /// Accelerations, reactions and friction at a state.
+    ///
+    /// Friction and reactions are implicit in each other (N = |reaction| sets the dry torque,
+    /// which changes the accelerations and so the reactions). Solved by fixed-point iteration
+    /// from the friction-free reactions: μ·R ≤ 0.009 m against link levers ≥ 0.15 m makes the
+    /// map a contraction by about 0.05 per step, so a few iterations reach 10⁻¹⁴ relative.
+    pub fn eval(
+        &self,
+        pose: &LinkagePose,
+        s: &State,
+        loads: &Loads,
+    ) -> Result<Eval, DynamicsError> {
+        let head = self
+            .linkage
+            .head(pose, s.h_m, s.alpha_dot_rad_s, s.h_dot_m_s);
+        self.eval_with_head(pose, &head, s, loads, None)
+    }
+
+    /// [`LiftModel::eval`] with the head's kinematics given and the fixed point started from
+    /// `guess` (friction torques of a nearby evaluation) instead of the viscous torques.
+    pub(super) fn eval_with_head(
+        &self,
+        pose: &LinkagePose,
+        head: &HeadKin,
+        s: &State,
+        loads: &Loads,
+        guess: Option<&[f64; N_REV]>,
+    ) -> Result<Eval, DynamicsError> {
+        let ad = s.alpha_dot_rad_s;
+        let f = &self.friction;
+        let k = self.kane(pose, head, s, loads);
+        let Kane {
+            m_aa,
+            m_ah,
+            m_hh,
+            b_a,
+            b_h,
+            f_axial,
+        } = k;
+        let det = m_aa * m_hh - m_ah * m_ah;
+        if det.is_nan() || det <= 0.0 {
+            return Err(DynamicsError::Singular {
+                alpha_rad: s.alpha_rad,
+            });
+        }
+        let (j9_spring_n, j9_damping_n, j8_viscous_n, j8_dry_n) = self.slide_forces(s);
+        let ad2 = ad * ad;
+
+        let mut e = Eval {
+            j8_viscous_n,
+            j8_dry_n,
+            j9_spring_n,
+            j9_damping_n,
+            ..Default::default()
+        };
+        let mut rate = [0.0; N_REV];
+        for j in RevJoint::ALL {
+            rate[j.index()] = pose.rel_rate(j);
+            e.rel_rate_rad_s[j.index()] = rate[j.index()] * ad;
+        }
+        let j6 = RevJoint::J6.index();
+        // Viscous torques do not depend on the reactions; J6 is locked (rate 0): its friction
+        // does no work and its static part is inside the J6 couple.
+        let mut sgn = [0.0; N_REV];
+        for i in 0..N_REV {
+            if i == j6 {
+                continue;
+            }
+            e.viscous_torque_nm[i] = f.viscous_nms_per_rad[i] * e.rel_rate_rad_s[i];
+            sgn[i] = self.sign_law.revolute(e.rel_rate_rad_s[i], rate[i]);
+        }
+        let mut torque = match guess {
+            Some(g) => *g,
+            None => e.viscous_torque_nm,
+        };
+        torque[j6] = 0.0;
+        for it in 1..=MAX_ITER {
+            let mut b = b_a;
+            for i in 0..N_REV {
+                b -= torque[i] * rate[i];
+            }
+            let add = (b * m_hh - m_ah * b_h) / det;
+            let hdd = (m_aa * b_h - m_ah * b) / det;
+            let r = self.reactions(pose, head, ad2, add, hdd, &torque, loads, f_axial);
+            let mut change: f64 = 0.0;
+            let mut scale: f64 = 0.0;
+            for i in 0..N_REV {
+                if i == j6 {
+                    continue;
+                }
+                let n = r.force_n[i].norm();
+                let dry = f.dry_mu[i] * self.pin_radius_m[i] * n * sgn[i];
+                let t = e.viscous_torque_nm[i] + dry;
+                change = change.max((t - torque[i]).abs());
+                scale = scale.max(t.abs());
+                torque[i] = t;
+                e.dry_torque_nm[i] = dry;
+                e.normal_n[i] = n;
+            }
+            e.normal_n[j6] = r.force_n[j6].norm();
+            e.alpha_ddot_rad_s2 = add;
+            e.h_ddot_m_s2 = hdd;
+            e.reactions = r;
+            e.iterations = it;
+            if change <= ITER_RTOL * (1.0 + scale) {
+                // One more pass is not needed: the accelerations above used torques within
+                // the tolerance of the ones stored.
+                return Ok(e);
+            }
+        }
+        Err(DynamicsError::FrictionNotConverged {
+            alpha_rad: s.alpha_rad,
+        })
+    }
+
+    /// J9 spring force (preload − k·h), J9 damping, J8 viscous and J8 dry force, N; the
+    /// spring pushes the head up the slide, the other three oppose ḣ. J8's normal force is the
+    /// constant of Section 4.2, not a reaction.
+    #[inline]
+    pub(super) fn slide_forces(&self, s: &State) -> (f64, f64, f64, f64) {
+        let f = &self.friction;
+        let hd = s.h_dot_m_s;
+        (
+            self.preload_n - self.j9_stiffness_n_per_m() * s.h_m,
+            self.j9_count * f.j9_damping_ns_per_m_each * hd,
+            self.j8_count * f.j8_viscous_ns_per_m_each * hd,
+            self.j8_count * self.j8_normal_n_each * f.j8_dry_mu * self.sign_law.slide(hd),
+        )
+    }
+
+    /// Kane's equations without the revolute joints' friction: the mass matrix and the
+    /// generalised forces of gravity, inertia's velocity terms, the drive, the strip load and the
+    /// head suspension (J8, J9).
+    pub(super) fn kane(
+        &self,
+        pose: &LinkagePose,
+        head: &HeadKin,
+        s: &State,
+        loads: &Loads,
+    ) -> Kane {
+        let ad2 = s.alpha_dot_rad_s * s.alpha_dot_rad_s;
+        let g = self.gravity;
+        let strip_force = V2::new(0.0, -loads.strip_load_n);
+        let (mut m_aa, mut b_a) = (0.0, loads.drive_torque_nm);
+        for i in 0..6 {
+            let bk = &pose.bodies[i];
+            let (m, inertia) = (self.mass_kg[i], self.inertia_kgm2[i]);
+            let v = bk.com.d1;
+            m_aa += m * v.norm2() + inertia * bk.w1 * bk.w1;
+            b_a += v.dot(m * g - (m * ad2) * bk.com.d2) - inertia * bk.w1 * bk.w2 * ad2;
+        }
+        let hi = BodyId::Head.index();
+        let (mh, ih) = (self.mass_kg[hi], self.inertia_kgm2[hi]);
+        let sus = pose.body(BodyId::Suspension);
+        let vh = head.com_d_alpha;
+        m_aa += mh * vh.norm2() + ih * sus.w1 * sus.w1;
+        let head_free = mh * g - mh * head.com_acc0;
+        b_a += vh.dot(head_free) - ih * sus.w1 * sus.w2 * ad2 + head.strip_d_alpha.dot(strip_force);
+        // Head suspension forces along the slide (on the head): J9 spring and damper, J8.
+        let (spring, damping, j8_viscous, j8_dry) = self.slide_forces(s);
+        let f_axial = spring - damping - j8_viscous - j8_dry;
+        Kane {
+            m_aa,
+            m_ah: mh * vh.dot(head.u),
+            m_hh: mh,
+            b_a,
+            b_h: head.u.dot(head_free + strip_force) + f_axial,
+            f_axial,
+        }
+    }
+
+    /// Reaction forces from the bodies' Newton–Euler equations at given accelerations and
+    /// friction torques: head and suspension together → J6; shaft and balance rod (moments
+    /// about J5 and J4) → J7, then J5 and J4; upper arm and coupling rod (moments about J3 and
+    /// J2) → J2′, then J3 and J2; lower arm → J1. The remaining two equations (lower-arm
+    /// moment, head along the slide) are the equations of motion themselves.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(super) fn reactions(
+        &self,
+        pose: &LinkagePose,
+        head: &HeadKin,
+        ad2: f64,
+        add: f64,
+        hdd: f64,
+        torque: &[f64; N_REV],
+        loads: &Loads,
+        f_axial: f64,
+    ) -> Reactions {
+        use RevJoint as J;
+        let g = self.gravity;
+        // m(a − g) and Iθ̈ of each body.
+        let mut need = [V2::ZERO; 7];
+        let mut iacc = [0.0; 7];
+        for i in 0..6 {
+            let bk = &pose.bodies[i];
+            need[i] = self.mass_kg[i] * (bk.com.d1 * add + bk.com.d2 * ad2 - g);
+            iacc[i] = self.inertia_kgm2[i] * (bk.w1 * add + bk.w2 * ad2);
+        }
+        let hi = BodyId::Head.index();
+        let si = BodyId::Suspension.index();
+        need[hi] = self.mass_kg[hi] * (head.com_d_alpha * add + head.u * hdd + head.com_acc0 - g);
+        iacc[hi] = self.inertia_kgm2[hi] * (pose.bodies[si].w1 * add + pose.bodies[si].w2 * ad2);
+        let t = |j: J| torque[j.index()];
+        let p = |j: J| pose.joints[j.index()].p;
+        let com = |b: BodyId| {
+            if b == BodyId::Head {
+                head.com
+            } else {
+                pose.bodies[b.index()].com.p
+            }
+        };
+        let strip_force = V2::new(0.0, -loads.strip_load_n);
+
+        // Head on the slide: the constraint force is what the head's own loads leave over.
+        let j8_force = need[hi] - strip_force - f_axial * head.u;
+        // Suspension + head on the shaft (J6): their internal forces cancel.
+        let j6 = p(J::J6);
+        let f6 = need[si] + need[hi] - strip_force;
+        let m6 = iacc[si]
+            + (com(BodyId::Suspension) - j6).cross(need[si])
+            + iacc[hi]
+            + (head.com - j6).cross(need[hi])
+            - (head.strip - j6).cross(strip_force);
+        // Shaft (moment about J5) and balance rod (moment about J4) → J7.
+        let (sh, br) = (BodyId::Shaft.index(), BodyId::BalanceRod.index());
+        let (j4, j5, j7) = (p(J::J4), p(J::J5), p(J::J7));
+        let a1 = iacc[sh]
+            + (com(BodyId::Shaft) - j5).cross(need[sh])
+            + (j6 - j5).cross(f6)
+            + m6
+            + t(J::J5)
+            + t(J::J7);
+        let a2 = -(iacc[br] + (com(BodyId::BalanceRod) - j4).cross(need[br]) + t(J::J4) - t(J::J7));
+        let f7 = solve_moments(j7 - j5, a1, j7 - j4, a2);
+        let f5 = need[sh] - f7 + f6;
+        let f4 = need[br] + f7;
+        // Upper arm (moment about J3) and coupling rod (moment about J2) → J2′.
+        let (ua, cr) = (BodyId::UpperArm.index(), BodyId::CouplingRod.index());
+        let (j2, j2p, j3) = (p(J::J2), p(J::J2p), p(J::J3));
+        let b1 = iacc[ua]
+            + (com(BodyId::UpperArm) - j3).cross(need[ua])
+            + (j5 - j3).cross(f5)
+            + t(J::J3)
+            + t(J::J2p)
+            - t(J::J5);
+        let b2 =
+            -(iacc[cr] + (com(BodyId::CouplingRod) - j2).cross(need[cr]) + t(J::J2) - t(J::J2p));
+        let f2p = solve_moments(j2p - j3, b1, j2p - j2, b2);
+        let f3 = need[ua] - f2p + f5;
+        let f2 = need[cr] + f2p;
+        let f1 = need[BodyId::LowerArm.index()] + f3 + f4;
+        Reactions {
+            force_n: [f1, f2, f2p, f3, f4, f5, f6, f7],
+            j6_couple_nm: m6,
+            j8_force_n: j8_force,
+        }
+    }
+
+    /// Linear response of the accelerations to the generalised friction inputs
+    /// q = (revolute torques T_j, slide force on the head, drive torque), at a converged
+    /// [`Eval`], with the normal-force feedback included: a change δq of the inputs moves the
+    /// reactions, so the normal forces, so the dry torques, so the inputs again:
+    /// δq_total = (I − C)⁻¹ δq, C_jl = μ_j R_j σ_j n̂_j·∂f_j/∂q_l. Returns
+    /// ∂(α̈, ḧ)/∂q = A (I − C)⁻¹ (2 × [`N_Q`]). Everything is affine in q at a fixed state,
+    /// so the columns of ∂f/∂q are exact differences of reaction recoveries.
+    pub(super) fn response(
+        &self,
+        pose: &LinkagePose,
+        head: &HeadKin,
+        s: &State,
+        loads: &Loads,
+        e: &Eval,
+    ) -> Result<[[f64; N_Q]; 2], DynamicsError> {
+        use nalgebra::{SMatrix, SVector};
+        let k = self.kane(pose, head, s, loads);
+        let det = k.m_aa * k.m_hh - k.m_ah * k.m_ah;
+        // M⁻¹ applied to a generalised-force change (δb_α, δb_h).
+        let minv = |ba: f64, bh: f64| {
+            (
+                (ba * k.m_hh - k.m_ah * bh) / det,
+                (k.m_aa * bh - k.m_ah * ba) / det,
+            )
+        };
+        let ad2 = s.alpha_dot_rad_s * s.alpha_dot_rad_s;
+        let mut torque = [0.0; N_REV];
+        for i in 0..N_REV {
+            torque[i] = e.viscous_torque_nm[i] + e.dry_torque_nm[i];
+        }
+        let base = self.reactions(
+            pose,
+            head,
+            ad2,
+            e.alpha_ddot_rad_s2,
+            e.h_ddot_m_s2,
+            &torque,
+            loads,
+            k.f_axial,
+        );
+        let j6 = RevJoint::J6.index();
+        let mut a = SMatrix::<f64, 2, N_Q>::zeros();
+        let mut c = SMatrix::<f64, N_Q, N_Q>::identity();
+        for l in 0..N_Q {
+            if l == j6 {
+                continue;
+            }
+            let (ba, bh) = match l {
+                l if l < N_REV => (-pose.rel_rate(RevJoint::ALL[l]), 0.0),
+                Q_SLIDE => (0.0, 1.0),
+                _ => (1.0, 0.0),
+            };
+            let (da, dh) = minv(ba, bh);
+            a[(0, l)] = da;
+            a[(1, l)] = dh;
+            let mut t = torque;
+            let mut fax = k.f_axial;
+            if l < N_REV {
+                t[l] += 1.0;
+            } else if l == Q_SLIDE {
+                fax += 1.0;
+            }
+            let r = self.reactions(
+                pose,
+                head,
+                ad2,
+                e.alpha_ddot_rad_s2 + da,
+                e.h_ddot_m_s2 + dh,
+                &t,
+                loads,
+                fax,
+            );
+            for j in 0..N_REV {
+                let n = e.normal_n[j];
+                if j == j6 || n == 0.0 || e.dry_torque_nm[j] == 0.0 {
+                    continue;
+                }
+                // μRσ = dry torque / N.
+                let dn = base.force_n[j].dot(r.force_n[j] - base.force_n[j]) / n;
+                c[(j, l)] -= e.dry_torque_nm[j] / n * dn;
+            }
+        }
+        // Φ = A·(I − C)⁻¹ ⇔ (I − C)ᵀ Φᵀ = Aᵀ.
+        let lu = c.transpose().lu();
+        let mut out = [[0.0; N_Q]; 2];
+        for row in 0..2 {
+            let rhs: SVector<f64, N_Q> = a.row(row).transpose();
+            let x = lu.solve(&rhs).ok_or(DynamicsError::FrictionNotConverged {
+                alpha_rad: s.alpha_rad,
+            })?;
+            for l in 0..N_Q {
+                out[row][l] = x[l];
+            }
+        }
+        Ok(out)
+    }
+
+    /// Residual of the two equations the reaction recovery leaves unused (lower-arm moment
+    /// about J1, head force along the slide), for checking: both ≈ 0 at a consistent [`Eval`].
+    pub fn unused_equations(
+        &self,
+        pose: &LinkagePose,
+        s: &State,
+        loads: &Loads,
+        e: &Eval,
+    ) -> (f64, f64) {
+        use RevJoint as J;
+        let head = self
+            .linkage
+            .head(pose, s.h_m, s.alpha_dot_rad_s, s.h_dot_m_s);
+        let li = BodyId::LowerArm.index();
+        let lower = &pose.bodies[li];
+        let (add, ad2) = (e.alpha_ddot_rad_s2, s.alpha_dot_rad_s * s.alpha_dot_rad_s);
+        let need = self.mass_kg[li] * (lower.com.d1 * add + lower.com.d2 * ad2 - self.gravity);
+        let j1 = pose.joints[J::J1.index()].p;
+        let t = |j: J| e.viscous_torque_nm[j.index()] + e.dry_torque_nm[j.index()];
+        let f = |j: J| e.reactions.force_n[j.index()];
+        let lhs = loads.drive_torque_nm - t(J::J1) + t(J::J3) + t(J::J4)
+            - (pose.joints[J::J3.index()].p - j1).cross(f(J::J3))
+            - (pose.joints[J::J4.index()].p - j1).cross(f(J::J4));
+        let rhs = self.inertia_kgm2[li] * add + (lower.com.p - j1).cross(need);
+        (lhs - rhs, e.reactions.j8_force_n.dot(head.u))
+    }
+
+    /// Mechanical energy: kinetic + gravity + J9 spring, J (the drive's and the strip loads'
+    /// work is the caller's to add).
+    pub fn energy_j(&self, pose: &LinkagePose, s: &State) -> f64 {
+        let head = self
+            .linkage
+            .head(pose, s.h_m, s.alpha_dot_rad_s, s.h_dot_m_s);
+        let ad = s.alpha_dot_rad_s;
+        let mut e = 0.0;
+        for i in 0..6 {
+            let bk = &pose.bodies[i];
+            let v = bk.com.d1 * ad;
+            e += 0.5 * self.mass_kg[i] * v.norm2()
+                + 0.5 * self.inertia_kgm2[i] * (bk.w1 * ad).powi(2);
+            e -= self.mass_kg[i] * self.gravity.dot(bk.com.p);
+        }
+        let hi = BodyId::Head.index();
+        let vh = head.com_d_alpha * ad + head.u * s.h_dot_m_s;
+        let wh = pose.body(BodyId::Suspension).w1 * ad;
+        e += 0.5 * self.mass_kg[hi] * vh.norm2() + 0.5 * self.inertia_kgm2[hi] * wh * wh;
+        e -= self.mass_kg[hi] * self.gravity.dot(head.com);
+        // Spring force on the head preload − k·h ⇒ potential −preload·h + k·h²/2.
+        e += -self.preload_n * s.h_m + 0.5 * self.j9_stiffness_n_per_m() * s.h_m * s.h_m;
+        e
+    }
+}
+
+/// The force f with r1 × f = m1 and r2 × f = m2.
+#[inline]
+fn solve_moments(r1: V2, m1: f64, r2: V2, m2: f64) -> V2 {
+    (m1 * r2 - m2 * r1) * (1.0 / r1.cross(r2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lift::geometry::builtin_160ec;
+
+    fn model() -> LiftModel {
+        LiftModel::new(builtin_160ec())
+    }
+
+    #[test]
+    fn reactions_satisfy_the_unused_equations_with_friction() {
+        let m = model();
+        for (a, ad, h, hd) in [
+            (0.2, 0.4, -0.005, 0.03),
+            (0.45, -0.7, 0.002, -0.05),
+            (0.0, 0.0, 0.0, 0.0),
+        ] {
+            let pose = m.linkage.pose(a).unwrap();
+            let s = State {
+                alpha_rad: a,
+                h_m: h,
+                alpha_dot_rad_s: ad,
+                h_dot_m_s: hd,
+            };
+            let loads = Loads {
+                drive_torque_nm: 1050.0,
+                strip_load_n: 90.0,
+            };
+            let e = m.eval(&pose, &s, &loads).unwrap();
+            let (r_moment, r_slide) = m.unused_equations(&pose, &s, &loads, &e);
+            assert!(
+                r_moment.abs() < 1e-9,
+                "lower-arm moment residual {r_moment}"
+            );
+            assert!(r_slide.abs() < 1e-9, "slide residual {r_slide}");
+            assert!(e.iterations < 15, "{} iterations", e.iterations);
+        }
+    }
+
+    /// The drive torque's power equals the rate of change of energy plus friction's: checks
+    /// the mass matrix and the generalised forces against the energy function.
+    #[test]
+    fn power_balance_holds() {
+        let m = model();
+        let s = State {
+            alpha_rad: 0.3,
+            h_m: -0.004,
+            alpha_dot_rad_s: 0.5,
+            h_dot_m_s: 0.02,
+        };
+        let loads = Loads {
+            drive_torque_nm: 1000.0,
+            strip_load_n: 0.0,
+        };
+        let pose = m.linkage.pose(s.alpha_rad).unwrap();
+        let e = m.eval(&pose, &s, &loads).unwrap();
+        let dt = 1e-6;
+        let step = |k: f64| {
+            let st = State {
+                alpha_rad: s.alpha_rad
+                    + k * dt * s.alpha_dot_rad_s
+                    + 0.5 * (k * dt).powi(2) * e.alpha_ddot_rad_s2,
+                h_m: s.h_m + k * dt * s.h_dot_m_s + 0.5 * (k * dt).powi(2) * e.h_ddot_m_s2,
+                alpha_dot_rad_s: s.alpha_dot_rad_s + k * dt * e.alpha_ddot_rad_s2,
+                h_dot_m_s: s.h_dot_m_s + k * dt * e.h_ddot_m_s2,
+            };
+            m.energy_j(&m.linkage.pose(st.alpha_rad).unwrap(), &st)
+        };
+        let de_dt = (step(1.0) - step(-1.0)) / (2.0 * dt);
+        let mut loss = (e.j8_viscous_n + e.j8_dry_n + e.j9_damping_n) * s.h_dot_m_s;
+        for j in RevJoint::ALL {
+            let (v, d) = e.revolute_power_w(j);
+            loss += v + d;
+        }
+        let drive = loads.drive_torque_nm * s.alpha_dot_rad_s;
+        assert!(
+            (de_dt - (drive - loss)).abs() < 1e-5 * drive.abs(),
+            "dE/dt {de_dt} vs drive {drive} − loss {loss}"
+        );
+    }
+}

@@ -1,0 +1,26 @@
+//! The complete pantograph (issue 5): the two articulated quadrangles, the suspension shaft
+//! and assemblies, and the head on its spring suspension, as a planar closed-chain model.
+//!
+//! - [`geometry`] — the geometry file (assumed links, Table 2 masses, Table 4 friction).
+//! - [`topology`] — bodies and joints of Fig 3.
+//! - [`vec2`] — the plane's vectors and rotations.
+//! - [`kinematics`] — loop closure in closed form, derivatives in α.
+//! - [`dynamics`] — equations of motion in (α, h), reactions, friction from the reactions.
+//! - [`statics`] — static drive torque (frictionless or at impending motion), equilibria.
+//! - [`simulate`] — a lift test driven by its recorded inputs, with dissipated energies.
+//! - [`protocol`] — a lift test as the stand records it (drive damper, spring, cut weight).
+//! - [`sensitivity`] — ∂H/∂θ along a simulated lift (friction of every joint, torque offset).
+//! - [`identify`] — Fisher information per trace, MAP fit with Table 4 as prior, verdicts.
+//! - `integrate` — DOPRI5 over a sampled record, dense output at the samples.
+
+pub mod dynamics;
+pub mod geometry;
+pub mod identify;
+mod integrate;
+pub mod kinematics;
+pub mod protocol;
+pub mod sensitivity;
+pub mod simulate;
+pub mod statics;
+pub mod topology;
+pub mod vec2;

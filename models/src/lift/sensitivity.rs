@@ -1,0 +1,402 @@
+//! Forward sensitivities of a simulated lift: ∂H(t_k)/∂θ for the friction parameters of every
+//! joint and the torque-sensor offset, integrated with the state on the same steps.
+//!
+//! S′ = f_y·S + f_θ: f_y (2×4, the accelerations' state Jacobian) by one-sided differences,
+//! f_θ exactly from the model's linear response to the friction inputs (normal-force feedback
+//! included); the initial state's dependence on the offset by a central difference.
+
+use super::dynamics::{DynamicsError, LiftModel, Q_DRIVE, Q_SLIDE, State};
+use super::integrate::{Segmented, integrate};
+use super::simulate::{LiftInputs, SimError, SimOptions, initial_state};
+use super::topology::{N_REV, RevJoint};
+use crate::ode::{OdeError, OdeSystem, Tolerances};
+
+/// A parameter of a lift fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LiftParam {
+    /// Revolute joint viscous coefficient D, N·m·s/rad.
+    Viscous(RevJoint),
+    /// Revolute joint dry coefficient μ.
+    Dry(RevJoint),
+    /// J8 viscous coefficient per slide, N·s/m.
+    J8Viscous,
+    /// J8 dry coefficient μ.
+    J8Dry,
+    /// J9 damping per spring, N·s/m.
+    J9Damping,
+    /// Torque-sensor offset, N·m (recorded = true + offset).
+    TorqueOffset,
+}
+
+impl LiftParam {
+    /// Every friction parameter a lift can touch (J6 is locked: it cannot) and the offset.
+    pub fn all() -> Vec<LiftParam> {
+        let mut v = Vec::new();
+        for j in RevJoint::ALL {
+            if j != RevJoint::J6 {
+                v.push(LiftParam::Viscous(j));
+                v.push(LiftParam::Dry(j));
+            }
+        }
+        v.extend([
+            LiftParam::J8Viscous,
+            LiftParam::J8Dry,
+            LiftParam::J9Damping,
+            LiftParam::TorqueOffset,
+        ]);
+        v
+    }
+
+    /// The joint's name (`J3`, `J8`, …), or `T` for the offset.
+    pub fn joint(self) -> &'static str {
+        match self {
+            LiftParam::Viscous(j) | LiftParam::Dry(j) => j.name(),
+            LiftParam::J8Viscous | LiftParam::J8Dry => "J8",
+            LiftParam::J9Damping => "J9",
+            LiftParam::TorqueOffset => "T",
+        }
+    }
+
+    /// `viscous`, `dry` or `offset`.
+    pub fn kind(self) -> &'static str {
+        match self {
+            LiftParam::Viscous(_) | LiftParam::J8Viscous | LiftParam::J9Damping => "viscous",
+            LiftParam::Dry(_) | LiftParam::J8Dry => "dry",
+            LiftParam::TorqueOffset => "offset",
+        }
+    }
+
+    pub fn get(self, model: &LiftModel, offset_nm: f64) -> f64 {
+        let f = &model.friction;
+        match self {
+            LiftParam::Viscous(j) => f.viscous_nms_per_rad[j.index()],
+            LiftParam::Dry(j) => f.dry_mu[j.index()],
+            LiftParam::J8Viscous => f.j8_viscous_ns_per_m_each,
+            LiftParam::J8Dry => f.j8_dry_mu,
+            LiftParam::J9Damping => f.j9_damping_ns_per_m_each,
+            LiftParam::TorqueOffset => offset_nm,
+        }
+    }
+
+    pub fn set(self, model: &mut LiftModel, offset_nm: &mut f64, v: f64) {
+        let f = &mut model.friction;
+        match self {
+            LiftParam::Viscous(j) => f.viscous_nms_per_rad[j.index()] = v,
+            LiftParam::Dry(j) => f.dry_mu[j.index()] = v,
+            LiftParam::J8Viscous => f.j8_viscous_ns_per_m_each = v,
+            LiftParam::J8Dry => f.j8_dry_mu = v,
+            LiftParam::J9Damping => f.j9_damping_ns_per_m_each = v,
+            LiftParam::TorqueOffset => *offset_nm = v,
+        }
+    }
+}
+
+/// A simulated lift with its sensitivities.
+#[derive(Debug, Clone)]
+pub struct SensitivityRun {
+    /// H at every sample, m.
+    pub strip_height_m: Vec<f64>,
+    /// ∂H_k/∂θ_i, row-major n × p (row k, column i in the order of the parameter list).
+    pub d_height: Vec<f64>,
+    pub n_params: usize,
+    pub rhs_evaluations: usize,
+    pub steps: usize,
+}
+
+/// One-sided difference steps of the state Jacobian: α (rad), h (m), α̇ (rad/s), ḣ (m/s).
+/// The rates' steps are far below the tanh smoothing scale (10⁻³), where the friction bends.
+const FD_STEP: [f64; 4] = [1e-8, 1e-9, 1e-9, 1e-9];
+
+struct SensSys<'a> {
+    model: &'a LiftModel,
+    inputs: &'a LiftInputs<'a>,
+    params: &'a [LiftParam],
+    offset_nm: f64,
+    fm_n: f64,
+}
+
+impl Segmented for SensSys<'_> {
+    fn enter_segment(&mut self, k: usize) {
+        self.fm_n = self.inputs.fm(k);
+    }
+}
+
+impl SensSys<'_> {
+    /// Accelerations and the exact ∂acc/∂θ at (t, state), plus ∂acc/∂y by differences.
+    fn eval(&self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), DynamicsError> {
+        let m = self.model;
+        let s = State {
+            alpha_rad: y[0],
+            h_m: y[1],
+            alpha_dot_rad_s: y[2],
+            h_dot_m_s: y[3],
+        };
+        let loads = self.inputs.loads(t, self.fm_n, self.offset_nm);
+        let pose = m.linkage.pose(s.alpha_rad)?;
+        let head = m.linkage.head(&pose, s.h_m, s.alpha_dot_rad_s, s.h_dot_m_s);
+        let e = m.eval_with_head(&pose, &head, &s, &loads, None)?;
+        let acc = [e.alpha_ddot_rad_s2, e.h_ddot_m_s2];
+        let mut torque = [0.0; N_REV];
+        for i in 0..N_REV {
+            torque[i] = e.viscous_torque_nm[i] + e.dry_torque_nm[i];
+        }
+        // State Jacobian of the accelerations, one column per state component.
+        let mut jy = [[0.0; 4]; 2];
+        for c in 0..4 {
+            let mut sp = s;
+            let d = FD_STEP[c];
+            match c {
+                0 => sp.alpha_rad += d,
+                1 => sp.h_m += d,
+                2 => sp.alpha_dot_rad_s += d,
+                _ => sp.h_dot_m_s += d,
+            }
+            let ep = if c == 0 {
+                let pp = m.linkage.pose(sp.alpha_rad)?;
+                let hp = m
+                    .linkage
+                    .head(&pp, sp.h_m, sp.alpha_dot_rad_s, sp.h_dot_m_s);
+                m.eval_with_head(&pp, &hp, &sp, &loads, Some(&torque))?
+            } else {
+                let hp = m
+                    .linkage
+                    .head(&pose, sp.h_m, sp.alpha_dot_rad_s, sp.h_dot_m_s);
+                m.eval_with_head(&pose, &hp, &sp, &loads, Some(&torque))?
+            };
+            jy[0][c] = (ep.alpha_ddot_rad_s2 - acc[0]) / d;
+            jy[1][c] = (ep.h_ddot_m_s2 - acc[1]) / d;
+        }
+        let phi = m.response(&pose, &head, &s, &loads, &e)?;
+        dy[0] = y[2];
+        dy[1] = y[3];
+        dy[2] = acc[0];
+        dy[3] = acc[1];
+        let f = &m.friction;
+        let hd = s.h_dot_m_s;
+        for (i, p) in self.params.iter().enumerate() {
+            // Direct change of one generalised friction input per unit parameter.
+            let (q, dq) = match *p {
+                LiftParam::Viscous(j) => (j.index(), e.rel_rate_rad_s[j.index()]),
+                LiftParam::Dry(j) => {
+                    let k = j.index();
+                    let mu = f.dry_mu[k];
+                    // T_dry = μ·R·N·σ: per unit μ, R·N·σ (from the torque when μ ≠ 0).
+                    let per_mu = if mu != 0.0 {
+                        e.dry_torque_nm[k] / mu
+                    } else {
+                        m.pin_radius_m[k] * e.normal_n[k] * m.sign_law_revolute(e.rel_rate_rad_s[k])
+                    };
+                    (k, per_mu)
+                }
+                LiftParam::J8Viscous => (Q_SLIDE, -m.j8_count * hd),
+                LiftParam::J8Dry => (
+                    Q_SLIDE,
+                    -m.j8_count * m.j8_normal_n_each * m.sign_law_slide(hd),
+                ),
+                LiftParam::J9Damping => (Q_SLIDE, -m.j9_count * hd),
+                LiftParam::TorqueOffset => (Q_DRIVE, -1.0),
+            };
+            let sv = &y[4 + 4 * i..8 + 4 * i];
+            let o = &mut dy[4 + 4 * i..8 + 4 * i];
+            o[0] = sv[2];
+            o[1] = sv[3];
+            for r in 0..2 {
+                o[2 + r] = jy[r][0] * sv[0]
+                    + jy[r][1] * sv[1]
+                    + jy[r][2] * sv[2]
+                    + jy[r][3] * sv[3]
+                    + phi[r][q] * dq;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl OdeSystem for SensSys<'_> {
+    fn dim(&self) -> usize {
+        4 + 4 * self.params.len()
+    }
+    fn rhs(&self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), OdeError> {
+        if self.eval(t, y, dy).is_err() {
+            // Outside the assembly range in a trial stage: reject the step.
+            dy.fill(f64::NAN);
+        }
+        Ok(())
+    }
+}
+
+/// Simulate from the static start with sensitivities of H to `params` (the model's current
+/// values and `offset_nm` are the point of linearisation).
+pub fn simulate_sensitivities(
+    model: &LiftModel,
+    inputs: &LiftInputs,
+    params: &[LiftParam],
+    offset_nm: f64,
+    opts: &SimOptions,
+) -> Result<SensitivityRun, SimError> {
+    inputs.validate()?;
+    let n = inputs.t_s.len();
+    let p = params.len();
+    let sim_opts = SimOptions {
+        torque_offset_nm: offset_nm,
+        drive: None,
+        strip_spring: None,
+        ..*opts
+    };
+    let start = initial_state(model, inputs, &sim_opts)?;
+    let mut y = vec![0.0; 4 + 4 * p];
+    y[..4].copy_from_slice(&[start.alpha_rad, start.h_m, 0.0, 0.0]);
+    // Only the offset moves the static start (friction vanishes at rest).
+    if let Some(i) = params.iter().position(|q| *q == LiftParam::TorqueOffset) {
+        let d = 1e-3;
+        let at = |o: f64| {
+            initial_state(
+                model,
+                inputs,
+                &SimOptions {
+                    torque_offset_nm: o,
+                    ..sim_opts
+                },
+            )
+        };
+        let (a, b) = (at(offset_nm + d)?, at(offset_nm - d)?);
+        y[4 + 4 * i] = (a.alpha_rad - b.alpha_rad) / (2.0 * d);
+        y[4 + 4 * i + 1] = (a.h_m - b.h_m) / (2.0 * d);
+    }
+    let mut sys = SensSys {
+        model,
+        inputs,
+        params,
+        offset_nm,
+        fm_n: inputs.fm(0),
+    };
+    let mut out = SensitivityRun {
+        strip_height_m: Vec::with_capacity(n),
+        d_height: Vec::with_capacity(n * p),
+        n_params: p,
+        rhs_evaluations: 0,
+        steps: 0,
+    };
+    let mut buf = vec![0.0; y.len()];
+    let tol = Tolerances {
+        rtol: opts.rtol,
+        atol: opts.atol,
+        h_max: opts.h_max_s,
+        ..Default::default()
+    };
+    let work = integrate(
+        &mut sys,
+        inputs.t_s,
+        |k| inputs.is_break(k),
+        &mut y,
+        // Sensitivities are error-controlled too: near rest the smoothed friction is stiff
+        // (|λ| ~ 10³/s), and a step grown on a quiet state would let them blow up.
+        4 + 4 * p,
+        tol,
+        opts.max_steps,
+        &mut buf,
+        |_, y| -> Result<(), DynamicsError> {
+            let pose = model.linkage.pose(y[0])?;
+            let head = model.linkage.head(&pose, y[1], 0.0, 0.0);
+            out.strip_height_m.push(head.strip.y);
+            // H = y of strip: ∂H/∂α = (∂strip/∂α)_y, ∂H/∂h = u_y.
+            for i in 0..p {
+                let sv = &y[4 + 4 * i..6 + 4 * i];
+                out.d_height
+                    .push(head.strip_d_alpha.y * sv[0] + head.u.y * sv[1]);
+            }
+            Ok(())
+        },
+    )
+    .map_err(SimError::from_integrate)?;
+    out.steps = work.steps;
+    out.rhs_evaluations = work.rhs;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lift::geometry::builtin_160ec;
+    use crate::lift::simulate::simulate;
+
+    /// A short lift: the first second of the reference protocol, 250 Hz.
+    fn short_lift() -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
+        let n = 301;
+        let t: Vec<f64> = (0..n).map(|k| -0.2 + k as f64 * 0.004).collect();
+        let tq = t
+            .iter()
+            .map(|&t| {
+                if t < 0.0 {
+                    1110.0
+                } else {
+                    986.0 + 124.0 * (-t / 0.8f64).exp() - 40.0 * t
+                }
+            })
+            .collect();
+        let fs = t.iter().map(|&t| 18.0 + 30.0 * t.max(0.0)).collect();
+        let fm = t
+            .iter()
+            .map(|&t| if t < 0.0 { 78.5 } else { 0.0 })
+            .collect();
+        (t, tq, fs, fm)
+    }
+
+    #[test]
+    fn sensitivities_match_finite_differences_of_whole_runs() {
+        let base = LiftModel::new(builtin_160ec());
+        let (t, tq, fs, fm) = short_lift();
+        let inputs = LiftInputs {
+            t_s: &t,
+            torque_nm: &tq,
+            fs_n: &fs,
+            fm_n: &fm,
+        };
+        let opts = SimOptions {
+            rtol: 1e-11,
+            atol: 1e-13,
+            ..Default::default()
+        };
+        let params = LiftParam::all();
+        let offset = 2.0;
+        // Sensitivities are error-controlled with the state: 10⁻⁹ suffices against 10⁻⁴.
+        let sens_opts = SimOptions {
+            rtol: 1e-9,
+            atol: 1e-11,
+            ..opts
+        };
+        let sens = simulate_sensitivities(&base, &inputs, &params, offset, &sens_opts).unwrap();
+        let p = params.len();
+        for (i, prm) in params.iter().enumerate() {
+            let v = prm.get(&base, offset);
+            let d = 1e-2 * v.abs().max(1e-1);
+            let run_at = |x: f64| {
+                let (mut m, mut o) = (base.clone(), offset);
+                prm.set(&mut m, &mut o, x);
+                let so = SimOptions {
+                    torque_offset_nm: o,
+                    ..opts
+                };
+                let s0 = initial_state(&m, &inputs, &so).unwrap();
+                simulate(&m, &inputs, s0, &so).unwrap().strip_height_m
+            };
+            let (hp, hm) = (run_at(v + d), run_at(v - d));
+            let (mut worst, mut scale): (f64, f64) = (0.0, 0.0);
+            for k in 0..t.len() {
+                let fd = (hp[k] - hm[k]) / (2.0 * d);
+                let an = sens.d_height[k * p + i];
+                worst = worst.max((fd - an).abs());
+                scale = scale.max(fd.abs());
+            }
+            eprintln!(
+                "{}.{}: max |dH/dθ| {scale:.3e}, max error {worst:.1e}",
+                prm.joint(),
+                prm.kind()
+            );
+            assert!(
+                worst <= 1e-4 * scale + 1e-9,
+                "{prm:?}: error {worst} of {scale}"
+            );
+        }
+    }
+}

@@ -1,0 +1,96 @@
+//! The complete pantograph against the reference lift trace (`../shared/reference`): driven by
+//! its recorded T, Fs, Fm from its static start, the model reproduces H, and each joint's share
+//! of the dissipated energy matches the reference simulator's.
+
+use pantowatch_e2e::examples_dir;
+use pantowatch_models::lift::dynamics::LiftModel;
+use pantowatch_models::lift::geometry::builtin_160ec;
+use pantowatch_models::lift::simulate::{LiftInputs, SimOptions, initial_state, simulate};
+
+fn reference(name: &str) -> serde_json::Value {
+    let p = examples_dir().join("../../reference").join(name);
+    let bytes = std::fs::read(&p).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e} — the shared reference data must sit beside the repository",
+            p.display()
+        )
+    });
+    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+fn channel(doc: &serde_json::Value, name: &str) -> Vec<f64> {
+    doc["channels"][name]
+        .as_array()
+        .unwrap_or_else(|| panic!("channel {name}"))
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect()
+}
+
+#[test]
+fn reference_lift_trace_is_reproduced_within_a_millimetre() {
+    let doc = reference("lift-example.json");
+    let meta = reference("lift-example.meta.json");
+    assert_eq!(doc["test"]["kind"], "lift");
+    let (t, h_ref) = (channel(&doc, "t_s"), channel(&doc, "H_m"));
+    let (torque, fs, fm) = (
+        channel(&doc, "T_Nm"),
+        channel(&doc, "Fs_N"),
+        channel(&doc, "Fm_N"),
+    );
+    let model = LiftModel::new(builtin_160ec());
+    let inputs = LiftInputs {
+        t_s: &t,
+        torque_nm: &torque,
+        fs_n: &fs,
+        fm_n: &fm,
+    };
+    let opts = SimOptions {
+        energy: true,
+        ..Default::default()
+    };
+    let clock = std::time::Instant::now();
+    let start = initial_state(&model, &inputs, &opts).unwrap();
+    let run = simulate(&model, &inputs, start, &opts).unwrap();
+    let elapsed = clock.elapsed();
+
+    let n = h_ref.len() as f64;
+    let rms = (run
+        .strip_height_m
+        .iter()
+        .zip(&h_ref)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    let max = run
+        .strip_height_m
+        .iter()
+        .zip(&h_ref)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    let end = *run.strip_height_m.last().unwrap();
+    eprintln!(
+        "lift reference: H RMS {:.2} µm, max {:.2} µm, H_end {end:.6} m (reference {}), \
+         {} steps, {} rhs, {elapsed:?}",
+        rms * 1e6,
+        max * 1e6,
+        meta["summary"]["H_end"],
+        run.steps,
+        run.rhs_evaluations
+    );
+    assert!(rms < 1e-3, "H RMS {rms} m");
+
+    let d = run.dissipation.unwrap();
+    let reference = &meta["dissipated_energy_J"];
+    let mut worst: f64 = 0.0;
+    for (joint, share) in d.shares_pct() {
+        let want = reference[joint]["share_pct"].as_f64().unwrap();
+        eprintln!("  {joint:>3}: {share:7.3} %  (reference {want:7.3} %)");
+        worst = worst.max((share - want).abs());
+    }
+    assert!(
+        worst < 0.1,
+        "dissipation shares differ by {worst} percentage points"
+    );
+}
