@@ -189,7 +189,30 @@ struct OutputError<'a> {
     last_traj: Option<(Vec<f64>, Trajectory)>,
 }
 
-impl OutputError<'_> {
+impl<'a> OutputError<'a> {
+    fn new(
+        test: &'a JointTest,
+        start: usize,
+        n_fit: usize,
+        spec: &'a FitSpec,
+        opts: &FitOptions,
+    ) -> Self {
+        let params = spec.params();
+        let sens = sens_params(&params);
+        OutputError {
+            test,
+            spec,
+            params,
+            times: &test.t_s[start..start + n_fit],
+            y: &test.y[start..start + n_fit],
+            sim: SimOptions {
+                tol: opts.tol,
+                sens,
+            },
+            last_traj: None,
+        }
+    }
+
     fn unpack(&self, x: &[f64]) -> (FrictionLaw, f64, f64, Readout) {
         let mut law = self.spec.law;
         let (mut q0, mut v0) = (0.0, 0.0);
@@ -281,22 +304,8 @@ pub fn jacobian_at(
     init: &InitialEstimate,
     opts: &FitOptions,
 ) -> Result<DMatrix<f64>, FitError> {
-    let params = spec.params();
-    let sens = sens_params(&params);
-    let times = &test.t_s[start..start + n_fit];
-    let y = &test.y[start..start + n_fit];
-    let mut prob = OutputError {
-        test,
-        spec,
-        params: params.clone(),
-        times,
-        y,
-        sim: SimOptions {
-            tol: opts.tol,
-            sens,
-        },
-        last_traj: None,
-    };
+    let mut prob = OutputError::new(test, start, n_fit, spec, opts);
+    let params = prob.params.clone();
     let x = start_vector(&params, spec, init);
     let mut r = vec![0.0; n_fit];
     let mut jac = DMatrix::zeros(n_fit, params.len());
@@ -344,43 +353,10 @@ pub fn fit_window(
     if n_fit < 20 {
         return Err(FitError::TooShort(n_fit));
     }
-    let params = spec.params();
-    let sens: Vec<SensParam> = params
-        .iter()
-        .filter_map(|p| match p {
-            Param::Dyn(d) => Some(SensParam::Dyn(*d)),
-            Param::Q0 => Some(SensParam::Q0),
-            Param::V0 => Some(SensParam::V0),
-            Param::Offset | Param::Delay | Param::Backlash => None,
-        })
-        .collect();
-    let times = &test.t_s[start..start + n_fit];
-    let y = &test.y[start..start + n_fit];
-    let mut prob = OutputError {
-        test,
-        spec,
-        params: params.clone(),
-        times,
-        y,
-        sim: SimOptions {
-            tol: opts.tol,
-            sens,
-        },
-        last_traj: None,
-    };
-    let x0: Vec<f64> = params
-        .iter()
-        .map(|p| match p {
-            Param::Dyn(DynParam::Viscous) => init.viscous,
-            Param::Dyn(DynParam::Dry) => init.dry,
-            Param::Dyn(d) => spec.law.get(*d),
-            Param::Q0 => init.q0,
-            Param::V0 => init.v0,
-            Param::Offset => init.offset,
-            Param::Delay => spec.delay.unwrap_or(0.0),
-            Param::Backlash => spec.backlash.unwrap_or(0.0),
-        })
-        .collect();
+    let mut prob = OutputError::new(test, start, n_fit, spec, opts);
+    let params = prob.params.clone();
+    let (times, y) = (prob.times, prob.y);
+    let x0 = start_vector(&params, spec, init);
     let rep = lm::minimize(&mut prob, &x0, &opts.lm);
     if let Termination::EvaluationFailed(e) = &rep.termination {
         return Err(FitError::Start(e.clone()));
