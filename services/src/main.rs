@@ -40,6 +40,13 @@ enum Command {
 
 fn main() {
     let cli = Cli::parse();
+    // The pantograph type data (Table 2, Table 4, the rigs) is validated before any work.
+    if let Err(e) = pantowatch_models::data::PantographType::from_toml(
+        pantowatch_models::data::PANTOGRAPH_160EC_TOML,
+    ) {
+        eprintln!("error: {e}");
+        std::process::exit(2);
+    }
     let thresholds = DriftThresholds::default();
     let res = match cli.command {
         Command::Demo(a) => cli::demo::run(a),
