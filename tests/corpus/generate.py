@@ -1,0 +1,130 @@
+#!/usr/bin/env python3
+"""Writes the bad-input corpus: malformed or hostile uploads, each with the field its rejection
+must name (MANIFEST.tsv: file, content type, expected field; a trailing * matches a prefix).
+Re-run after changing a case: python3 tests/corpus/generate.py"""
+import copy, json, os
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+BASE = {
+    "format": "pantograph-trace/1", "trace_id": "corpus-base", "vehicle_id": "EN57-1021",
+    "pantograph": {"model": "160EC", "serial": "160EC-0042"}, "recorded_at": "2026-03-02T07:15:00Z",
+    "test": {"kind": "pendulum", "joint": "J1", "rig": {}},
+    "channels": {"t_s": [0.0, 0.002, 0.004, 0.006], "alpha_deg": [74.2, 74.19, 74.17, 74.14]},
+}
+SLIDER = copy.deepcopy(BASE)
+SLIDER["test"] = {"kind": "slider", "joint": "J8", "rig": {}}
+SLIDER["channels"] = {"t_s": [0.0, 0.002, 0.004], "h_mm": [18.3, 18.2, 18.0]}
+LIFT = copy.deepcopy(BASE)
+LIFT["test"] = {"kind": "lift", "rig": {}}
+LIFT["channels"] = {"t_s": [0.0, 0.002], "H_m": [1.04, 1.04], "Fs_N": [18.0, 18.0]}
+
+cases = []  # (name, content_type, bytes, expected field)
+
+def doc(name, field, f, base=BASE):
+    d = copy.deepcopy(base)
+    f(d)
+    cases.append((name, "application/json", json.dumps(d).encode(), field))
+
+def raw(name, field, body, ct="application/json"):
+    cases.append((name, ct, body if isinstance(body, bytes) else body.encode(), field))
+
+good = json.dumps(BASE)
+raw("truncated", "body", good[: len(good) // 2])
+raw("empty", "body", "")
+raw("array-root", "body", "[1, 2, 3]")
+raw("nan-literal", "body", good.replace("74.19", "NaN"))
+raw("infinity-literal", "body", good.replace("74.19", "Infinity"))
+raw("number-overflow", "body", good.replace("74.19", "1e999"))
+raw("deep-nesting", "body", "[" * 100000 + "]" * 100000)
+raw("invalid-utf8", "body", b"{\"format\": \"\xff\xfe\"}")
+raw("bom", "body", "\ufeff" + good)
+raw("trailing-garbage", "body", good + "}")
+doc("format-wrong", "format", lambda d: d.update(format="pantograph-trace/2"))
+doc("format-missing", "format", lambda d: d.pop("format"))
+doc("format-number", "format", lambda d: d.update(format=1))
+doc("vehicle-missing", "vehicle_id", lambda d: d.pop("vehicle_id"))
+doc("vehicle-number", "vehicle_id", lambda d: d.update(vehicle_id=1021))
+doc("vehicle-empty", "vehicle_id", lambda d: d.update(vehicle_id="  "))
+doc("vehicle-huge", "vehicle_id", lambda d: d.update(vehicle_id="V" * 100000))
+doc("vehicle-control-chars", "vehicle_id", lambda d: d.update(vehicle_id="EN57\u0000\u001b[31m"))
+doc("pantograph-missing", "pantograph", lambda d: d.pop("pantograph"))
+doc("pantograph-string", "pantograph", lambda d: d.update(pantograph="160EC"))
+doc("model-missing", "pantograph.model", lambda d: d["pantograph"].pop("model"))
+doc("serial-object", "pantograph.serial", lambda d: d["pantograph"].update(serial={"a": 1}))
+doc("recorded-garbage", "recorded_at", lambda d: d.update(recorded_at="yesterday"))
+doc("recorded-feb-30", "recorded_at", lambda d: d.update(recorded_at="2026-02-30T07:15:00Z"))
+doc("recorded-no-zone", "recorded_at", lambda d: d.update(recorded_at="2026-03-02T07:15:00"))
+doc("recorded-missing", "recorded_at", lambda d: d.pop("recorded_at"))
+doc("test-missing", "test", lambda d: d.pop("test"))
+doc("kind-unknown", "test.kind", lambda d: d["test"].update(kind="swing"))
+doc("kind-number", "test.kind", lambda d: d["test"].update(kind=3))
+doc("joint-unknown", "test.joint", lambda d: d["test"].update(joint="J9"))
+doc("joint-sql", "test.joint", lambda d: d["test"].update(joint="J1'; DROP TABLE traces; --"))
+doc("joint-missing", "test.joint", lambda d: d["test"].pop("joint"))
+doc("rig-array", "test.rig", lambda d: d["test"].update(rig=[1]))
+doc("rig-unknown-key", "test.rig.colour", lambda d: d["test"].update(rig={"colour": "red"}))
+doc("rig-negative-mass", "test.rig.mass_kg", lambda d: d["test"].update(rig={"body": {"mass_kg": -1, "inertia_kgm2": 1, "com_distance_m": 0.1}}))
+doc("rig-inertia-too-small", "test.rig.inertia_kgm2", lambda d: d["test"].update(rig={"body": {"mass_kg": 10, "inertia_kgm2": 0.1, "com_distance_m": 1}}))
+doc("rig-body-string-mass", "test.rig.body.mass_kg", lambda d: d["test"].update(rig={"body": {"mass_kg": "ten", "inertia_kgm2": 1, "com_distance_m": 0.1}}))
+doc("rig-attachment-kind", "test.rig.attachments[0].kind", lambda d: d["test"].update(rig={"attachments": [{"kind": "blob", "mass_kg": 1}]}))
+doc("rig-pin-zero", "test.rig.pin_radius_m", lambda d: d["test"].update(rig={"pin_radius_m": 0}))
+doc("rig-gravity-negative", "test.rig.gravity_m_s2", lambda d: d["test"].update(rig={"gravity_m_s2": -9.81}))
+doc("custom-without-body", "test.rig.body", lambda d: d["test"].update(joint="custom"))
+doc("channels-missing", "channels", lambda d: d.pop("channels"))
+doc("channels-array", "channels", lambda d: d.update(channels=[[0, 1]]))
+doc("t-missing", "channels.t_s", lambda d: d["channels"].pop("t_s"))
+doc("t-repeated", "channels.t_s[2]", lambda d: d["channels"].update(t_s=[0.0, 0.002, 0.002, 0.006]))
+doc("t-decreasing", "channels.t_s[3]", lambda d: d["channels"].update(t_s=[0.0, 0.002, 0.004, 0.001]))
+doc("t-single", "channels.t_s", lambda d: d["channels"].update(t_s=[0.0], alpha_deg=[1.0]))
+doc("t-strings", "channels.t_s[0]", lambda d: d["channels"].update(t_s=["0.0", 0.002, 0.004, 0.006]))
+doc("alpha-missing", "channels.alpha_deg", lambda d: d["channels"].pop("alpha_deg"))
+doc("alpha-short", "channels.alpha_deg", lambda d: d["channels"].update(alpha_deg=[1.0, 2.0]))
+doc("alpha-string", "channels.alpha_deg[1]", lambda d: d["channels"]["alpha_deg"].__setitem__(1, "x"))
+doc("alpha-null", "channels.alpha_deg[1]", lambda d: d["channels"]["alpha_deg"].__setitem__(1, None))
+doc("alpha-bool", "channels.alpha_deg[2]", lambda d: d["channels"]["alpha_deg"].__setitem__(2, True))
+doc("channel-name-spaces", "channels", lambda d: d["channels"].update({"bad name": [0, 0, 0, 0]}))
+doc("too-many-channels", "channels", lambda d: d["channels"].update({f"c{i}": [0, 0, 0, 0] for i in range(40)}))
+doc("root-unknown-key", "comment", lambda d: d.update(comment="hello"))
+doc("trace-id-sql", "trace_id", lambda d: d.update(trace_id="x'; DROP TABLE traces; --"))
+doc("trace-id-huge", "trace_id", lambda d: d.update(trace_id="a" * 5000))
+doc("trace-id-path", "trace_id", lambda d: d.update(trace_id="../../etc/passwd"))
+doc("slider-missing-h", "channels.h_mm", lambda d: d["channels"].pop("h_mm"), SLIDER)
+doc("slider-joint-j3", "test.joint", lambda d: d["test"].update(joint="J3"), SLIDER)
+doc("slider-springs-negative", "test.rig.springs", lambda d: d["test"].update(rig={"springs": -1}), SLIDER)
+doc("slider-springs-huge", "test.rig.springs", lambda d: d["test"].update(rig={"springs": 1000}), SLIDER)
+doc("lift-missing-torque", "channels.T_Nm", lambda d: None, LIFT)
+CSV = """# format: pantograph-trace/1
+# trace_id: corpus-csv
+# vehicle_id: EN57-1021
+# pantograph.model: 160EC
+# pantograph.serial: 160EC-0042
+# recorded_at: 2026-03-02T07:15:00Z
+# test.kind: pendulum
+# test.joint: J1
+# test.rig: {}
+t_s,alpha_deg
+0,74.2
+0.002,74.19
+0.004,74.17
+"""
+raw("csv-empty", "channels", "", "text/csv")
+raw("csv-nan", "channels.alpha_deg[1]", CSV.replace("0.002,74.19", "0.002,nan"), "text/csv")
+raw("csv-word", "channels.alpha_deg[1]", CSV.replace("0.002,74.19", "0.002,abc"), "text/csv")
+raw("csv-short-row", "csv.line*", CSV.replace("0.004,74.17", "0.004"), "text/csv")
+raw("csv-no-vehicle", "vehicle_id", CSV.replace("# vehicle_id: EN57-1021\n", ""), "text/csv")
+raw("csv-bad-rig", "test.rig", CSV.replace("# test.rig: {}", "# test.rig: {"), "text/csv")
+raw("csv-t-not-first", "*", CSV.replace("t_s,alpha_deg", "alpha_deg,t_s"), "text/csv")
+raw("csv-time-back", "channels.t_s[2]", CSV.replace("0.004,74.17", "0.001,74.17"), "text/csv")
+raw("csv-binary", "*", b"\x00\x01\x02\xff\xfe", "text/csv")
+
+manifest = []
+for i, (name, ct, body, field) in enumerate(cases, 1):
+    ext = "csv" if ct == "text/csv" else "json"
+    fname = f"{i:03d}-{name}.{ext}"
+    with open(os.path.join(HERE, fname), "wb") as f:
+        f.write(body)
+    manifest.append(f"{fname}\t{ct}\t{field}")
+with open(os.path.join(HERE, "MANIFEST.tsv"), "w") as f:
+    f.write("# file\tcontent type\texpected field (trailing * = prefix, * alone = any named field)\n")
+    f.write("\n".join(manifest) + "\n")
+print(len(cases), "cases")
