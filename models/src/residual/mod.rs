@@ -21,11 +21,18 @@
 //! - A sensor zero the base fit estimates is reported as `sensor_offset` when its interval
 //!   excludes zero (the paper's model has none).
 
+mod diagnose;
+mod effects;
+
+pub use diagnose::{Diagnosis, chi2_critical_001, diagnose, ljung_box};
+pub use effects::{Effect, sensor_offset_effect};
+use effects::{Scales, effect_result};
+
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use crate::dynamics::Mechanism;
-use crate::friction::{DynParam, FrictionLaw, PositionFriction, Stribeck};
+use crate::friction::{DynParam, FrictionLaw};
 use crate::identify::{
     FitError, FitOptions, FitOutcome, FitSpec, InitialEstimate, JointTest, Param, fit_window,
     predict,
@@ -37,139 +44,6 @@ pub const MAX_CANDIDATES: usize = 3;
 pub const BIC_MARGIN: f64 = 10.0;
 pub const HOLDOUT_MARGIN: f64 = 0.02;
 pub const EXPLAINED_SHARE: f64 = 0.75;
-const LB_LAGS: usize = 20;
-
-/// The contract's effect vocabulary.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Effect {
-    Stribeck,
-    QuadraticDrag,
-    PositionFriction,
-    Backlash,
-    SensorOffset,
-    SensorDelay,
-}
-
-impl Effect {
-    pub const SEARCHED: [Effect; 5] = [
-        Effect::Stribeck,
-        Effect::QuadraticDrag,
-        Effect::PositionFriction,
-        Effect::Backlash,
-        Effect::SensorDelay,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Effect::Stribeck => "stribeck",
-            Effect::QuadraticDrag => "quadratic_drag",
-            Effect::PositionFriction => "position_friction",
-            Effect::Backlash => "backlash",
-            Effect::SensorOffset => "sensor_offset",
-            Effect::SensorDelay => "sensor_delay",
-        }
-    }
-
-    pub fn parse(s: &str) -> Option<Effect> {
-        [
-            Effect::Stribeck,
-            Effect::QuadraticDrag,
-            Effect::PositionFriction,
-            Effect::Backlash,
-            Effect::SensorOffset,
-            Effect::SensorDelay,
-        ]
-        .into_iter()
-        .find(|e| e.name() == s)
-    }
-
-    /// The parameters the effect adds.
-    pub fn params(self) -> Vec<Param> {
-        match self {
-            Effect::Stribeck => vec![
-                Param::Dyn(DynParam::StribeckRatio),
-                Param::Dyn(DynParam::StribeckSpeed),
-            ],
-            Effect::QuadraticDrag => vec![Param::Dyn(DynParam::QuadraticDrag)],
-            Effect::PositionFriction => vec![
-                Param::Dyn(DynParam::PositionLinear),
-                Param::Dyn(DynParam::PositionQuadratic),
-            ],
-            Effect::Backlash => vec![Param::Backlash],
-            Effect::SensorOffset => vec![Param::Offset],
-            Effect::SensorDelay => vec![Param::Delay],
-        }
-    }
-
-    /// The parameters whose null values mean "no effect", with those values.
-    fn nulls(self) -> Vec<(Param, f64)> {
-        match self {
-            Effect::Stribeck => vec![(Param::Dyn(DynParam::StribeckRatio), 1.0)],
-            Effect::QuadraticDrag => vec![(Param::Dyn(DynParam::QuadraticDrag), 0.0)],
-            Effect::PositionFriction => vec![
-                (Param::Dyn(DynParam::PositionLinear), 0.0),
-                (Param::Dyn(DynParam::PositionQuadratic), 0.0),
-            ],
-            Effect::Backlash => vec![(Param::Backlash, 0.0)],
-            Effect::SensorOffset => vec![(Param::Offset, 0.0)],
-            Effect::SensorDelay => vec![(Param::Delay, 0.0)],
-        }
-    }
-
-    /// Add the effect to `spec` at its starting value (`at_null`: at the null value, for the
-    /// score test).
-    fn add_to(self, spec: &mut FitSpec, scales: &Scales, at_null: bool) {
-        match self {
-            Effect::Stribeck => {
-                spec.law.stribeck = Some(Stribeck {
-                    ratio: if at_null { 1.0 } else { 1.5 },
-                    speed: 0.1 * scales.v_max,
-                });
-                spec.free.push(DynParam::StribeckRatio);
-                if !at_null {
-                    spec.free.push(DynParam::StribeckSpeed);
-                }
-            }
-            Effect::QuadraticDrag => {
-                spec.law.quadratic_drag = Some(if at_null {
-                    0.0
-                } else {
-                    0.1 * scales.friction / (scales.v_max * scales.v_max)
-                });
-                spec.free.push(DynParam::QuadraticDrag);
-            }
-            Effect::PositionFriction => {
-                spec.law.position = Some(PositionFriction {
-                    linear: 0.0,
-                    quadratic: 0.0,
-                    scale: scales.q_ref,
-                });
-                spec.free
-                    .extend([DynParam::PositionLinear, DynParam::PositionQuadratic]);
-            }
-            Effect::Backlash => {
-                spec.backlash = Some(if at_null {
-                    0.0
-                } else {
-                    0.5 * scales.noise_model
-                })
-            }
-            Effect::SensorDelay => spec.delay = Some(0.0),
-            Effect::SensorOffset => spec.fit_offset = true,
-        }
-    }
-}
-
-/// Scales of the motion for starting values.
-struct Scales {
-    v_max: f64,
-    /// Typical friction torque/force: D·v_max + lever·N_rest·μ.
-    friction: f64,
-    q_ref: f64,
-    /// Sensor noise in model units.
-    noise_model: f64,
-}
 
 /// One model tried on the split.
 #[derive(Debug, Clone, Serialize)]
@@ -182,20 +56,6 @@ pub struct Candidate {
     pub bic: f64,
     pub accepted: bool,
     pub reason: String,
-}
-
-/// The residual's diagnosis.
-#[derive(Debug, Clone, Serialize)]
-pub struct Diagnosis {
-    pub ljung_box_q: f64,
-    pub ljung_box_lags: usize,
-    /// χ² critical value at p = 0.001.
-    pub ljung_box_critical: f64,
-    pub white: bool,
-    /// Sensor noise estimated from first differences of the residual, channel units.
-    pub noise_sigma: f64,
-    /// Correlation of the residual with candidate signals.
-    pub correlations: Vec<(String, f64)>,
 }
 
 /// The residual loop's result.
@@ -266,90 +126,6 @@ pub fn split_fit(
         rmse_holdout,
         prediction,
     })
-}
-
-/// Ljung–Box Q over `lags` lags.
-pub fn ljung_box(r: &[f64], lags: usize) -> f64 {
-    let n = r.len();
-    let mean = r.iter().sum::<f64>() / n as f64;
-    let c0: f64 = r.iter().map(|x| (x - mean).powi(2)).sum();
-    if c0 == 0.0 {
-        return 0.0;
-    }
-    (1..=lags.min(n - 1))
-        .map(|k| {
-            let ck: f64 = (k..n).map(|i| (r[i] - mean) * (r[i - k] - mean)).sum();
-            (ck / c0).powi(2) / (n - k) as f64
-        })
-        .sum::<f64>()
-        * (n * (n + 2)) as f64
-}
-
-/// χ²ₖ critical value at upper-tail p = 0.001 (Wilson–Hilferty).
-pub fn chi2_critical_001(k: usize) -> f64 {
-    let k = k as f64;
-    let z = 3.090_232; // standard normal quantile at 0.999
-    k * (1.0 - 2.0 / (9.0 * k) + z * (2.0 / (9.0 * k)).sqrt()).powi(3)
-}
-
-fn corr(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len() as f64;
-    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        sab += (x - ma) * (y - mb);
-        saa += (x - ma).powi(2);
-        sbb += (y - mb).powi(2);
-    }
-    if saa > 0.0 && sbb > 0.0 {
-        sab / (saa * sbb).sqrt()
-    } else {
-        0.0
-    }
-}
-
-/// Whiteness and correlations of a fit's residual with the candidate signals.
-pub fn diagnose(test: &JointTest, fit: &FitOutcome) -> Diagnosis {
-    let r = &fit.residual;
-    let q = ljung_box(r, LB_LAGS);
-    let crit = chi2_critical_001(LB_LAGS);
-    let d2: f64 =
-        r.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>() / (r.len().max(2) - 1) as f64;
-    let noise_sigma = (d2 / 2.0).sqrt();
-    let tr = &fit.trajectory;
-    let t = &test.t_s[fit.start..fit.start + fit.n_fit];
-    let v = &tr.v;
-    let acc: Vec<f64> = (0..v.len())
-        .map(|k| {
-            if k + 1 < v.len() {
-                (v[k + 1] - v[k]) / (t[k + 1] - t[k])
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    let sig = |f: &dyn Fn(usize) -> f64| (0..v.len()).map(f).collect::<Vec<f64>>();
-    let signals: Vec<(&str, Vec<f64>)> = vec![
-        ("angle_or_position", tr.q.clone()),
-        ("rate", v.clone()),
-        ("abs_rate", sig(&|k| v[k].abs())),
-        ("rate_abs_rate", sig(&|k| v[k] * v[k].abs())),
-        ("sign_rate", sig(&|k| v[k].signum())),
-        ("acceleration", acc),
-        ("time", t.to_vec()),
-    ];
-    let correlations = signals
-        .into_iter()
-        .map(|(n, s)| (n.to_string(), corr(r, &s)))
-        .collect();
-    Diagnosis {
-        ljung_box_q: q,
-        ljung_box_lags: LB_LAGS,
-        ljung_box_critical: crit,
-        white: q <= crit,
-        noise_sigma,
-        correlations,
-    }
 }
 
 fn scales(test: &JointTest, fit: &FitOutcome, noise_sigma: f64) -> Scales {
@@ -656,90 +432,4 @@ fn judge(sp: &Split, reference: &Split, bic_ref: f64, effects: &[Effect]) -> (bo
             if significant { "excludes" } else { "includes" }
         ),
     )
-}
-
-fn effect_result(e: Effect, fit: &FitOutcome, test: &JointTest) -> EffectResult {
-    let (rate, pos) = match test.dof.mech {
-        Mechanism::Pendulum(_) => ("rad_s", "rad"),
-        Mechanism::Slider(_) => ("m_s", "m"),
-    };
-    let mut params = serde_json::Map::new();
-    let mut put = |name: String, p: Param| {
-        if let Some((v, _, ci)) = fit.get(p) {
-            params.insert(name.clone(), serde_json::json!(v));
-            params.insert(format!("{name}_ci95"), serde_json::json!(ci));
-        }
-    };
-    match e {
-        Effect::Stribeck => {
-            put("mu_s_ratio".into(), Param::Dyn(DynParam::StribeckRatio));
-            put(format!("v_s_{rate}"), Param::Dyn(DynParam::StribeckSpeed));
-        }
-        Effect::QuadraticDrag => put(
-            if pos == "rad" {
-                "c_nms2_per_rad2".into()
-            } else {
-                "c_ns2_per_m2".into()
-            },
-            Param::Dyn(DynParam::QuadraticDrag),
-        ),
-        Effect::PositionFriction => {
-            put("linear".into(), Param::Dyn(DynParam::PositionLinear));
-            put("quadratic".into(), Param::Dyn(DynParam::PositionQuadratic));
-            params.insert(
-                format!("q_ref_{pos}"),
-                serde_json::json!(fit.law.position.map_or(1.0, |p| p.scale)),
-            );
-        }
-        Effect::Backlash => put(format!("half_width_{pos}"), Param::Backlash),
-        Effect::SensorDelay => put("delay_s".into(), Param::Delay),
-        Effect::SensorOffset => put(format!("offset_{}", test.unit), Param::Offset),
-    }
-    EffectResult {
-        name: e.name().into(),
-        params,
-    }
-}
-
-/// `sensor_offset` when the fitted zero's interval excludes 0.
-pub fn sensor_offset_effect(full: &FitOutcome, unit: &str) -> Option<EffectResult> {
-    let (v, _, ci) = full.get(Param::Offset)?;
-    if ci[0] > 0.0 || ci[1] < 0.0 {
-        let mut params = serde_json::Map::new();
-        params.insert(format!("offset_{unit}"), serde_json::json!(v));
-        params.insert(format!("offset_{unit}_ci95"), serde_json::json!(ci));
-        Some(EffectResult {
-            name: "sensor_offset".into(),
-            params,
-        })
-    } else {
-        None
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::noise::Noise;
-
-    #[test]
-    fn ljung_box_white_vs_ar() {
-        let mut rng = Noise::new(5);
-        let w: Vec<f64> = (0..5000).map(|_| rng.normal()).collect();
-        assert!(ljung_box(&w, 20) < chi2_critical_001(20));
-        let mut e = 0.0;
-        let ar: Vec<f64> = (0..5000)
-            .map(|_| {
-                e = 0.3 * e + rng.normal();
-                e
-            })
-            .collect();
-        assert!(ljung_box(&ar, 20) > chi2_critical_001(20));
-        // Wilson–Hilferty against the exact χ²₂₀ 0.999 quantile 45.315.
-        assert!(
-            (chi2_critical_001(20) - 45.315).abs() < 0.2,
-            "{}",
-            chi2_critical_001(20)
-        );
-    }
 }

@@ -1,0 +1,199 @@
+//! The contract's effect vocabulary as physical laws added to the base model: their
+//! parameters, null values, starting values, and how a found effect is reported.
+
+use crate::dynamics::Mechanism;
+use crate::friction::{DynParam, PositionFriction, Stribeck};
+use crate::identify::{FitOutcome, FitSpec, JointTest, Param};
+use crate::report::EffectResult;
+use serde::Serialize;
+
+/// The contract's effect vocabulary.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Effect {
+    Stribeck,
+    QuadraticDrag,
+    PositionFriction,
+    Backlash,
+    SensorOffset,
+    SensorDelay,
+}
+
+impl Effect {
+    pub const SEARCHED: [Effect; 5] = [
+        Effect::Stribeck,
+        Effect::QuadraticDrag,
+        Effect::PositionFriction,
+        Effect::Backlash,
+        Effect::SensorDelay,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Effect::Stribeck => "stribeck",
+            Effect::QuadraticDrag => "quadratic_drag",
+            Effect::PositionFriction => "position_friction",
+            Effect::Backlash => "backlash",
+            Effect::SensorOffset => "sensor_offset",
+            Effect::SensorDelay => "sensor_delay",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Effect> {
+        [
+            Effect::Stribeck,
+            Effect::QuadraticDrag,
+            Effect::PositionFriction,
+            Effect::Backlash,
+            Effect::SensorOffset,
+            Effect::SensorDelay,
+        ]
+        .into_iter()
+        .find(|e| e.name() == s)
+    }
+
+    /// The parameters the effect adds.
+    pub fn params(self) -> Vec<Param> {
+        match self {
+            Effect::Stribeck => vec![
+                Param::Dyn(DynParam::StribeckRatio),
+                Param::Dyn(DynParam::StribeckSpeed),
+            ],
+            Effect::QuadraticDrag => vec![Param::Dyn(DynParam::QuadraticDrag)],
+            Effect::PositionFriction => vec![
+                Param::Dyn(DynParam::PositionLinear),
+                Param::Dyn(DynParam::PositionQuadratic),
+            ],
+            Effect::Backlash => vec![Param::Backlash],
+            Effect::SensorOffset => vec![Param::Offset],
+            Effect::SensorDelay => vec![Param::Delay],
+        }
+    }
+
+    /// The parameters whose null values mean "no effect", with those values.
+    pub(super) fn nulls(self) -> Vec<(Param, f64)> {
+        match self {
+            Effect::Stribeck => vec![(Param::Dyn(DynParam::StribeckRatio), 1.0)],
+            Effect::QuadraticDrag => vec![(Param::Dyn(DynParam::QuadraticDrag), 0.0)],
+            Effect::PositionFriction => vec![
+                (Param::Dyn(DynParam::PositionLinear), 0.0),
+                (Param::Dyn(DynParam::PositionQuadratic), 0.0),
+            ],
+            Effect::Backlash => vec![(Param::Backlash, 0.0)],
+            Effect::SensorOffset => vec![(Param::Offset, 0.0)],
+            Effect::SensorDelay => vec![(Param::Delay, 0.0)],
+        }
+    }
+
+    /// Add the effect to `spec` at its starting value (`at_null`: at the null value, for the
+    /// score test).
+    pub(super) fn add_to(self, spec: &mut FitSpec, scales: &Scales, at_null: bool) {
+        match self {
+            Effect::Stribeck => {
+                spec.law.stribeck = Some(Stribeck {
+                    ratio: if at_null { 1.0 } else { 1.5 },
+                    speed: 0.1 * scales.v_max,
+                });
+                spec.free.push(DynParam::StribeckRatio);
+                if !at_null {
+                    spec.free.push(DynParam::StribeckSpeed);
+                }
+            }
+            Effect::QuadraticDrag => {
+                spec.law.quadratic_drag = Some(if at_null {
+                    0.0
+                } else {
+                    0.1 * scales.friction / (scales.v_max * scales.v_max)
+                });
+                spec.free.push(DynParam::QuadraticDrag);
+            }
+            Effect::PositionFriction => {
+                spec.law.position = Some(PositionFriction {
+                    linear: 0.0,
+                    quadratic: 0.0,
+                    scale: scales.q_ref,
+                });
+                spec.free
+                    .extend([DynParam::PositionLinear, DynParam::PositionQuadratic]);
+            }
+            Effect::Backlash => {
+                spec.backlash = Some(if at_null {
+                    0.0
+                } else {
+                    0.5 * scales.noise_model
+                })
+            }
+            Effect::SensorDelay => spec.delay = Some(0.0),
+            Effect::SensorOffset => spec.fit_offset = true,
+        }
+    }
+}
+
+/// Scales of the motion for starting values.
+pub(super) struct Scales {
+    pub(super) v_max: f64,
+    /// Typical friction torque/force: D·v_max + lever·N_rest·μ.
+    pub(super) friction: f64,
+    pub(super) q_ref: f64,
+    /// Sensor noise in model units.
+    pub(super) noise_model: f64,
+}
+
+pub(super) fn effect_result(e: Effect, fit: &FitOutcome, test: &JointTest) -> EffectResult {
+    let (rate, pos) = match test.dof.mech {
+        Mechanism::Pendulum(_) => ("rad_s", "rad"),
+        Mechanism::Slider(_) => ("m_s", "m"),
+    };
+    let mut params = serde_json::Map::new();
+    let mut put = |name: String, p: Param| {
+        if let Some((v, _, ci)) = fit.get(p) {
+            params.insert(name.clone(), serde_json::json!(v));
+            params.insert(format!("{name}_ci95"), serde_json::json!(ci));
+        }
+    };
+    match e {
+        Effect::Stribeck => {
+            put("mu_s_ratio".into(), Param::Dyn(DynParam::StribeckRatio));
+            put(format!("v_s_{rate}"), Param::Dyn(DynParam::StribeckSpeed));
+        }
+        Effect::QuadraticDrag => put(
+            if pos == "rad" {
+                "c_nms2_per_rad2".into()
+            } else {
+                "c_ns2_per_m2".into()
+            },
+            Param::Dyn(DynParam::QuadraticDrag),
+        ),
+        Effect::PositionFriction => {
+            put("linear".into(), Param::Dyn(DynParam::PositionLinear));
+            put("quadratic".into(), Param::Dyn(DynParam::PositionQuadratic));
+            params.insert(
+                format!("q_ref_{pos}"),
+                serde_json::json!(fit.law.position.map_or(1.0, |p| p.scale)),
+            );
+        }
+        Effect::Backlash => put(format!("half_width_{pos}"), Param::Backlash),
+        Effect::SensorDelay => put("delay_s".into(), Param::Delay),
+        Effect::SensorOffset => put(format!("offset_{}", test.unit), Param::Offset),
+    }
+    EffectResult {
+        name: e.name().into(),
+        params,
+    }
+}
+
+/// `sensor_offset` when the fitted zero's interval excludes 0.
+pub fn sensor_offset_effect(full: &FitOutcome, unit: &str) -> Option<EffectResult> {
+    let (v, _, ci) = full.get(Param::Offset)?;
+    if ci[0] > 0.0 || ci[1] < 0.0 {
+        let mut params = serde_json::Map::new();
+        params.insert(format!("offset_{unit}"), serde_json::json!(v));
+        params.insert(format!("offset_{unit}_ci95"), serde_json::json!(ci));
+        Some(EffectResult {
+            name: "sensor_offset".into(),
+            params,
+        })
+    } else {
+        None
+    }
+}
