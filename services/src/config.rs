@@ -56,6 +56,66 @@ pub struct Settings {
     pub http: HttpSettings,
     pub drift: DriftSettings,
     pub log: LogSettings,
+    pub alerts: AlertSettings,
+    pub webhooks: WebhookSettings,
+    pub web: WebSettings,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct AlertSettings {
+    /// A joint whose forecast reaches the alarm band within this many days after its latest
+    /// test gets a `watch` alert.
+    pub horizon_days: f64,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct WebhookSettings {
+    /// Wait before the second attempt, milliseconds; doubles each attempt (capped at 1 h).
+    pub backoff_base_ms: u64,
+    /// Attempts before a delivery is failed for good.
+    pub max_attempts: u32,
+    /// Longest wait for a receiver's answer (connect + response), milliseconds.
+    pub timeout_ms: u64,
+    /// How often the outbox is looked at, milliseconds (alert changes in-process wake it).
+    pub poll_ms: u64,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct WebSettings {
+    /// Key that signs the web pages' session cookies; empty: a random key per process start
+    /// (sessions end with the process; several processes behind one address need a shared one).
+    pub session_secret: SecretString,
+    /// A sign-in lasts this many hours.
+    pub session_hours: u64,
+}
+
+impl Default for AlertSettings {
+    fn default() -> Self {
+        AlertSettings { horizon_days: 90.0 }
+    }
+}
+
+impl Default for WebhookSettings {
+    fn default() -> Self {
+        WebhookSettings {
+            backoff_base_ms: 1000,
+            max_attempts: 6,
+            timeout_ms: 10_000,
+            poll_ms: 1000,
+        }
+    }
+}
+
+impl Default for WebSettings {
+    fn default() -> Self {
+        WebSettings {
+            session_secret: SecretString::default(),
+            session_hours: 12,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -121,6 +181,9 @@ impl Default for Settings {
             http: HttpSettings::default(),
             drift: DriftSettings::default(),
             log: LogSettings::default(),
+            alerts: AlertSettings::default(),
+            webhooks: WebhookSettings::default(),
+            web: WebSettings::default(),
         }
     }
 }
@@ -277,6 +340,18 @@ impl Settings {
         }
         if self.http.body_limit_mib == 0 || self.http.request_timeout_secs == 0 {
             return Err("http.body_limit_mib and http.request_timeout_secs must be > 0".into());
+        }
+        if !(self.alerts.horizon_days.is_finite() && self.alerts.horizon_days >= 0.0) {
+            return Err("alerts.horizon_days must be a number ≥ 0".into());
+        }
+        let w = &self.webhooks;
+        if w.backoff_base_ms == 0 || w.max_attempts == 0 || w.timeout_ms == 0 || w.poll_ms == 0 {
+            return Err(
+                "webhooks.backoff_base_ms, max_attempts, timeout_ms and poll_ms must be > 0".into(),
+            );
+        }
+        if self.web.session_hours == 0 {
+            return Err("web.session_hours must be > 0".into());
         }
         Ok(())
     }

@@ -1,10 +1,12 @@
 //! pantowatch service library: trace documents, storage, the HTTP API, background fitting.
 //! The binary in `main.rs` wires these modules into the CLI.
 
+pub mod alerts;
 pub mod api;
 pub mod cli;
 pub mod config;
 pub mod fitting;
+pub mod health;
 pub mod ids;
 pub mod ingest;
 pub mod plot;
@@ -12,4 +14,6 @@ pub mod server;
 pub mod store;
 pub mod trace;
 pub mod trace_csv;
+pub mod web;
+pub mod webhooks;
 pub mod worker;

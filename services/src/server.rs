@@ -10,9 +10,11 @@ use pantowatch_models::report::MODEL_VERSION;
 use tokio::net::TcpListener;
 use tokio::sync::{Notify, watch};
 
+use crate::alerts::AlertOptions;
 use crate::api::{self, AppState};
 use crate::config::Settings;
 use crate::store::{BackendKind, Store};
+use crate::webhooks::{self, DeliveryOptions};
 use crate::worker::{WorkerOptions, WorkerPool};
 
 /// The workers' options from the settings, with `workers` tasks.
@@ -22,6 +24,22 @@ pub fn worker_options(settings: &Settings, workers: usize) -> WorkerOptions {
         lease: settings.lease(),
         poll: settings.poll(),
         thresholds: settings.thresholds(),
+        alerts: AlertOptions {
+            horizon_days: settings.alerts.horizon_days,
+            alarm: settings.drift.alarm,
+        },
+        alert_wake: None,
+    }
+}
+
+/// The webhook deliverer's options from the settings.
+pub fn delivery_options(settings: &Settings) -> DeliveryOptions {
+    let w = &settings.webhooks;
+    DeliveryOptions {
+        backoff_base: Duration::from_millis(w.backoff_base_ms),
+        max_attempts: w.max_attempts,
+        timeout: Duration::from_millis(w.timeout_ms),
+        poll: Duration::from_millis(w.poll_ms),
     }
 }
 
@@ -48,19 +66,23 @@ pub async fn run(
         let _ = stop_tx.send(true);
     });
     let wake = Arc::new(Notify::new());
-    let pool = WorkerPool::spawn(
+    let alert_wake = Arc::new(Notify::new());
+    let mut opts = worker_options(settings, settings.workers);
+    opts.alert_wake = Some(alert_wake.clone());
+    let pool = WorkerPool::spawn(store.clone(), opts, wake.clone(), stop_rx.clone(), None);
+    let deliverer = tokio::spawn(webhooks::run(
         store.clone(),
-        worker_options(settings, settings.workers),
-        wake.clone(),
+        delivery_options(settings),
+        alert_wake.clone(),
         stop_rx.clone(),
-        None,
-    );
+    ));
     let state = AppState::new(
         store.clone(),
         wake,
         settings.body_limit_bytes(),
         Duration::from_secs(settings.http.request_timeout_secs),
-    );
+    )
+    .configure(settings, alert_wake)?;
     let addr = listener.local_addr()?;
     tracing::info!(%addr, workers = settings.workers, database = backend_label(&store),
         model_version = MODEL_VERSION, "pantowatch serving");
@@ -72,6 +94,9 @@ pub async fn run(
         })
         .await;
     pool.join().await;
+    if let Err(e) = deliverer.await {
+        tracing::error!(error = %e, "webhook deliverer ended abnormally");
+    }
     tracing::info!("pantowatch stopped");
     served.map_err(Into::into)
 }
@@ -84,13 +109,22 @@ pub async fn run_workers(
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) {
     let (stop_tx, stop_rx) = watch::channel(false);
+    let alert_wake = Arc::new(Notify::new());
+    let mut opts = worker_options(settings, workers);
+    opts.alert_wake = Some(alert_wake.clone());
     let pool = WorkerPool::spawn(
         store.clone(),
-        worker_options(settings, workers),
+        opts,
         Arc::new(Notify::new()),
-        stop_rx,
+        stop_rx.clone(),
         None,
     );
+    let deliverer = tokio::spawn(webhooks::run(
+        store.clone(),
+        delivery_options(settings),
+        alert_wake,
+        stop_rx,
+    ));
     tracing::info!(
         workers,
         database = backend_label(&store),
@@ -101,6 +135,7 @@ pub async fn run_workers(
     tracing::info!("shutting down: finishing fits in flight");
     let _ = stop_tx.send(true);
     pool.join().await;
+    let _ = deliverer.await;
     tracing::info!("workers stopped");
 }
 

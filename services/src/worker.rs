@@ -11,6 +11,7 @@ use pantowatch_models::drift::DriftThresholds;
 use tokio::sync::{Notify, watch};
 use tokio::task::JoinSet;
 
+use crate::alerts::{self, AlertAction, AlertOptions};
 use crate::fitting::{self, FitFailure};
 use crate::ingest::stored_doc;
 use crate::store::{CompleteOutcome, FailOutcome, NewFit, Status, Store, StoreError};
@@ -25,6 +26,10 @@ pub struct WorkerOptions {
     /// Idle poll interval (jobs queued by other processes; in-process uploads wake at once).
     pub poll: Duration,
     pub thresholds: DriftThresholds,
+    /// The alert rules run after each fit written.
+    pub alerts: AlertOptions,
+    /// Woken when an alert changed (the webhook deliverer of this process).
+    pub alert_wake: Option<Arc<Notify>>,
 }
 
 /// What happened to one claimed job.
@@ -201,6 +206,27 @@ pub async fn process_next(
             metrics::counter!("pantowatch_jobs_processed_total", "outcome" => "done").increment(1);
             tracing::info!(job = job.id, trace = %trace_id, fit_id = w.fit_id,
                 status = status.map_or("none", Status::as_str), ms = fit_seconds * 1e3, "fit written");
+            if w.created {
+                // The fit is durable; an alert-rule failure is logged and the next fit of the
+                // joint decides again.
+                match alerts::after_fit(store, &trace_id, w.fit_id, &fit.result, &opts.alerts).await
+                {
+                    Ok(actions) => {
+                        let changed = actions.iter().any(|a| match a {
+                            AlertAction::Raised(r) => {
+                                !matches!(**r, crate::store::RaiseOutcome::Updated(_))
+                            }
+                            AlertAction::Resolved { .. } => true,
+                        });
+                        if let (true, Some(wake)) = (changed, &opts.alert_wake) {
+                            wake.notify_waiters();
+                        }
+                    }
+                    Err(e) => {
+                        tracing::error!(trace = %trace_id, error = %e, "alert rules failed after the fit")
+                    }
+                }
+            }
             Ok(Some(JobEvent::Done {
                 trace_id,
                 status,

@@ -12,6 +12,7 @@ use super::AppState;
 use super::auth::Reader;
 use super::error::{AppError, Problem};
 use super::extract::{ApiPath, ApiQuery};
+use crate::health::{self, Param, ParamTrend};
 use crate::ids::{JointName, Serial, VehicleId};
 use crate::store::{
     FleetFilter, FleetRow, JointPoint, Page, Status, VehicleDetail, VehicleSummary,
@@ -69,16 +70,47 @@ pub async fn get_vehicle(
         .ok_or_else(|| AppError::NotFound(format!("no vehicle `{id}`")))
 }
 
-/// A joint's fits over time.
+/// A joint's fits over time, with each parameter's trend and alarm-band forecast.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct JointHistory {
     pub serial: String,
     pub joint: String,
     /// One point per fitted trace of this joint, by `recorded_at`.
     pub points: Vec<JointPoint>,
+    pub trends: JointTrends,
 }
 
-/// Every fit of one joint of one pantograph, oldest test first (the wear trend).
+/// Per parameter: robust trend (each point weighted by its interval) with its interval,
+/// `no_trend` when the data do not support one, and the forecast date of reaching the alarm band
+/// (drift alarm band × Table 4 baseline) with its interval.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct JointTrends {
+    pub viscous: ParamTrend,
+    pub dry: ParamTrend,
+}
+
+/// The trends of a joint's history (baselines from the latest fit result).
+pub async fn joint_trends(
+    st: &AppState,
+    joint: &str,
+    points: &[JointPoint],
+) -> Result<JointTrends, AppError> {
+    let (bv, bd) = match points.last() {
+        Some(p) => match st.store.get_fit(&p.trace_id).await? {
+            Some(f) => health::baselines(&f.result, joint),
+            None => (None, None),
+        },
+        None => (None, None),
+    };
+    let alarm = st.alerts.alarm;
+    Ok(JointTrends {
+        viscous: health::param_trend(points, Param::Viscous, bv, alarm),
+        dry: health::param_trend(points, Param::Dry, bd, alarm),
+    })
+}
+
+/// Every fit of one joint of one pantograph, oldest test first, with the wear trend and the
+/// forecast of the alarm-band crossing per parameter.
 #[utoipa::path(get, path = "/v1/pantographs/{serial}/joints/{joint}/history", tag = "fleet",
     params(
         ("serial" = String, Path, description = "pantograph serial"),
@@ -104,10 +136,12 @@ pub async fn joint_history(
         .store
         .joint_history(serial.as_str(), joint.as_str())
         .await?;
+    let trends = joint_trends(&st, joint.as_str(), &points).await?;
     Ok(Json(JointHistory {
         serial: serial.to_string(),
         joint: joint.to_string(),
         points,
+        trends,
     }))
 }
 

@@ -1,10 +1,11 @@
-//! The REST API: axum routes under `/v1` (traces, fleet, admin) plus `/healthz`, `/readyz`,
+//! The REST API: axum routes under `/v1` (traces, fleet, alerts, admin) plus `/healthz`, `/readyz`,
 //! `/metrics` and `/openapi.json`, the OpenAPI document generated from these handlers.
 //!
-//! Each module has a `router()`; [`router`] merges them in one place, adds the fallbacks and
-//! the layers (body limit, telemetry and timeout, panic guard) and the state.
+//! Each module has a `router()`; [`router`] merges them (and the web pages, `crate::web`) in one
+//! place, adds the fallbacks and the layers (body limit, telemetry and timeout, panic guard).
 
 pub mod admin;
+pub mod alerts;
 pub mod auth;
 pub mod error;
 pub mod extract;
@@ -12,6 +13,7 @@ pub mod fleet;
 pub mod ops;
 pub mod telemetry;
 pub mod traces;
+pub mod webhooks;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -29,6 +31,8 @@ use utoipa::openapi::{ContentBuilder, Ref, RefOr, ResponseBuilder};
 use utoipa::{Modify, OpenApi};
 use utoipa_axum::router::OpenApiRouter;
 
+use crate::alerts::AlertOptions;
+use crate::config::Settings;
 use crate::ingest::Intake;
 use crate::store::Store;
 use error::{AppError, PROBLEM_JSON, Problem};
@@ -43,6 +47,12 @@ pub struct AppState {
     pub metrics: PrometheusHandle,
     pub body_limit: usize,
     pub timeout: Duration,
+    /// Alert rules (horizon, alarm band) for trends and forecasts.
+    pub alerts: AlertOptions,
+    /// Wakes this process's webhook deliverer after an alert change.
+    pub alert_wake: Arc<Notify>,
+    /// Signs the web pages' session cookies.
+    pub sessions: Arc<crate::web::session::SessionKey>,
 }
 
 impl AppState {
@@ -54,7 +64,31 @@ impl AppState {
             metrics: telemetry::prometheus(),
             body_limit,
             timeout,
+            alerts: AlertOptions::default(),
+            alert_wake: Arc::new(Notify::new()),
+            sessions: Arc::new(crate::web::session::SessionKey::random(12)),
         }
+    }
+
+    /// Takes the alert rules and session settings from `settings`.
+    pub fn configure(
+        mut self,
+        settings: &Settings,
+        alert_wake: Arc<Notify>,
+    ) -> anyhow::Result<Self> {
+        self.alerts = AlertOptions {
+            horizon_days: settings.alerts.horizon_days,
+            alarm: settings.drift.alarm,
+        };
+        self.alert_wake = alert_wake;
+        let hours = settings.web.session_hours;
+        let secret = settings.web.session_secret.expose_secret();
+        self.sessions = Arc::new(if secret.is_empty() {
+            crate::web::session::SessionKey::random(hours)
+        } else {
+            crate::web::session::SessionKey::from_secret(secret, hours)
+        });
+        Ok(self)
     }
 }
 
@@ -72,7 +106,8 @@ impl AppState {
     tags(
         (name = "traces", description = "Upload traces, read them and their fits"),
         (name = "fleet", description = "Vehicles, joint histories, fleet health"),
-        (name = "admin", description = "API keys and re-fits (admin keys)"),
+        (name = "alerts", description = "Joint alerts: list, history, acknowledge, resolve"),
+        (name = "admin", description = "API keys, re-fits and webhook subscriptions (admin keys)"),
         (name = "ops", description = "Liveness, readiness, metrics (no key)"),
     )
 )]
@@ -136,6 +171,8 @@ fn api_routes() -> OpenApiRouter<AppState> {
         .merge(traces::router())
         .merge(fleet::router())
         .merge(admin::router())
+        .merge(alerts::router())
+        .merge(webhooks::router())
         .merge(ops::router())
 }
 
@@ -162,6 +199,7 @@ pub fn router(state: AppState) -> Router {
                 async move { axum::Json(doc.as_ref().clone()) }
             }),
         )
+        .merge(crate::web::router())
         .fallback(not_found)
         .with_state(state)
         .layer(DefaultBodyLimit::max(limit))

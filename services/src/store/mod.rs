@@ -144,6 +144,31 @@ text_enum!(
     }
 );
 
+/// Columns of `alerts` every query selects (PostgreSQL reads the JSONB evidence as text).
+macro_rules! alert_cols {
+    () => {
+        " id, serial, joint, vehicle_id, severity, state, reason, CAST(evidence_json AS TEXT) AS evidence_json,
+          trace_id, opened_at, updated_at, acknowledged_by, acknowledged_at, resolved_by,
+          resolved_at "
+    };
+}
+
+macro_rules! delivery_cols {
+    () => {
+        " id, webhook_id, alert_id, event, state, attempts, next_attempt_at, last_status,
+          last_error, created_at, updated_at, delivered_at "
+    };
+}
+
+pub mod alerts;
+mod pg_alerts;
+mod sqlite_alerts;
+use alerts::Target;
+pub use alerts::{
+    Alert, AlertEvent, AlertFilter, AlertState, AttemptResult, Delivery, DeliveryState,
+    DueDelivery, NewAlert, RaiseOutcome, Severity, Transition, Webhook,
+};
+
 impl Status {
     /// Rank used in SQL aggregates (`unknown` 0, `ok` 1, `watch` 2, `alarm` 3).
     pub fn rank(self) -> i64 {
@@ -589,6 +614,49 @@ pub(crate) trait Backend {
     ) -> impl Future<Output = Result<Vec<(ApiKey, String)>>> + Send;
     fn revoke_api_key(&self, id: i64) -> impl Future<Output = Result<bool>> + Send;
     fn list_api_keys(&self) -> impl Future<Output = Result<Vec<ApiKey>>> + Send;
+    /// Every joint point of one pantograph (each trace's current fit), by test time.
+    fn serial_history(&self, serial: &str) -> impl Future<Output = Result<Vec<JointPoint>>> + Send;
+    fn raise_alert(&self, a: &NewAlert) -> impl Future<Output = Result<RaiseOutcome>> + Send;
+    fn acknowledge_alert(
+        &self,
+        id: i64,
+        actor: &str,
+        note: &str,
+    ) -> impl Future<Output = Result<Transition>> + Send;
+    fn resolve_alert(
+        &self,
+        target: Target<'_>,
+        actor: &str,
+        note: &str,
+        trace_id: Option<&str>,
+    ) -> impl Future<Output = Result<Transition>> + Send;
+    fn list_alerts(&self, f: &AlertFilter) -> impl Future<Output = Result<Vec<Alert>>> + Send;
+    fn get_alert(&self, id: i64) -> impl Future<Output = Result<Option<Alert>>> + Send;
+    fn alert_events(&self, id: i64) -> impl Future<Output = Result<Vec<AlertEvent>>> + Send;
+    fn insert_webhook(
+        &self,
+        url: &str,
+        severities: &str,
+        secret: &str,
+    ) -> impl Future<Output = Result<Webhook>> + Send;
+    fn list_webhooks(&self) -> impl Future<Output = Result<Vec<Webhook>>> + Send;
+    fn delete_webhook(&self, id: i64) -> impl Future<Output = Result<bool>> + Send;
+    fn claim_deliveries(
+        &self,
+        limit: i64,
+        lease: Duration,
+    ) -> impl Future<Output = Result<Vec<DueDelivery>>> + Send;
+    fn finish_delivery(
+        &self,
+        id: i64,
+        attempts: i64,
+        r: &AttemptResult,
+    ) -> impl Future<Output = Result<bool>> + Send;
+    fn list_deliveries(
+        &self,
+        webhook_id: i64,
+        limit: i64,
+    ) -> impl Future<Output = Result<Vec<Delivery>>> + Send;
     fn close(&self) -> impl Future<Output = ()> + Send;
 }
 
@@ -801,6 +869,99 @@ impl Store {
     /// All keys, revoked included, by id.
     pub async fn list_api_keys(&self) -> Result<Vec<ApiKey>> {
         dispatch!(self, s => s.list_api_keys().await)
+    }
+
+    /// Every joint point of one pantograph (each trace's current fit), by test time then joint.
+    pub async fn serial_history(&self, serial: &str) -> Result<Vec<JointPoint>> {
+        dispatch!(self, s => s.serial_history(serial).await)
+    }
+
+    /// Opens, escalates or updates the live alert of (serial, joint), with its event and, when
+    /// opened or escalated, its webhook deliveries, in one transaction.
+    pub async fn raise_alert(&self, a: &NewAlert) -> Result<RaiseOutcome> {
+        non_empty("serial", &a.serial)?;
+        non_empty("joint", &a.joint)?;
+        dispatch!(self, s => s.raise_alert(a).await)
+    }
+
+    /// `open` → `acknowledged` by `actor` with a note.
+    pub async fn acknowledge_alert(&self, id: i64, actor: &str, note: &str) -> Result<Transition> {
+        dispatch!(self, s => s.acknowledge_alert(id, actor, note).await)
+    }
+
+    /// Resolves an alert by hand (`open` or `acknowledged` → `resolved`), with its deliveries.
+    pub async fn resolve_alert(&self, id: i64, actor: &str, note: &str) -> Result<Transition> {
+        dispatch!(self, s => s.resolve_alert(Target::Id(id), actor, note, None).await)
+    }
+
+    /// Resolves the live alert of (serial, joint), if any: a later test is back in band.
+    pub async fn resolve_joint_alert(
+        &self,
+        serial: &str,
+        joint: &str,
+        trace_id: &str,
+        note: &str,
+    ) -> Result<Option<Alert>> {
+        let t = dispatch!(self, s => s.resolve_alert(Target::Pair(serial, joint), "system", note, Some(trace_id)).await)?;
+        Ok(match t {
+            Transition::Done(a) => Some(a),
+            _ => None,
+        })
+    }
+
+    /// Alerts matching the filter, newest first.
+    pub async fn list_alerts(&self, f: &AlertFilter) -> Result<Vec<Alert>> {
+        dispatch!(self, s => s.list_alerts(f).await)
+    }
+
+    pub async fn get_alert(&self, id: i64) -> Result<Option<Alert>> {
+        dispatch!(self, s => s.get_alert(id).await)
+    }
+
+    /// An alert's history, oldest first.
+    pub async fn alert_events(&self, id: i64) -> Result<Vec<AlertEvent>> {
+        dispatch!(self, s => s.alert_events(id).await)
+    }
+
+    /// Creates a subscription; returns it and its signing secret (shown once).
+    pub async fn create_webhook(
+        &self,
+        url: &str,
+        severities: &[Severity],
+    ) -> Result<(Webhook, String)> {
+        non_empty("url", url)?;
+        alerts::check_severities(severities)?;
+        let mut b = [0u8; 32];
+        getrandom::fill(&mut b)?;
+        let secret = format!("whsec_{}", hex::encode(b));
+        let w = dispatch!(self, s => s.insert_webhook(url, &alerts::severities_text(severities), &secret).await)?;
+        Ok((w, secret))
+    }
+
+    /// Every subscription, deleted ones included.
+    pub async fn list_webhooks(&self) -> Result<Vec<Webhook>> {
+        dispatch!(self, s => s.list_webhooks().await)
+    }
+
+    /// Deletes a subscription (its pending deliveries fail); false if unknown or deleted.
+    pub async fn delete_webhook(&self, id: i64) -> Result<bool> {
+        dispatch!(self, s => s.delete_webhook(id).await)
+    }
+
+    /// Leases up to `limit` due deliveries for one attempt each; a delivery whose attempt is
+    /// not finished within `lease` is due again (at least once).
+    pub async fn claim_deliveries(&self, limit: i64, lease: Duration) -> Result<Vec<DueDelivery>> {
+        dispatch!(self, s => s.claim_deliveries(limit, lease).await)
+    }
+
+    /// Records an attempt's end; false when the delivery was claimed again meanwhile.
+    pub async fn finish_delivery(&self, id: i64, attempts: i64, r: &AttemptResult) -> Result<bool> {
+        dispatch!(self, s => s.finish_delivery(id, attempts, r).await)
+    }
+
+    /// A subscription's deliveries, newest first.
+    pub async fn list_deliveries(&self, webhook_id: i64, limit: i64) -> Result<Vec<Delivery>> {
+        dispatch!(self, s => s.list_deliveries(webhook_id, limit).await)
     }
 
     /// Closes the connection pool (waits for connections in use).

@@ -8,6 +8,8 @@ use pantowatch::trace_csv;
 use reqwest::{Method, StatusCode};
 use serde_json::{Value, json};
 
+pub use crate::alerts::{alert_lifecycle_over_http, webhooks_signed_retried_and_logged};
+pub use crate::lift::lift_trace_is_fitted_with_every_joint;
 use crate::harness::*;
 
 const J3_DRY: &str = "J3_dry_x1.8.json";
@@ -338,6 +340,63 @@ pub async fn every_route_every_role(b: Backend) {
             Some(json!({"vehicle_id": "V-1"})),
             Role::Admin,
             StatusCode::ACCEPTED,
+        ),
+        // Alerts and webhooks (no workers: no alert exists, so its routes answer 404).
+        (
+            Method::GET,
+            "/v1/alerts?state=live".into(),
+            None,
+            Role::Reader,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/alerts/999".into(),
+            None,
+            Role::Reader,
+            StatusCode::NOT_FOUND,
+        ),
+        (
+            Method::POST,
+            "/v1/alerts/999/acknowledge".into(),
+            Some(json!({"note": "n"})),
+            Role::Writer,
+            StatusCode::NOT_FOUND,
+        ),
+        (
+            Method::POST,
+            "/v1/alerts/999/resolve".into(),
+            Some(json!({})),
+            Role::Writer,
+            StatusCode::NOT_FOUND,
+        ),
+        (
+            Method::POST,
+            "/v1/admin/webhooks".into(),
+            Some(json!({"url": "http://127.0.0.1:9/hook"})),
+            Role::Admin,
+            StatusCode::CREATED,
+        ),
+        (
+            Method::GET,
+            "/v1/admin/webhooks".into(),
+            None,
+            Role::Admin,
+            StatusCode::OK,
+        ),
+        (
+            Method::DELETE,
+            "/v1/admin/webhooks/999".into(),
+            None,
+            Role::Admin,
+            StatusCode::NOT_FOUND,
+        ),
+        (
+            Method::GET,
+            "/v1/admin/webhooks/999/deliveries".into(),
+            None,
+            Role::Admin,
+            StatusCode::NOT_FOUND,
         ),
     ];
     // Every /v1 route of the OpenAPI document is in the table.
@@ -973,48 +1032,6 @@ pub async fn dead_worker_job_is_reclaimed_after_its_lease(b: Backend) {
         .expect("complete");
     assert_eq!(late, pantowatch::store::CompleteOutcome::LeaseLost);
     assert_eq!(app.counts().await.fits, 1);
-    app.stop().await;
-}
-
-pub async fn lift_trace_fails_clearly_and_refit_requeues(b: Backend) {
-    let app = spawn_app(b).await;
-    let r = app
-        .upload_json(&shared("reference/lift-example.json"))
-        .await;
-    assert_eq!(r.status(), StatusCode::ACCEPTED);
-    let id: String = r.json::<Value>().await.expect("json")["trace_id"]
-        .as_str()
-        .expect("id")
-        .to_owned();
-    let t0 = Instant::now();
-    let v = loop {
-        let (s, v) = app.get_json(&format!("/v1/traces/{id}/fit")).await;
-        assert_eq!(s, StatusCode::NOT_FOUND);
-        if v["job"]["state"] == "failed" {
-            break v;
-        }
-        assert!(t0.elapsed() < Duration::from_secs(20), "{v}");
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    };
-    assert_eq!(v["type"], "/problems/fit-not-ready");
-    assert!(
-        v["job"]["last_error"]
-            .as_str()
-            .unwrap_or("")
-            .contains("lift"),
-        "{v}"
-    );
-    assert!(v["detail"].as_str().unwrap_or("").contains("lift"), "{v}");
-    // A re-fit queues it again (it fails again with this model version).
-    let r = app
-        .req(Method::POST, "/v1/admin/refit", Some(&app.keys.admin))
-        .json(&json!({"vehicle_id": "REFERENCE-SIM"}))
-        .send()
-        .await
-        .expect("refit");
-    assert_eq!(r.status(), StatusCode::ACCEPTED);
-    assert_eq!(r.json::<Value>().await.expect("json")["queued"], 1);
-    assert_eq!(app.counts().await.jobs, 2);
     app.stop().await;
 }
 

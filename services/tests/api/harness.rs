@@ -183,6 +183,12 @@ pub async fn spawn_app_with(db: Arc<TestDb>, opts: Opts) -> TestApp {
     settings.worker.lease_secs = opts.lease_secs;
     settings.worker.poll_ms = 50;
     settings.http.body_limit_mib = BODY_LIMIT_MIB;
+    // Webhook deliveries on a test's time scale: retries after 100 ms, 200 ms; 500 ms timeout.
+    settings.webhooks.backoff_base_ms = 100;
+    settings.webhooks.max_attempts = 3;
+    settings.webhooks.timeout_ms = 500;
+    settings.webhooks.poll_ms = 50;
+    settings.web.session_secret = SecretString::new("test session secret");
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
         .await
         .expect("bind 127.0.0.1:0");

@@ -5,8 +5,11 @@
 //! `PANTOWATCH_BLESS=1 cargo test -p pantowatch --test api openapi` rewrites the committed
 //! OpenAPI snapshot `services/openapi.json` from the served document.
 
+mod alerts;
+mod browser;
 mod cases;
 mod harness;
+mod lift;
 
 use harness::Backend;
 
@@ -39,10 +42,18 @@ suite!(
     rejections_answer_problems_and_store_nothing,
     stopped_between_upload_and_fit_fits_once,
     dead_worker_job_is_reclaimed_after_its_lease,
-    lift_trace_fails_clearly_and_refit_requeues,
+    lift_trace_is_fitted_with_every_joint,
     keys_created_and_revoked_over_http,
     readiness_and_metrics,
+    alert_lifecycle_over_http,
+    webhooks_signed_retried_and_logged,
 );
+
+/// The web pages in headless Chromium against a small demo fleet (SQLite).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn web_pages_in_headless_chromium() {
+    browser::web_pages_in_headless_chromium().await;
+}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn openapi_snapshot() {

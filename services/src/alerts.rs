@@ -1,0 +1,159 @@
+//! Alerts raised after each fit: a joint at `watch`/`alarm`, or forecast to reach its alarm band
+//! within the horizon, opens or escalates its one live alert; a later test back in band resolves it.
+//!
+//! Only the latest test of a joint decides (a late fit of an older test changes nothing); the
+//! horizon is counted from that test's date. The store writes alert, event and webhook outbox rows
+//! in one transaction.
+
+use chrono::{DateTime, Utc};
+use serde_json::json;
+
+use crate::health::{self, Param, ParamTrend};
+use crate::store::{NewAlert, RaiseOutcome, Severity, Status, Store, StoreError};
+
+/// What the alert rules need.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AlertOptions {
+    /// Forecast horizon after the latest test, days.
+    pub horizon_days: f64,
+    /// Drift alarm band (× baseline).
+    pub alarm: [f64; 2],
+}
+
+impl Default for AlertOptions {
+    fn default() -> Self {
+        AlertOptions {
+            horizon_days: 90.0,
+            alarm: [0.5, 2.0],
+        }
+    }
+}
+
+/// What the hook did for one joint.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AlertAction {
+    Raised(Box<RaiseOutcome>),
+    Resolved { alert_id: i64 },
+}
+
+/// The earliest forecast crossing within `horizon_days` of `last_test`, if any.
+pub fn crossing_within(
+    trends: &[ParamTrend],
+    last_test: DateTime<Utc>,
+    horizon_days: f64,
+) -> Option<(Param, DateTime<Utc>)> {
+    trends
+        .iter()
+        .filter_map(|t| Some((t.param, t.forecast.as_ref()?.date)))
+        .filter(|(_, d)| ((*d - last_test).num_seconds() as f64) / 86_400.0 <= horizon_days)
+        .min_by_key(|(_, d)| *d)
+}
+
+/// Runs the alert rules for every joint of a fit just written for `trace_id`.
+pub async fn after_fit(
+    store: &Store,
+    trace_id: &str,
+    fit_id: i64,
+    result: &serde_json::Value,
+    opts: &AlertOptions,
+) -> Result<Vec<AlertAction>, StoreError> {
+    let Some(meta) = store.get_trace(trace_id).await? else {
+        return Ok(Vec::new());
+    };
+    let Some(serial) = meta.serial.as_deref() else {
+        return Ok(Vec::new());
+    };
+    let joints = result
+        .get("joints")
+        .and_then(serde_json::Value::as_array)
+        .cloned()
+        .unwrap_or_default();
+    let mut actions = Vec::new();
+    for j in &joints {
+        let Some(joint) = j.get("joint").and_then(serde_json::Value::as_str) else {
+            continue;
+        };
+        let history = store.joint_history(serial, joint).await?;
+        let Some(last) = history.last() else {
+            continue;
+        };
+        if last.trace_id != trace_id {
+            // An older test fitted late: the latest one has decided already.
+            continue;
+        }
+        let (bv, bd) = health::baselines(result, joint);
+        let trends: Vec<ParamTrend> = Param::BOTH
+            .iter()
+            .map(|&p| {
+                let b = if p == Param::Viscous { bv } else { bd };
+                health::param_trend(&history, p, b, opts.alarm)
+            })
+            .collect();
+        let status = last.fit.status;
+        let crossing = crossing_within(&trends, last.recorded_at, opts.horizon_days);
+        let (severity, reason) = match (status, crossing) {
+            (Status::Alarm, _) => (Some(Severity::Alarm), "status alarm".to_owned()),
+            (Status::Watch, _) => (Some(Severity::Watch), "status watch".to_owned()),
+            (_, Some((p, d))) => (
+                Some(Severity::Watch),
+                format!(
+                    "{} forecast to reach its alarm band on {} (within {} days)",
+                    p.as_str(),
+                    d.format("%Y-%m-%d"),
+                    opts.horizon_days
+                ),
+            ),
+            _ => (None, String::new()),
+        };
+        if let Some(severity) = severity {
+            let reason = match (severity, crossing) {
+                (_, Some((p, d))) if status != Status::Ok && status != Status::Unknown => format!(
+                    "{reason}; {} forecast to reach the alarm band on {}",
+                    p.as_str(),
+                    d.format("%Y-%m-%d")
+                ),
+                _ => reason,
+            };
+            let evidence = json!({
+                "model_version": last.model_version,
+                "fit_id": fit_id,
+                "trace_id": trace_id,
+                "recorded_at": last.recorded_at,
+                "status": status,
+                "viscous": j.get("viscous"),
+                "dry": j.get("dry"),
+                "residual": result.get("residual"),
+                "rmse": result.get("rmse"),
+                "trends": trends,
+                "horizon_days": opts.horizon_days,
+                "tests": history.len(),
+            });
+            let out = store
+                .raise_alert(&NewAlert {
+                    serial: serial.to_owned(),
+                    joint: joint.to_owned(),
+                    vehicle_id: Some(meta.vehicle_id.clone()),
+                    severity,
+                    reason,
+                    evidence,
+                    trace_id: trace_id.to_owned(),
+                })
+                .await?;
+            if !matches!(out, RaiseOutcome::Updated(_)) {
+                let a = out.alert();
+                tracing::info!(alert = a.id, serial, joint, severity = %a.severity, "alert raised");
+            }
+            actions.push(AlertAction::Raised(Box::new(out)));
+        } else if status == Status::Ok {
+            let note = format!("back in band: test {trace_id}");
+            if let Some(a) = store
+                .resolve_joint_alert(serial, joint, trace_id, &note)
+                .await?
+            {
+                tracing::info!(alert = a.id, serial, joint, "alert resolved");
+                actions.push(AlertAction::Resolved { alert_id: a.id });
+            }
+        }
+    }
+    Ok(actions)
+}

@@ -1,0 +1,353 @@
+//! The web pages in headless Chromium (`/usr/bin/chromium`, or `PANTOWATCH_CHROMIUM`) against a
+//! small demo fleet uploaded through the API: `--dump-dom` and `--screenshot` subprocess calls.
+//!
+//! The signed-in browser goes through a loopback proxy that adds the session cookie (headless
+//! Chromium takes no cookie on its command line); sign-in and the acknowledge are plain HTTP form
+//! posts. Screenshots land in `target/screenshots/`.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use axum::body::Bytes;
+use axum::extract::State;
+use axum::http::{Method as AxMethod, StatusCode as AxStatus, Uri};
+use axum::response::{IntoResponse, Response};
+use pantowatch::cli::demo::fleet;
+use pantowatch::cli::simulate::simulate_doc;
+use reqwest::StatusCode;
+use serde_json::Value;
+use tokio::sync::Semaphore;
+
+use crate::harness::*;
+
+fn chromium() -> String {
+    std::env::var("PANTOWATCH_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into())
+}
+
+fn shots_dir() -> PathBuf {
+    let d: PathBuf = [env!("CARGO_MANIFEST_DIR"), "..", "target", "screenshots"]
+        .iter()
+        .collect();
+    std::fs::create_dir_all(&d).expect("target/screenshots");
+    d
+}
+
+/// Runs headless Chromium with `args` then `url`; returns stdout.
+async fn chrome(profile: &Path, args: &[String], url: &str) -> String {
+    let out = tokio::time::timeout(
+        Duration::from_secs(90),
+        tokio::process::Command::new(chromium())
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-dev-shm-usage",
+                "--no-first-run",
+                "--hide-scrollbars",
+                "--window-size=1280,1800",
+            ])
+            .arg(format!("--user-data-dir={}", profile.display()))
+            .args(args)
+            .arg(url)
+            .kill_on_drop(true)
+            .output(),
+    )
+    .await
+    .expect("chromium within 90 s")
+    .unwrap_or_else(|e| panic!("{} could not run (CI installs it): {e}", chromium()));
+    assert!(
+        out.status.success(),
+        "chromium failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+async fn dom(profile: &Path, url: &str) -> String {
+    chrome(profile, &["--dump-dom".into()], url).await
+}
+
+async fn screenshot(profile: &Path, url: &str, name: &str) {
+    let path = shots_dir().join(name);
+    let _ = std::fs::remove_file(&path);
+    chrome(profile, &[format!("--screenshot={}", path.display())], url).await;
+    let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+    assert!(size > 10_000, "screenshot {name}: {size} bytes");
+}
+
+struct Proxy {
+    target: String,
+    cookie: String,
+    client: reqwest::Client,
+}
+
+/// Forwards a request to the app with the session cookie.
+async fn forward(State(p): State<Arc<Proxy>>, method: AxMethod, uri: Uri, body: Bytes) -> Response {
+    let path = uri.path_and_query().map_or("/", |p| p.as_str());
+    let m = reqwest::Method::from_bytes(method.as_str().as_bytes()).unwrap_or(reqwest::Method::GET);
+    let r = p
+        .client
+        .request(m, format!("{}{path}", p.target))
+        .header("cookie", &p.cookie)
+        .body(body)
+        .send()
+        .await;
+    match r {
+        Ok(r) => {
+            let status = AxStatus::from_u16(r.status().as_u16()).unwrap_or(AxStatus::BAD_GATEWAY);
+            let ct = r
+                .headers()
+                .get("content-type")
+                .and_then(|v| v.to_str().ok())
+                .unwrap_or("text/html")
+                .to_owned();
+            let loc = r
+                .headers()
+                .get("location")
+                .and_then(|v| v.to_str().ok())
+                .map(str::to_owned);
+            let bytes = r.bytes().await.unwrap_or_default();
+            let mut resp = (status, [("content-type", ct)], bytes).into_response();
+            if let Some(l) = loc.and_then(|l| l.parse().ok()) {
+                resp.headers_mut().insert("location", l);
+            }
+            resp
+        }
+        Err(e) => (AxStatus::BAD_GATEWAY, e.to_string()).into_response(),
+    }
+}
+
+/// A small demo fleet through `POST /v1/traces`; waits until every fit is done.
+async fn seed_demo_fleet(app: &TestApp, vehicles: usize) -> usize {
+    let plan = fleet::plan(vehicles).expect("plan");
+    let n = plan.len();
+    let permits = Arc::new(Semaphore::new(4));
+    let mut set = tokio::task::JoinSet::new();
+    for test in plan {
+        let permit = permits.clone().acquire_owned().await.expect("permit");
+        let body = tokio::task::spawn_blocking(move || {
+            let doc = simulate_doc(&test.args).expect("simulate");
+            serde_json::to_vec(&doc.to_value()).expect("json")
+        });
+        let (client, url, key) = (
+            app.client.clone(),
+            app.url("/v1/traces"),
+            app.keys.writer.clone(),
+        );
+        set.spawn(async move {
+            let body = body.await.expect("synthesis");
+            let r = client
+                .post(url)
+                .bearer_auth(key)
+                .header("content-type", "application/json")
+                .body(body)
+                .send()
+                .await
+                .expect("upload");
+            assert_eq!(r.status(), StatusCode::ACCEPTED);
+            drop(permit);
+        });
+    }
+    while let Some(r) = set.join_next().await {
+        r.expect("upload task");
+    }
+    let t0 = Instant::now();
+    loop {
+        let c = app.store.job_counts().await.expect("jobs");
+        if c.queued + c.running == 0 {
+            break;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(300),
+            "fits not done: {c:?}"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    n
+}
+
+fn first_attr<'a>(html: &'a str, attr: &str) -> Option<&'a str> {
+    let start = html.find(&format!("{attr}=\""))? + attr.len() + 2;
+    let end = html[start..].find('"')? + start;
+    Some(&html[start..end])
+}
+
+pub async fn web_pages_in_headless_chromium() {
+    let t0 = Instant::now();
+    let app = spawn_app(Backend::Sqlite).await;
+    // Four vehicles: eight pantographs, three of them wearing (one towards alarm).
+    let n = seed_demo_fleet(&app, 4).await;
+    let seeded = t0.elapsed();
+    let profile = tempfile::tempdir().expect("profile dir");
+
+    // Not signed in: every page but the sign-in sends you to it.
+    let plain = reqwest::Client::builder()
+        .redirect(reqwest::redirect::Policy::none())
+        .timeout(Duration::from_secs(30))
+        .no_proxy()
+        .build()
+        .expect("client");
+    for p in ["/fleet", "/alerts", "/pantographs/160EC-0101", "/traces/x"] {
+        let r = plain.get(app.url(p)).send().await.expect("GET");
+        assert_eq!(r.status(), StatusCode::SEE_OTHER, "{p}");
+        assert_eq!(
+            r.headers().get("location").and_then(|v| v.to_str().ok()),
+            Some("/")
+        );
+    }
+    let login = dom(profile.path(), &app.url("/")).await;
+    assert!(login.contains("name=\"key\""), "{login}");
+    screenshot(profile.path(), &app.url("/"), "01-login.png").await;
+
+    // Sign in (a form post) → the session cookie.
+    let r = plain
+        .post(app.url("/login"))
+        .header("content-type", "application/x-www-form-urlencoded")
+        .body(serde_urlencoded::to_string([("key", "pw_not_a_key")]).expect("form"))
+        .send()
+        .await
+        .expect("login");
+    assert_eq!(r.status(), StatusCode::UNAUTHORIZED);
+    let r = plain
+        .post(app.url("/login"))
+        .header("content-type", "application/x-www-form-urlencoded")
+        .body(serde_urlencoded::to_string([("key", app.keys.writer.as_str())]).expect("form"))
+        .send()
+        .await
+        .expect("login");
+    assert_eq!(r.status(), StatusCode::SEE_OTHER);
+    let set_cookie = r
+        .headers()
+        .get("set-cookie")
+        .and_then(|v| v.to_str().ok())
+        .expect("set-cookie")
+        .to_owned();
+    assert!(set_cookie.contains("HttpOnly") && set_cookie.contains("SameSite=Strict"));
+    let cookie = set_cookie.split(';').next().expect("cookie").to_owned();
+
+    let proxy = Arc::new(Proxy {
+        target: app.url(""),
+        cookie: cookie.clone(),
+        client: plain.clone(),
+    });
+    let router = axum::Router::new().fallback(forward).with_state(proxy);
+    let l = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("bind");
+    let base = format!("http://{}", l.local_addr().expect("addr"));
+    tokio::spawn(async move {
+        let _ = axum::serve(l, router).await;
+    });
+
+    // Fleet: the worst pantograph first.
+    let fleet_dom = dom(profile.path(), &format!("{base}/fleet")).await;
+    let first = first_attr(&fleet_dom, "data-serial")
+        .expect("a fleet row")
+        .to_owned();
+    let (s, health) = app.get_json("/v1/fleet/health?limit=500").await;
+    assert_eq!(s, StatusCode::OK);
+    let rank = |s: &Value| match s.as_str() {
+        Some("alarm") => 3,
+        Some("watch") => 2,
+        Some("ok") => 1,
+        _ => 0,
+    };
+    let rows = health["rows"].as_array().expect("rows");
+    let worst = rows
+        .iter()
+        .map(|r| rank(&r["worst_status"]))
+        .max()
+        .expect("rows");
+    assert!(
+        worst >= 2,
+        "the demo fleet has joints at watch or alarm: {health}"
+    );
+    let first_row = rows
+        .iter()
+        .find(|r| r["serial"] == first.as_str())
+        .expect("first row");
+    assert_eq!(
+        rank(&first_row["worst_status"]),
+        worst,
+        "worst first: {first} {health}"
+    );
+    screenshot(profile.path(), &format!("{base}/fleet"), "02-fleet.png").await;
+
+    // The worst pantograph's page: charts with text alternatives, a link to a trace.
+    let pdom = dom(profile.path(), &format!("{base}/pantographs/{first}")).await;
+    assert!(pdom.contains("<svg") && pdom.contains("<desc>") && pdom.contains("<title>"));
+    assert!(pdom.contains("Table 4 baseline"), "chart descriptions");
+    screenshot(
+        profile.path(),
+        &format!("{base}/pantographs/{first}"),
+        "03-pantograph.png",
+    )
+    .await;
+    let trace = first_attr(
+        &pdom[pdom.find("/traces/").map_or(0, |i| i.saturating_sub(6))..],
+        "href",
+    )
+    .expect("trace link")
+    .to_owned();
+    let tdom = dom(profile.path(), &format!("{base}{trace}")).await;
+    assert!(
+        tdom.contains("Measured vs model") && tdom.contains("id=\"finding\""),
+        "{tdom}"
+    );
+    screenshot(profile.path(), &format!("{base}{trace}"), "04-trace.png").await;
+
+    // Alerts: the demo leaves some open; acknowledge one on the page, see it over REST.
+    let (s, open) = app.get_json("/v1/alerts?state=open").await;
+    assert_eq!(s, StatusCode::OK);
+    let open = open["alerts"].as_array().cloned().unwrap_or_default();
+    assert!(!open.is_empty(), "alerts open after the demo fleet");
+    let adom = dom(profile.path(), &format!("{base}/alerts")).await;
+    let id = open[0]["id"].as_i64().expect("id");
+    assert!(
+        adom.contains(&format!("action=\"/alerts/{id}/acknowledge\"")),
+        "ack form"
+    );
+    screenshot(profile.path(), &format!("{base}/alerts"), "05-alerts.png").await;
+    let r = plain
+        .post(app.url(&format!("/alerts/{id}/acknowledge")))
+        .header("cookie", &cookie)
+        .header("content-type", "application/x-www-form-urlencoded")
+        .body(serde_urlencoded::to_string([("note", "seen in the depot")]).expect("form"))
+        .send()
+        .await
+        .expect("acknowledge form");
+    assert_eq!(r.status(), StatusCode::SEE_OTHER);
+    let (s, a) = app.get_json(&format!("/v1/alerts/{id}")).await;
+    assert_eq!(s, StatusCode::OK);
+    assert_eq!(a["alert"]["state"], "acknowledged", "{a}");
+    assert!(
+        a["alert"]["acknowledged_by"]
+            .as_str()
+            .is_some_and(|w| w.contains("(key "))
+    );
+    assert_eq!(
+        a["events"]
+            .as_array()
+            .and_then(|e| e.last())
+            .map(|e| e["note"].clone()),
+        Some(Value::from("seen in the depot"))
+    );
+    let adom = dom(profile.path(), &format!("{base}/alerts?done={id}")).await;
+    assert!(
+        adom.contains(&format!("id=\"alert-{id}\" data-state=\"acknowledged\"")),
+        "{adom}"
+    );
+    screenshot(
+        profile.path(),
+        &format!("{base}/alerts?done={id}"),
+        "06-acknowledged.png",
+    )
+    .await;
+    eprintln!(
+        "browser test: {n} demo traces seeded and fitted in {:.1} s, pages checked in {:.1} s",
+        seeded.as_secs_f64(),
+        (t0.elapsed() - seeded).as_secs_f64()
+    );
+    app.stop().await;
+}
