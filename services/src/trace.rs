@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 
 use pantowatch_models::data::{self, Attachment, PantographType};
 use pantowatch_models::identify::JointTest;
+use pantowatch_models::lift::report::LiftChannels;
 use pantowatch_models::rig::BodySpec;
 use pantowatch_models::testspec::{Baseline, PendulumSpec, SliderSpec};
 use serde_json::{Map, Value};
@@ -17,6 +18,8 @@ pub const FORMAT: &str = "pantograph-trace/1";
 pub const MAX_SAMPLES: usize = 2_000_000;
 /// Longest accepted identifier or free-text string, characters.
 pub const MAX_STRING: usize = 256;
+/// The lower-quadrangle swing kind (docs/TRACE_FORMAT.md): documented, not fitted yet.
+pub const QUADRANGLE_SWING: &str = "quadrangle_swing";
 /// Most channels in one document.
 pub const MAX_CHANNELS: usize = 32;
 
@@ -298,6 +301,13 @@ impl TraceDoc {
             Some("pendulum") => Kind::Pendulum,
             Some("slider") => Kind::Slider,
             Some("lift") => Kind::Lift,
+            Some(QUADRANGLE_SWING) => {
+                return Err(bad(
+                    "test.kind",
+                    "`quadrangle_swing` (lower-quadrangle swing, paper Fig 12; docs/TRACE_FORMAT.md) \
+                     is not fitted yet: no model version can identify it, so it is not accepted",
+                ));
+            }
             Some(k) => {
                 return Err(bad(
                     "test.kind",
@@ -395,7 +405,9 @@ impl TraceDoc {
             channels,
         };
         // Check the rig now, so a document the model cannot use is rejected at the door.
-        if doc.kind != Kind::Lift {
+        if doc.kind == Kind::Lift {
+            doc.lift_channels()?;
+        } else {
             doc.joint_test()?;
         }
         Ok(doc)
@@ -406,6 +418,51 @@ impl TraceDoc {
             .iter()
             .find(|(n, _)| n == name)
             .map(|(_, v)| v.as_slice())
+    }
+
+    /// The channels of a `lift` test for the complete-pantograph model (built-in 160EC
+    /// geometry, `../shared/reference/160ec.toml`).
+    ///
+    /// The contract allows `test.rig` overrides of that geometry; none is supported yet, so a
+    /// non-empty `test.rig` is refused rather than silently ignored.
+    pub fn lift_channels(&self) -> Result<LiftChannels<'_>, TraceError> {
+        if self.kind != Kind::Lift {
+            return Err(bad("test.kind", "not a lift test"));
+        }
+        if self.pantograph_model != "160EC" {
+            return Err(bad(
+                "pantograph.model",
+                format!(
+                    "lift tests are fitted with the 160EC geometry only, got `{}`",
+                    self.pantograph_model
+                ),
+            ));
+        }
+        if let Some(j) = &self.joint {
+            return Err(bad(
+                "test.joint",
+                format!("a lift test is of the whole pantograph, got joint `{j}`"),
+            ));
+        }
+        if let Some((k, _)) = self
+            .test
+            .get("rig")
+            .and_then(Value::as_object)
+            .and_then(|r| r.iter().next())
+        {
+            return Err(bad(
+                format!("test.rig.{k}"),
+                "overrides of the 160EC lift geometry are not supported yet (send an empty rig)",
+            ));
+        }
+        let get = |name: &str| self.channel(name).unwrap_or_default();
+        Ok(LiftChannels {
+            t_s: get("t_s"),
+            strip_height_m: get("H_m"),
+            torque_nm: get("T_Nm"),
+            fs_n: get("Fs_N"),
+            fm_n: get("Fm_N"),
+        })
     }
 
     /// The pantograph type's data when compiled in (`160EC`); `None` for other models.
@@ -565,7 +622,7 @@ impl TraceDoc {
             }
             Kind::Lift => Err(bad(
                 "test.kind",
-                "lift-test identification is not available yet (complete-pantograph model: issue 5)",
+                "a lift test is of the whole pantograph: see `lift_channels`",
             )),
         }
     }
@@ -640,6 +697,15 @@ mod tests {
         let mut d = doc();
         d["test"]["joint"] = json!("J9");
         cases.push((d, "test.joint"));
+        let mut d = doc();
+        d["test"] = json!({"kind": "quadrangle_swing", "rig": {"incline_deg": 70.0}});
+        d["channels"]["beta_deg"] = json!([1.0, 2.0, 3.0]);
+        cases.push((d, "test.kind"));
+        let mut d = doc();
+        d["test"] = json!({"kind": "lift", "rig": {"L1_m": 1.6}});
+        d["channels"] =
+            json!({"t_s": [0.0, 0.1], "H_m": [1.0, 1.0], "T_Nm": [0.0, 0.0], "Fs_N": [0.0, 0.0]});
+        cases.push((d, "test.rig.L1_m"));
         let mut d = doc();
         d["channels"]["t_s"] = json!([0.0, 0.002, 0.002]);
         cases.push((d, "channels.t_s[2]"));

@@ -94,3 +94,59 @@ fn reference_lift_trace_is_reproduced_within_a_millimetre() {
         "dissipation shares differ by {worst} percentage points"
     );
 }
+
+/// Issue 5 through the service's own path: `pantowatch simulate --kind lift --scale-joint
+/// J3:dry=1.8` (raise and lower, 1 mm H noise) → the trace document → `fitting::fit_document`:
+/// J3 is flagged, no other joint is, every joint J1…J9 is reported and the uninformed ones are
+/// at baseline, `unknown`.
+#[test]
+fn simulated_j3_drift_lift_document_flags_j3_alone() {
+    use clap::Parser;
+    use pantowatch::cli::simulate::{SimulateArgs, simulate_doc};
+    use pantowatch_models::drift::{DriftThresholds, Status};
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: SimulateArgs,
+    }
+    let args = Cli::try_parse_from([
+        "simulate",
+        "--kind",
+        "lift",
+        "--scale-joint",
+        "J3:dry=1.8",
+        "--seed",
+        "21",
+        "--trace-id",
+        "lift-j3",
+    ])
+    .unwrap()
+    .args;
+    let doc = simulate_doc(&args).unwrap();
+    let r = pantowatch::fitting::fit_document(&doc, &DriftThresholds::default()).unwrap();
+    assert_eq!(r.joints.len(), 10);
+    for j in &r.joints {
+        eprintln!(
+            "{:>3} {:?} identifiable {} dry {:.4} [{:.4}, {:.4}]",
+            j.joint, j.status, j.identifiable, j.dry.value, j.dry.ci95[0], j.dry.ci95[1]
+        );
+        if j.joint == "J3" {
+            assert!(matches!(j.status, Status::Watch | Status::Alarm));
+            assert!(j.dry.ci95[0] <= 0.36 && 0.36 <= j.dry.ci95[1]);
+        } else {
+            assert!(
+                matches!(j.status, Status::Ok | Status::Unknown),
+                "{}",
+                j.joint
+            );
+        }
+        for p in [&j.viscous, &j.dry] {
+            if !p.identifiable {
+                assert_eq!(p.status, Status::Unknown);
+                assert_eq!(p.value, p.baseline.unwrap_or(0.0));
+            }
+        }
+    }
+    assert_eq!(r.rmse.unit, "m");
+    assert!(r.rmse.value < 1.2e-3, "{}", r.rmse.value);
+}

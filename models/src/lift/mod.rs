@@ -10,6 +10,7 @@
 //! - [`simulate`] — a lift test driven by its recorded inputs, with dissipated energies.
 //! - [`protocol`] — a lift test as the stand records it (drive damper, spring, cut weight).
 //! - [`sensitivity`] — ∂H/∂θ along a simulated lift (friction of every joint, torque offset).
+//! - [`report`] — a lift fit as the contract's fit result (every joint J1…J9).
 //! - [`identify`] — Fisher information per trace, MAP fit with Table 4 as prior, verdicts.
 //! - `integrate` — DOPRI5 over a sampled record, dense output at the samples.
 
@@ -19,6 +20,7 @@ pub mod identify;
 mod integrate;
 pub mod kinematics;
 pub mod protocol;
+pub mod report;
 pub mod sensitivity;
 pub mod simulate;
 pub mod statics;

@@ -2,13 +2,19 @@
 //! with its equivalent damper, the external lowering spring, the weight cut at t = 0.
 //!
 //! Produces the contract's `lift` channels (H, T, Fs, Fm) from the model, e.g. with one joint's
-//! friction drifted, for identification tests and the demo.
+//! friction drifted, for identification tests and the demo. Two protocols (issue 5, point 5):
+//! - *raise only* ([`LiftProtocol::reference`]): the paper's test, the head rises from 1.04 m to
+//!   1.84 m and rests; friction shows only mixed with the drive's torque balance;
+//! - *raise and lower* ([`LiftProtocol::raise_and_lower`]): the same raise, then the set torque
+//!   falls back to the frictionless holding torque at the start height, and the head comes down:
+//!   friction opposes the motion in both directions and shows as the hysteresis between them.
 
 use super::dynamics::LiftModel;
 use super::geometry::Geometry;
 use super::simulate::{
     DriveModel, LiftInputs, SimError, SimOptions, StripSpring, initial_state, simulate,
 };
+use super::statics::{StaticFriction, StaticsError, alpha_at_height, static_point};
 
 /// The protocol of the paper's complete-assembly lift test.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -26,6 +32,16 @@ pub struct LiftProtocol {
     pub spring: StripSpring,
     /// Suspended weight Fm, cut at t = 0.
     pub weight_n: f64,
+    /// Lowering phase (raise-and-lower protocol); `None`: raise only.
+    pub lower: Option<Lowering>,
+}
+
+/// The lowering phase of a raise-and-lower test: from `t_s` the set torque falls, with the same
+/// time constant as the raise, to `torque_nm`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lowering {
+    pub t_s: f64,
+    pub torque_nm: f64,
 }
 
 impl LiftProtocol {
@@ -48,16 +64,43 @@ impl LiftProtocol {
                 h_ref_m: lt.initial.h_m,
             },
             weight_n: lt.initial.fm_n,
+            lower: None,
         }
+    }
+
+    /// Raise and lower in the same 8 s record as [`LiftProtocol::reference`]: the paper's raise,
+    /// then at t = 3.5 s (the raise has settled within ~2 s) the set torque falls to the
+    /// frictionless static torque that holds the strip at the start height 1.04 m under the
+    /// lowering spring alone (the weight stays cut), and the head comes down. Assumed protocol:
+    /// the paper records only the raise.
+    pub fn raise_and_lower(model: &LiftModel, g: &Geometry) -> Result<Self, StaticsError> {
+        let lt = &g.lift_test;
+        let range = (g.alpha_min_rad, g.alpha_max_rad);
+        let load_n = lt.initial.fs_n;
+        let alpha = alpha_at_height(model, lt.initial.h_m, load_n, range)?;
+        let hold = static_point(model, alpha, load_n, StaticFriction::None)?;
+        Ok(Self {
+            lower: Some(Lowering {
+                t_s: 3.5,
+                torque_nm: hold.drive_torque_nm,
+            }),
+            ..Self::reference(g)
+        })
     }
 
     /// The set torque at time t.
     pub fn set_torque_nm(&self, t_s: f64) -> f64 {
-        if t_s < 0.0 {
-            self.torque_initial_nm
-        } else {
+        let raise = |t: f64| {
             self.torque_final_nm
-                + (self.torque_initial_nm - self.torque_final_nm) * (-t_s / self.tau_s).exp()
+                + (self.torque_initial_nm - self.torque_final_nm) * (-t / self.tau_s).exp()
+        };
+        match self.lower {
+            _ if t_s < 0.0 => self.torque_initial_nm,
+            Some(l) if t_s >= l.t_s => {
+                let from = raise(l.t_s);
+                l.torque_nm + (from - l.torque_nm) * (-(t_s - l.t_s) / self.tau_s).exp()
+            }
+            _ => raise(t_s),
         }
     }
 }
@@ -137,4 +180,64 @@ pub fn record(
         fs_n,
         fm_n,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lift::geometry::builtin_160ec;
+    use crate::lift::identify::{LiftFitOptions, identifiability};
+
+    /// Issue 5, point 5: what each protocol informs, from the model's own Fisher information
+    /// (σ_H = 1 mm, 8 s at 500 Hz, Table 4 friction, prior sd 0.5 × baseline): a parameter is
+    /// informed when its posterior sd is below half its prior sd. Printed for the README.
+    #[test]
+    fn raise_and_lower_informs_what_raise_only_does_and_more() {
+        let g = builtin_160ec();
+        let m = LiftModel::new(g);
+        let opts = LiftFitOptions::default();
+        let raise = LiftProtocol::reference(g);
+        let both = LiftProtocol::raise_and_lower(&m, g).unwrap();
+        let lower = both.lower.unwrap();
+        eprintln!(
+            "lowering torque {:.1} N·m at t = {} s",
+            lower.torque_nm, lower.t_s
+        );
+        let mut verdicts = Vec::new();
+        for p in [raise, both] {
+            let rec = record(&m, &p, &SimOptions::default()).unwrap();
+            let at = |t: f64| rec.strip_height_m[((t - p.t_start_s) * p.sample_hz) as usize];
+            eprintln!(
+                "H at 0 / 3.4 / 7.4 s: {:.4} / {:.4} / {:.4} m",
+                at(0.0),
+                at(3.4),
+                at(7.4)
+            );
+            let id = identifiability(&m, &rec.inputs(), &opts).unwrap();
+            verdicts.push(id);
+        }
+        let (r, b) = (&verdicts[0], &verdicts[1]);
+        eprintln!(
+            "| parameter | raise: posterior sd / prior sd | informed | raise and lower: posterior sd / prior sd | informed |"
+        );
+        for (i, p) in r.params.iter().enumerate() {
+            let prior = if *p == super::super::sensitivity::LiftParam::TorqueOffset {
+                opts.offset_prior_sd_nm
+            } else {
+                opts.prior_relative_sd
+            };
+            eprintln!(
+                "| {}.{} | {:.3} | {} | {:.3} | {} |",
+                p.joint(),
+                p.kind(),
+                r.posterior_sd[i] / prior,
+                if r.informed[i] { "yes" } else { "no" },
+                b.posterior_sd[i] / prior,
+                if b.informed[i] { "yes" } else { "no" }
+            );
+        }
+        for i in 0..r.params.len() {
+            assert!(!r.informed[i] || b.informed[i], "{:?}", r.params[i]);
+        }
+    }
 }

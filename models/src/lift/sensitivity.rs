@@ -47,6 +47,15 @@ impl LiftParam {
         v
     }
 
+    /// The friction parameter named by joint (`J1` … `J9`) and kind (`viscous` or `dry`);
+    /// `None` for J6 (locked in a lift), J9's dry friction (it has none) or an unknown name.
+    pub fn named(joint: &str, kind: &str) -> Option<LiftParam> {
+        Self::all()
+            .into_iter()
+            .filter(|p| *p != LiftParam::TorqueOffset)
+            .find(|p| p.joint() == joint && p.kind() == kind)
+    }
+
     /// The joint's name (`J3`, `J8`, …), or `T` for the offset.
     pub fn joint(self) -> &'static str {
         match self {

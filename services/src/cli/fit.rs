@@ -10,7 +10,7 @@ use pantowatch_models::report::FitResult;
 use plotters::style::RGBColor;
 
 use crate::plot::{Series, fit_svg};
-use crate::trace::TraceDoc;
+use crate::trace::{Kind, TraceDoc};
 
 #[derive(Debug, clap::Args)]
 pub struct FitArgs {
@@ -43,13 +43,22 @@ fn fmt_opt(x: Option<f64>) -> String {
 pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
     let mut s = String::new();
     let id = doc.trace_id.as_deref().unwrap_or("(no trace_id)");
-    s += &format!(
-        "trace {id}  vehicle {}  {} test  released at t = {:.3} s, {} samples fitted\n",
-        doc.vehicle_id,
-        doc.kind.as_str(),
-        r.fit.release_t_s,
-        r.fit.samples_fitted
-    );
+    let lift = doc.kind == Kind::Lift;
+    if lift {
+        s += &format!(
+            "trace {id}  vehicle {}  lift test (complete pantograph, MAP with Table 4 prior sd \
+             0.5 × baseline), {} samples fitted\n",
+            doc.vehicle_id, r.fit.samples_fitted
+        );
+    } else {
+        s += &format!(
+            "trace {id}  vehicle {}  {} test  released at t = {:.3} s, {} samples fitted\n",
+            doc.vehicle_id,
+            doc.kind.as_str(),
+            r.fit.release_t_s,
+            r.fit.samples_fitted
+        );
+    }
     s += &format!(
         "{:<6} {:<9} {:>11} {:>25} {:>10} {:>13} {:>8}\n",
         "joint", "parameter", "value", "95 % interval", "baseline", "identifiable", "status"
@@ -69,6 +78,28 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
             );
         }
         s += &format!("{:<6} joint status: {}\n", j.joint, j.status.as_str());
+    }
+    if lift {
+        let informed: Vec<&str> = r
+            .joints
+            .iter()
+            .filter(|j| j.identifiable)
+            .map(|j| j.joint.as_str())
+            .collect();
+        let ci = r.fit.sensor_offset_ci95.unwrap_or([f64::NAN; 2]);
+        s += &format!(
+            "informed by this trace: {}; the others are reported at baseline, not identified\n\
+             RMSE {:.3} mm of H; torque-sensor offset {:.3} N·m [{:.3}, {:.3}]; {} after {} \
+             iterations (no residual loop on lift traces)\n",
+            informed.join(", "),
+            r.rmse.value * 1e3,
+            r.fit.sensor_offset.value,
+            ci[0],
+            ci[1],
+            r.fit.termination,
+            r.fit.iterations
+        );
+        return s;
     }
     s += &format!(
         "RMSE {:.4} {}; sensor zero {:.4} {}; release rate {:.4} {}; {} after {} iterations\n",
@@ -99,8 +130,69 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
     s
 }
 
+/// `fit` of a lift trace: the table or JSON, and H measured vs fitted as SVG.
+fn run_lift(args: &FitArgs, doc: &TraceDoc, thresholds: &DriftThresholds) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.report.is_none(),
+        "--report: the residual loop does not run on lift traces"
+    );
+    let rep = crate::fitting::fit_lift(doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&rep.result)?);
+    } else {
+        print!("{}", table(doc, &rep.result));
+    }
+    if let Some(path) = &args.plot {
+        let t = doc.channel("t_s").unwrap_or_default();
+        let h = doc.channel("H_m").unwrap_or_default();
+        anyhow::ensure!(
+            rep.fitted_height_m.len() == h.len(),
+            "--plot: the fitted lift could not be simulated"
+        );
+        let residual: Vec<f64> = h
+            .iter()
+            .zip(&rep.fitted_height_m)
+            .map(|(a, b)| a - b)
+            .collect();
+        let title = format!(
+            "{} — H measured vs fitted (RMSE {:.3} mm)",
+            doc.trace_id.as_deref().unwrap_or(""),
+            rep.result.rmse.value * 1e3
+        );
+        let svg = fit_svg(
+            &title,
+            t,
+            "m",
+            &[
+                Series {
+                    name: "measured",
+                    y: h,
+                    color: RGBColor(120, 120, 120),
+                },
+                Series {
+                    name: "fitted model",
+                    y: &rep.fitted_height_m,
+                    color: RGBColor(200, 30, 30),
+                },
+            ],
+            &[Series {
+                name: "residual",
+                y: &residual,
+                color: RGBColor(30, 60, 200),
+            }],
+        )
+        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+        std::fs::write(path, svg).with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("plot written to {}", path.display());
+    }
+    Ok(())
+}
+
 pub fn run(args: FitArgs, thresholds: &DriftThresholds) -> anyhow::Result<()> {
     let doc = super::read_trace(&args.trace)?;
+    if doc.kind == Kind::Lift {
+        return run_lift(&args, &doc, thresholds);
+    }
     let (result, fit) = fit_doc(&doc, thresholds)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&result)?);

@@ -1,4 +1,4 @@
-//! `pantowatch simulate`: write a trace document of a pendulum or slider test with chosen
+//! `pantowatch simulate`: write a trace document of a pendulum, slider or lift test with chosen
 //! friction, release, noise, sample rate and seed — what the tests and the demo use.
 
 use std::path::PathBuf;
@@ -14,7 +14,7 @@ use crate::trace::{FORMAT, TraceDoc};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateArgs {
-    /// Test kind: pendulum or slider.
+    /// Test kind: pendulum, slider or lift.
     #[arg(long, default_value = "pendulum")]
     pub kind: String,
     /// Joint: J1 J2 J2' J3 J4 J5 J6 J7 (pendulum), J8 (slider).
@@ -69,6 +69,17 @@ pub struct SimulateArgs {
     pub pull: Option<f64>,
     #[arg(long, default_value_t = 0.5)]
     pub release_at: f64,
+    /// Lift only: `raise-and-lower` (default) or `raise` (the paper's raise alone); 8 s from
+    /// t = −0.5 s at `--fs`.
+    #[arg(long, default_value = "raise-and-lower")]
+    pub protocol: String,
+    /// Lift only: scale a joint's friction from Table 4, `JOINT:dry=1.8,viscous=1.2`
+    /// (repeatable; J1 J2 J2' J3 J4 J5 J7 J8 viscous/dry, J9 viscous).
+    #[arg(long = "scale-joint")]
+    pub scale_joints: Vec<String>,
+    /// Lift only: noise of the H channel, standard deviation in mm.
+    #[arg(long, default_value_t = 1.0)]
+    pub h_noise_mm: f64,
     /// Output file (default: stdout).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
@@ -76,6 +87,9 @@ pub struct SimulateArgs {
 
 /// Build the trace document (validated like any upload).
 pub fn simulate_doc(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
+    if a.kind == "lift" {
+        return simulate_lift(a);
+    }
     let data = builtin_160ec();
     let (test_json, channel) = match a.kind.as_str() {
         "pendulum" => (
@@ -83,7 +97,7 @@ pub fn simulate_doc(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
             "alpha_deg",
         ),
         "slider" => (json!({"kind": "slider", "joint": "J8", "rig": {}}), "h_mm"),
-        k => anyhow::bail!("--kind: `{k}` (pendulum or slider)"),
+        k => anyhow::bail!("--kind: `{k}` (pendulum, slider or lift)"),
     };
     if !(a.fs > 0.0 && a.duration > 0.0 && a.noise >= 0.0 && a.quantum >= 0.0) {
         anyhow::bail!("--fs and --duration must be > 0, --noise and --quantum >= 0");
@@ -153,6 +167,65 @@ pub fn simulate_doc(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
         doc_json["trace_id"] = json!(id);
     }
     TraceDoc::from_value(&doc_json).map_err(|e| anyhow::anyhow!("{e}"))
+}
+
+/// A lift test of the complete pantograph (`lift::protocol`), friction scaled by
+/// `--scale-joint`, H with Gaussian noise; the inputs T, Fs, Fm as the stand records them.
+fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
+    use pantowatch_models::lift::dynamics::LiftModel;
+    use pantowatch_models::lift::protocol::{LiftProtocol, record};
+    use pantowatch_models::lift::sensitivity::LiftParam;
+    use pantowatch_models::lift::simulate::SimOptions;
+    anyhow::ensure!(
+        a.fs > 0.0 && a.fs <= 10_000.0 && a.h_noise_mm >= 0.0 && a.h_noise_mm.is_finite(),
+        "--fs must be in (0, 10000] Hz and --h-noise-mm >= 0"
+    );
+    let g = pantowatch_models::lift::geometry::builtin_160ec();
+    let base = LiftModel::new(g);
+    let mut model = base.clone();
+    for spec in &a.scale_joints {
+        let (joint, rest) = spec
+            .split_once(':')
+            .ok_or_else(|| anyhow::anyhow!("--scale-joint {spec}: expected JOINT:kind=factor"))?;
+        for pair in rest.split(',').filter(|p| !p.is_empty()) {
+            let (kind, v) = pair.split_once('=').ok_or_else(|| {
+                anyhow::anyhow!("--scale-joint {spec}: `{pair}` is not kind=factor")
+            })?;
+            let f: f64 = v
+                .parse()
+                .map_err(|_| anyhow::anyhow!("--scale-joint {spec}: `{v}` is not a number"))?;
+            anyhow::ensure!(
+                f.is_finite() && f >= 0.0,
+                "--scale-joint {spec}: factor must be finite and >= 0"
+            );
+            let p = LiftParam::named(joint, kind).ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--scale-joint {spec}: no `{kind}` friction of `{joint}` in a lift (J6 is locked, J9 has no dry friction)"
+                )
+            })?;
+            let mut offset = 0.0;
+            let v0 = p.get(&model, 0.0);
+            p.set(&mut model, &mut offset, v0 * f);
+        }
+    }
+    let mut protocol = match a.protocol.as_str() {
+        "raise-and-lower" => LiftProtocol::raise_and_lower(&base, g)?,
+        "raise" => LiftProtocol::reference(g),
+        p => anyhow::bail!("--protocol: `{p}` (raise-and-lower or raise)"),
+    };
+    protocol.sample_hz = a.fs;
+    let mut rec = record(&model, &protocol, &SimOptions::default()).context("lift simulation")?;
+    let mut rng = pantowatch_models::noise::Noise::new(a.seed);
+    for h in &mut rec.strip_height_m {
+        *h += a.h_noise_mm * 1e-3 * rng.normal();
+    }
+    let mut doc = json!({"format": FORMAT, "vehicle_id": a.vehicle, "pantograph": {"model": "160EC", "serial": a.serial},
+        "recorded_at": a.recorded_at, "test": {"kind": "lift", "rig": {}},
+        "channels": {"t_s": rec.t_s, "H_m": rec.strip_height_m, "T_Nm": rec.torque_nm, "Fs_N": rec.fs_n, "Fm_N": rec.fm_n}});
+    if let Some(id) = &a.trace_id {
+        doc["trace_id"] = json!(id);
+    }
+    TraceDoc::from_value(&doc).map_err(|e| anyhow::anyhow!("{e}"))
 }
 
 /// Apply one `--effect NAME:key=value,…` to the truth.

@@ -284,12 +284,14 @@ pub async fn web_pages_in_headless_chromium() {
         "03-pantograph.png",
     )
     .await;
-    let trace = first_attr(
-        &pdom[pdom.find("/traces/").map_or(0, |i| i.saturating_sub(6))..],
-        "href",
-    )
-    .expect("trace link")
-    .to_owned();
+    // A single-joint trace (its page draws measured vs model; a lift trace's page shows the
+    // joints and the finding).
+    let trace = pdom
+        .match_indices("href=\"/traces/")
+        .filter_map(|(i, _)| first_attr(&pdom[i..], "href"))
+        .find(|h| !h.ends_with("-lift"))
+        .expect("a single-joint trace link")
+        .to_owned();
     let tdom = dom(profile.path(), &format!("{base}{trace}")).await;
     assert!(
         tdom.contains("Measured vs model") && tdom.contains("id=\"finding\""),

@@ -9,8 +9,8 @@ use reqwest::{Method, StatusCode};
 use serde_json::{Value, json};
 
 pub use crate::alerts::{alert_lifecycle_over_http, webhooks_signed_retried_and_logged};
-pub use crate::lift::lift_trace_is_fitted_with_every_joint;
 use crate::harness::*;
+pub use crate::lift::lift_trace_is_fitted_with_every_joint;
 
 const J3_DRY: &str = "J3_dry_x1.8.json";
 

@@ -1,0 +1,313 @@
+//! A lift trace's fit as the contract's fit result (`../shared/contract/TRACE_FORMAT.md`, "Fit
+//! result"): every joint J1…J9 with value, 95 % interval, Table 4 baseline, unit, whether the
+//! trace informed it, and its drift status.
+//!
+//! Mapping (stated here so the service knows no physics):
+//! - A parameter the trace informed (posterior sd < prior sd / 2, [`super::identify`]) is
+//!   reported at its MAP estimate with the posterior interval and judged against Table 4 by the
+//!   drift bands. An uninformed one is reported at baseline with the prior's interval,
+//!   `identifiable: false`, status `unknown` — never flagged.
+//! - J6 is locked in a lift (the spring assemblies ride on the shaft): nothing to estimate, it
+//!   is reported at baseline, not identified.
+//! - J9 is a spring with damping: the model has no dry friction there (Table 4 gives none), so
+//!   its `dry` is 0 with no baseline, not identified.
+//! - J8's coefficients are per slide (Table 4: four slides in parallel), J9's per spring.
+//! - `rmse` is the H residual RMS, m. The torque-sensor offset (a nuisance parameter) is the
+//!   result's `fit.sensor_offset`, N·m.
+//! - `residual`: no effect vocabulary is tried on lift traces yet, so `effects` is empty and
+//!   `rmse_before = rmse_after`. The `holdout_` pair is **not** a held-out refit (that would
+//!   double the fit time): it equals the fitted values.
+
+use super::dynamics::LiftModel;
+use super::identify::{JointEstimate, LiftFit, LiftFitError, LiftFitOptions, LiftTrace, fit_map};
+use super::simulate::{LiftInputs, SimOptions, initial_state, simulate};
+use super::topology::RevJoint;
+use crate::drift::{DriftThresholds, Status};
+use crate::report::{
+    FitDetails, FitResult, JointResult, MODEL_VERSION, ParamResult, Quantity, ResidualResult,
+};
+
+/// The recorded channels of a lift trace (contract `lift` kind).
+#[derive(Debug, Clone, Copy)]
+pub struct LiftChannels<'a> {
+    pub t_s: &'a [f64],
+    pub strip_height_m: &'a [f64],
+    pub torque_nm: &'a [f64],
+    pub fs_n: &'a [f64],
+    /// Empty when the trace has no `Fm_N` (zero).
+    pub fm_n: &'a [f64],
+}
+
+/// A lift fit: the contract result, the MAP fit, and the fitted H (for plots).
+#[derive(Debug, Clone)]
+pub struct LiftReport {
+    pub result: FitResult,
+    pub fit: LiftFit,
+    /// Model H at the fitted parameters, m; empty if that simulation failed.
+    pub fitted_height_m: Vec<f64>,
+}
+
+/// Fit one lift trace with the MAP identification (Table 4 prior, [`LiftFitOptions::default`]
+/// with these drift bands) and map it to the contract's fit result.
+pub fn fit_lift_trace(
+    channels: &LiftChannels,
+    thresholds: &DriftThresholds,
+    trace_id: &str,
+) -> Result<LiftReport, LiftFitError> {
+    let model = LiftModel::new(super::geometry::builtin_160ec());
+    let opts = LiftFitOptions {
+        thresholds: *thresholds,
+        ..LiftFitOptions::default()
+    };
+    let inputs = LiftInputs {
+        t_s: channels.t_s,
+        torque_nm: channels.torque_nm,
+        fs_n: channels.fs_n,
+        fm_n: channels.fm_n,
+    };
+    inputs.validate()?;
+    if channels.strip_height_m.len() != channels.t_s.len() {
+        return Err(LiftFitError::Invalid(format!(
+            "H has {} samples, t has {}",
+            channels.strip_height_m.len(),
+            channels.t_s.len()
+        )));
+    }
+    let trace = LiftTrace {
+        inputs,
+        strip_height_m: channels.strip_height_m,
+    };
+    let fit = fit_map(&model, &[trace], &opts)?;
+    let fitted_height_m = fitted_height(&model, &fit, &inputs, &opts.sim).unwrap_or_default();
+    let result = fit_result(&model, &fit, &trace, &fitted_height_m, &opts, trace_id);
+    Ok(LiftReport {
+        result,
+        fit,
+        fitted_height_m,
+    })
+}
+
+/// H simulated at the fit's MAP parameters (every parameter, informed or not, and the offset).
+fn fitted_height(
+    base: &LiftModel,
+    fit: &LiftFit,
+    inputs: &LiftInputs,
+    sim: &SimOptions,
+) -> Result<Vec<f64>, LiftFitError> {
+    let mut m = base.clone();
+    let mut offset = 0.0;
+    for e in &fit.params {
+        e.param.set(&mut m, &mut offset, e.map_value);
+    }
+    let opts = SimOptions {
+        torque_offset_nm: fit.offsets.first().map_or(0.0, |o| o.map_value),
+        ..*sim
+    };
+    let start = initial_state(&m, inputs, &opts)?;
+    Ok(simulate(&m, inputs, start, &opts)?.strip_height_m)
+}
+
+fn unit_of(joint: &str, kind: &str) -> &'static str {
+    match (joint, kind) {
+        (_, "dry") => "1",
+        ("J8" | "J9", _) => "N·s/m",
+        _ => "N·m·s/rad",
+    }
+}
+
+/// A parameter the lift does not estimate: at baseline, the prior's interval, not identified.
+fn not_estimated(baseline: Option<f64>, unit: &str, prior_relative_sd: f64) -> ParamResult {
+    let b = baseline.unwrap_or(0.0);
+    let half = 1.96 * prior_relative_sd * b;
+    ParamResult {
+        value: b,
+        ci95: [(b - half).max(0.0), b + half],
+        baseline,
+        unit: unit.into(),
+        identifiable: false,
+        status: Status::Unknown,
+    }
+}
+
+fn joint_result(model: &LiftModel, j: &JointEstimate, prior_relative_sd: f64) -> JointResult {
+    let f = &model.friction;
+    let baseline = |kind: &str| -> Option<f64> {
+        match (j.joint, kind) {
+            ("J8", "viscous") => Some(f.j8_viscous_ns_per_m_each),
+            ("J8", _) => Some(f.j8_dry_mu),
+            ("J9", "viscous") => Some(f.j9_damping_ns_per_m_each),
+            ("J9", _) => None,
+            (name, kind) => RevJoint::ALL
+                .iter()
+                .find(|r| r.name() == name)
+                .map(|r| match kind {
+                    "viscous" => f.viscous_nms_per_rad[r.index()],
+                    _ => f.dry_mu[r.index()],
+                }),
+        }
+    };
+    let param = |kind: &str, e: &Option<super::identify::ParamEstimate>| match e {
+        Some(e) => ParamResult {
+            value: e.value,
+            ci95: e.ci95,
+            baseline: Some(e.baseline),
+            unit: unit_of(j.joint, kind).into(),
+            identifiable: e.informed,
+            // Judged by the drift bands when informed (`unknown` if its interval is still wider
+            // than the watch band); an uninformed parameter is never flagged.
+            status: e.status,
+        },
+        None => not_estimated(baseline(kind), unit_of(j.joint, kind), prior_relative_sd),
+    };
+    let viscous = param("viscous", &j.viscous);
+    let mut dry = param("dry", &j.dry);
+    if j.joint == "J9" {
+        dry.ci95 = [0.0, 0.0];
+    }
+    let status = [&viscous, &dry]
+        .iter()
+        .filter(|p| p.identifiable)
+        .map(|p| p.status)
+        .max()
+        .unwrap_or(Status::Unknown);
+    JointResult {
+        joint: j.joint.to_string(),
+        identifiable: viscous.identifiable || dry.identifiable,
+        status,
+        viscous,
+        dry,
+    }
+}
+
+/// Lag-1 autocorrelation of a residual (NaN when it is empty or constant).
+fn rho1(r: &[f64]) -> f64 {
+    if r.len() < 3 {
+        return f64::NAN;
+    }
+    let mean = r.iter().sum::<f64>() / r.len() as f64;
+    let var: f64 = r.iter().map(|v| (v - mean).powi(2)).sum();
+    let cov: f64 = r.windows(2).map(|w| (w[0] - mean) * (w[1] - mean)).sum();
+    cov / var
+}
+
+/// The contract's fit result of a one-trace lift fit.
+pub fn fit_result(
+    model: &LiftModel,
+    fit: &LiftFit,
+    trace: &LiftTrace,
+    fitted_height_m: &[f64],
+    opts: &LiftFitOptions,
+    trace_id: &str,
+) -> FitResult {
+    let joints = fit
+        .joints
+        .iter()
+        .map(|j| joint_result(model, j, opts.prior_relative_sd))
+        .collect();
+    let rmse = fit.rmse_m.first().copied().unwrap_or(f64::NAN);
+    let offset = fit.offsets.first();
+    let residual: Vec<f64> = if fitted_height_m.len() == trace.strip_height_m.len() {
+        fitted_height_m
+            .iter()
+            .zip(trace.strip_height_m)
+            .map(|(a, b)| b - a)
+            .collect()
+    } else {
+        Vec::new()
+    };
+    FitResult {
+        trace_id: trace_id.to_string(),
+        joints,
+        rmse: Quantity {
+            value: rmse,
+            unit: "m".into(),
+        },
+        residual: ResidualResult {
+            effects: Vec::new(),
+            rmse_before: rmse,
+            rmse_after: rmse,
+            holdout_rmse_before: rmse,
+            holdout_rmse_after: rmse,
+            verdict: None,
+            correlates_with: Vec::new(),
+        },
+        fit: FitDetails {
+            model_version: MODEL_VERSION.to_string(),
+            release_t_s: trace.inputs.t_s.first().copied().unwrap_or(0.0),
+            release_position: Quantity {
+                value: trace.strip_height_m.first().copied().unwrap_or(f64::NAN),
+                unit: "m".into(),
+            },
+            release_rate: Quantity {
+                value: 0.0,
+                unit: "m/s".into(),
+            },
+            sensor_offset: Quantity {
+                value: offset.map_or(0.0, |o| o.value),
+                unit: "N·m".into(),
+            },
+            sensor_offset_ci95: offset.map(|o| o.ci95),
+            samples_fitted: trace.strip_height_m.len(),
+            termination: format!("{:?}", fit.termination),
+            iterations: fit.iterations,
+            residual_rho1: rho1(&residual),
+            // Noise scale over the stated σ_H (≥ 1): the posterior is widened by it.
+            interval_inflation: fit.noise_m / opts.h_noise_m,
+            // Not defined for a many-joint fit (null in JSON); the posterior correlations are
+            // in `LiftFit::posterior_correlation`.
+            viscous_dry_correlation: f64::NAN,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lift::geometry::builtin_160ec;
+    use crate::lift::protocol::{LiftProtocol, record};
+
+    /// The reference protocol on the Table 4 model: every joint is reported, J1…J9, uninformed
+    /// ones at baseline and `unknown`, informed ones `ok`; nothing is flagged.
+    #[test]
+    fn baseline_lift_maps_to_every_joint_ok_or_unknown() {
+        let g = builtin_160ec();
+        let m = LiftModel::new(g);
+        let rec = record(&m, &LiftProtocol::reference(g), &SimOptions::default()).unwrap();
+        let ch = LiftChannels {
+            t_s: &rec.t_s,
+            strip_height_m: &rec.strip_height_m,
+            torque_nm: &rec.torque_nm,
+            fs_n: &rec.fs_n,
+            fm_n: &rec.fm_n,
+        };
+        let rep = fit_lift_trace(&ch, &DriftThresholds::default(), "ref").unwrap();
+        let r = &rep.result;
+        let names: Vec<&str> = r.joints.iter().map(|j| j.joint.as_str()).collect();
+        assert_eq!(
+            names,
+            ["J1", "J2", "J2'", "J3", "J4", "J5", "J6", "J7", "J8", "J9"]
+        );
+        for j in &r.joints {
+            assert!(
+                matches!(j.status, Status::Ok | Status::Unknown),
+                "{}: {:?}",
+                j.joint,
+                j.status
+            );
+            for p in [&j.viscous, &j.dry] {
+                if !p.identifiable {
+                    assert_eq!(p.status, Status::Unknown);
+                    assert_eq!(Some(p.value), p.baseline.or(Some(0.0)));
+                }
+                assert!(p.ci95[0] <= p.value && p.value <= p.ci95[1], "{}", j.joint);
+            }
+        }
+        let j3 = r.joints.iter().find(|j| j.joint == "J3").unwrap();
+        assert!(j3.identifiable && j3.dry.identifiable && j3.status == Status::Ok);
+        assert_eq!(r.rmse.unit, "m");
+        assert!(r.rmse.value < 1e-4, "noise-free: {}", r.rmse.value);
+        assert_eq!(rep.fitted_height_m.len(), rec.t_s.len());
+        let json = serde_json::to_value(r).unwrap();
+        assert_eq!(json["joints"][8]["viscous"]["unit"], "N·s/m");
+    }
+}
