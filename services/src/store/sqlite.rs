@@ -24,6 +24,8 @@ macro_rules! now {
 }
 
 /// Every joint point from each trace's current fit; `$extra` narrows the trace/joint set.
+/// `rn = 1` is a joint's latest *informed* verdict (a test that could not identify the joint — a
+/// lift for J2, say — does not hide the last test that could), else its latest.
 macro_rules! points_cte {
     ($extra:literal) => {
         concat!(
@@ -38,7 +40,7 @@ macro_rules! points_cte {
                        j.joint, j.viscous, j.viscous_lo, j.viscous_hi, j.dry, j.dry_lo, j.dry_hi,
                        j.identifiable, j.status,
                        ROW_NUMBER() OVER (PARTITION BY t.serial, j.joint
-                                          ORDER BY t.recorded_at DESC, t.trace_id DESC) AS rn
+                                          ORDER BY j.identifiable DESC, t.recorded_at DESC, t.trace_id DESC) AS rn
                 FROM cur
                 JOIN traces t ON t.trace_id = cur.trace_id
                 JOIN fit_joints j ON j.fit_id = cur.id

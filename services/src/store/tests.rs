@@ -151,6 +151,7 @@ contract!(
     alert_lifecycle_dedup_escalate_resolve,
     alert_raises_race_to_one_alert,
     webhook_outbox_claim_retry_finish,
+    latest_informed_verdict_wins,
 );
 
 // ---------------------------------------------------------------- fixtures
@@ -199,7 +200,7 @@ fn fit(trace_id: &str, joints: &[(&str, Status)]) -> NewFit {
                 "viscous": { "value": 0.036 + i as f64 * 1e-3, "ci95": [0.031, 0.041],
                              "baseline": 0.034, "unit": "N·m·s/rad" },
                 "dry": { "value": 0.024, "ci95": [0.021, 0.027], "baseline": 0.023, "unit": "1" },
-                "identifiable": true,
+                "identifiable": *s != Status::Unknown,
                 "status": s.as_str(),
             })
         })
@@ -1637,4 +1638,54 @@ async fn webhook_outbox_claim_retry_finish(store: &Store) {
         ]
     );
     assert_eq!(log[0].last_error.as_deref(), Some("subscription deleted"));
+}
+
+/// A test that cannot identify a joint (a lift for J2) does not hide the last test that could:
+/// fleet health and the vehicle view show a joint's latest informed verdict.
+async fn latest_informed_verdict_wins(store: &Store) {
+    for (id, when, status) in [
+        ("w1", "2026-04-01T10:00:00Z", Status::Alarm),
+        ("w2", "2026-05-01T10:00:00Z", Status::Unknown),
+    ] {
+        insert_ok(store, trace(id, "VW", Some("PW"), when)).await;
+        store
+            .insert_fit(id, "v1", &fit(id, &[("J2", status)]))
+            .await
+            .expect("fit");
+    }
+    let page = store
+        .fleet_health(&FleetFilter::default(), Page::default())
+        .await
+        .expect("fleet");
+    assert_eq!(
+        page.rows[0].worst_status,
+        Some(Status::Alarm),
+        "the uninformed later test hides nothing"
+    );
+    let v = store
+        .get_vehicle("VW")
+        .await
+        .expect("vehicle")
+        .expect("exists");
+    assert_eq!(v.pantographs[0].joints[0].fit.status, Status::Alarm);
+    // A later informed test decides.
+    insert_ok(store, trace("w3", "VW", Some("PW"), "2026-06-01T10:00:00Z")).await;
+    store
+        .insert_fit("w3", "v1", &fit("w3", &[("J2", Status::Ok)]))
+        .await
+        .expect("fit");
+    let page = store
+        .fleet_health(&FleetFilter::default(), Page::default())
+        .await
+        .expect("fleet");
+    assert_eq!(page.rows[0].worst_status, Some(Status::Ok));
+    // The history keeps every test, informed or not.
+    assert_eq!(
+        store
+            .joint_history("PW", "J2")
+            .await
+            .expect("history")
+            .len(),
+        3
+    );
 }
