@@ -9,6 +9,7 @@ use reqwest::{Method, StatusCode};
 use serde_json::{Value, json};
 
 pub use crate::alerts::{alert_lifecycle_over_http, webhooks_signed_retried_and_logged};
+pub use crate::corpus::corpus_uploads_are_refused_and_store_nothing;
 use crate::harness::*;
 pub use crate::lift::lift_trace_is_fitted_with_every_joint;
 

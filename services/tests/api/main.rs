@@ -8,6 +8,7 @@
 mod alerts;
 mod browser;
 mod cases;
+mod corpus;
 mod harness;
 mod lift;
 
@@ -47,6 +48,7 @@ suite!(
     readiness_and_metrics,
     alert_lifecycle_over_http,
     webhooks_signed_retried_and_logged,
+    corpus_uploads_are_refused_and_store_nothing,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).
