@@ -6,6 +6,7 @@ use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::identify::{FitOptions, FitOutcome};
 use pantowatch_models::lift::report::{LiftReport, fit_lift_trace};
 use pantowatch_models::report::FitResult;
+use pantowatch_models::residual::Finding;
 
 use crate::trace::{Kind, TraceDoc, TraceError};
 
@@ -45,6 +46,15 @@ pub fn fit_with_outcome(
     doc: &TraceDoc,
     thresholds: &DriftThresholds,
 ) -> Result<(FitResult, FitOutcome), FitFailure> {
+    fit_with_finding(doc, thresholds).map(|(r, f, _)| (r, f))
+}
+
+/// As [`fit_with_outcome`], also returning the residual loop's finding (candidates tried,
+/// diagnosis, split fits) for the report.
+pub fn fit_with_finding(
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+) -> Result<(FitResult, FitOutcome, Finding), FitFailure> {
     if doc.kind == Kind::Lift {
         return Err(FitFailure::Unsupported(
             "a lift test has no single-joint fit outcome: fit it with `fit_lift`".into(),
@@ -52,8 +62,14 @@ pub fn fit_with_outcome(
     }
     let (test, baseline) = doc.joint_test().map_err(FitFailure::Invalid)?;
     let id = doc.trace_id.clone().unwrap_or_default();
-    pantowatch_models::fit_joint_test(&test, &baseline, thresholds, &id, &FitOptions::default())
-        .map_err(|e| FitFailure::Model(e.to_string()))
+    pantowatch_models::fit_joint_test_with_finding(
+        &test,
+        &baseline,
+        thresholds,
+        &id,
+        &FitOptions::default(),
+    )
+    .map_err(|e| FitFailure::Model(e.to_string()))
 }
 
 #[cfg(test)]

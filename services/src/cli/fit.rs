@@ -193,14 +193,15 @@ pub fn run(args: FitArgs, thresholds: &DriftThresholds) -> anyhow::Result<()> {
     if doc.kind == Kind::Lift {
         return run_lift(&args, &doc, thresholds);
     }
-    let (result, fit) = fit_doc(&doc, thresholds)?;
+    let (result, fit, finding) =
+        crate::fitting::fit_with_finding(&doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&result)?);
     } else {
         print!("{}", table(&doc, &result));
     }
     if let Some(path) = &args.report {
-        std::fs::write(path, super::report::html(&doc, thresholds)?)
+        std::fs::write(path, super::report::html(&doc, &result, &finding)?)
             .with_context(|| format!("writing {}", path.display()))?;
         eprintln!("report written to {}", path.display());
     }

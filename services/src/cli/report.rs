@@ -2,8 +2,8 @@
 //! fit and augmented fit overlaid; the residual before and after; every candidate effect tried
 //! with its held-out error and criterion. One self-contained HTML file with inline SVG.
 
-use pantowatch_models::drift::DriftThresholds;
-use pantowatch_models::identify::FitOptions;
+use pantowatch_models::report::FitResult;
+use pantowatch_models::residual::Finding;
 use plotters::style::RGBColor;
 
 use crate::plot::{Series, fit_svg};
@@ -16,18 +16,10 @@ fn esc(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// Build the report for a document.
-pub fn html(doc: &TraceDoc, thresholds: &DriftThresholds) -> anyhow::Result<String> {
+/// Build the report for a document from its fit and the residual loop's finding (no refit).
+pub fn html(doc: &TraceDoc, result: &FitResult, f: &Finding) -> anyhow::Result<String> {
     let (test, baseline) = doc.joint_test().map_err(|e| anyhow::anyhow!("{e}"))?;
     let id = doc.trace_id.clone().unwrap_or_default();
-    let (result, _, f) = pantowatch_models::fit_joint_test_with_finding(
-        &test,
-        &baseline,
-        thresholds,
-        &id,
-        &FitOptions::default(),
-    )
-    .map_err(|e| anyhow::anyhow!("fit failed: {e}"))?;
     let start = f.base_split.fit.start;
     let t = &test.t_s[start..];
     let y = &test.y[start..];
