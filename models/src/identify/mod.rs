@@ -479,13 +479,8 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
     // piece: restart from the other sides of the first estimate and keep the best.
     // Trigger: the residual is structured (Ljung–Box) or its RMS exceeds the sensor noise
     // (from first differences) by more than 8 %.
-    let lags = 20;
     let r = &first.residual;
-    let noise = (r.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>()
-        / (2.0 * (r.len() - 1) as f64))
-        .sqrt();
-    let white = crate::residual::ljung_box(r, lags) <= crate::residual::chi2_critical_001(lags);
-    if white && first.rmse <= 1.08 * noise {
+    if crate::residual::is_white(r) && first.rmse <= 1.08 * crate::residual::noise_sigma(r) {
         return Ok(first);
     }
     // A small grid around the first estimate (its viscous part is the less certain one).

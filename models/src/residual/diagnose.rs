@@ -61,14 +61,25 @@ fn corr(a: &[f64], b: &[f64]) -> f64 {
     }
 }
 
+/// Sensor noise of a residual from its first differences, √(mean(Δr²)/2): white noise passes
+/// through, a slow misfit hardly contributes.
+pub fn noise_sigma(r: &[f64]) -> f64 {
+    let d2: f64 =
+        r.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>() / (r.len().max(2) - 1) as f64;
+    (d2 / 2.0).sqrt()
+}
+
+/// Whether a residual is white by Ljung–Box over the standard lags at p = 0.001.
+pub fn is_white(r: &[f64]) -> bool {
+    ljung_box(r, LB_LAGS) <= chi2_critical_001(LB_LAGS)
+}
+
 /// Whiteness and correlations of a fit's residual with the candidate signals.
 pub fn diagnose(test: &JointTest, fit: &FitOutcome) -> Diagnosis {
     let r = &fit.residual;
     let q = ljung_box(r, LB_LAGS);
     let crit = chi2_critical_001(LB_LAGS);
-    let d2: f64 =
-        r.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>() / (r.len().max(2) - 1) as f64;
-    let noise_sigma = (d2 / 2.0).sqrt();
+    let noise_sigma = noise_sigma(r);
     let tr = &fit.trajectory;
     let t = &test.t_s[fit.start..fit.start + fit.n_fit];
     let v = &tr.v;
