@@ -14,6 +14,8 @@
 //! - [`signal`] — local polynomial smoothing and differentiation of sampled signals.
 //! - [`identify`] — first estimate by inverse dynamics, bounded Levenberg–Marquardt, intervals.
 //! - [`lift`] — the complete pantograph: closed-chain multibody model, lift-test simulation.
+//! - [`quadrangle`] — the lower quadrangle's free swing (Fig 12): four-bar model, stick–slip
+//!   simulation, MAP friction fit of J1, J2, J2′, J3.
 //! - [`drift`] — drift status of identified parameters against the Table 4 baseline.
 //! - [`testspec`] — a test described as data, completed with the pantograph type's defaults.
 //! - [`report`] — the contract's fit result.
@@ -32,6 +34,7 @@ pub mod identify;
 pub mod lift;
 pub mod noise;
 pub mod ode;
+pub mod quadrangle;
 pub mod report;
 pub mod residual;
 pub mod rig;

@@ -1236,6 +1236,28 @@ pub(crate) fn pantograph_state(
     }
 }
 
+/// Rewrites `joint_latest` for the serial `$1` (both dialects): per joint, the point of its
+/// traces' current fits (a trace's most recent fit) that is identifiable first, then latest
+/// recorded, then highest trace id — the rule of the fleet's window query, on one pantograph.
+pub(crate) const JOINT_LATEST_REFRESH_SQL: &str = "INSERT INTO joint_latest
+        (serial, joint, trace_id, fit_id, recorded_at, identifiable, status)
+    SELECT serial, joint, trace_id, fit_id, recorded_at, identifiable, status FROM (
+        SELECT t.serial, j.joint, t.trace_id, f.id AS fit_id, t.recorded_at, j.identifiable,
+               j.status,
+               ROW_NUMBER() OVER (PARTITION BY j.joint
+                                  ORDER BY j.identifiable DESC, t.recorded_at DESC,
+                                           t.trace_id DESC) AS rn
+        FROM traces t
+        JOIN fits f ON f.trace_id = t.trace_id
+                   AND f.id = (SELECT max(f2.id) FROM fits f2 WHERE f2.trace_id = t.trace_id)
+        JOIN fit_joints j ON j.fit_id = f.id
+        WHERE t.serial = $1
+    ) x WHERE rn = 1";
+
+/// A joint's latest state as `joint_latest` holds it: (serial, joint, trace, fit, status).
+#[cfg(test)]
+pub(crate) type LatestRow = (String, String, String, i64, String);
+
 /// Fixed-width UTC text used for SQLite timestamps (text order = time order).
 pub(crate) fn ts_text(t: DateTime<Utc>) -> String {
     t.format("%Y-%m-%dT%H:%M:%S%.6fZ").to_string()

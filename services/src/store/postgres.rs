@@ -54,7 +54,9 @@ macro_rules! current_mount {
     };
 }
 
-/// Fleet rows with the filters `$1` (worst rank) and `$2` (current vehicle).
+/// Fleet rows with the filters `$1` (worst rank) and `$2` (current vehicle), by a window over
+/// every fit: the definition `pantograph_health` is kept equal to (tests compare the two).
+#[cfg(test)]
 macro_rules! fleet_cte {
     () => {
         concat!(
@@ -153,6 +155,130 @@ fn mount_row(r: Option<PgRow>) -> Result<Option<(String, DateTime<Utc>)>> {
         .transpose()
 }
 
+/// Fleet rows from `pantograph_health` with the filters `$1` (worst rank) and `$2` (current
+/// vehicle); `last_test` is looked up only for the page's rows (index `traces_serial`).
+macro_rules! fleet_sql {
+    () => {
+        concat!(
+            "WITH fleet AS (
+                SELECT p.serial, p.model, m.vehicle_id, h.worst, h.not_ok
+                FROM pantographs p
+                LEFT JOIN pantograph_mounts m ON m.serial = p.serial AND ",
+            current_mount!(),
+            " LEFT JOIN pantograph_health h ON h.serial = p.serial
+                WHERE ($1::bigint IS NULL OR h.worst = $1::bigint)
+                  AND ($2::text IS NULL OR m.vehicle_id = $2::text)
+            ) "
+        )
+    };
+}
+
+/// Rewrites the health rows (`joint_latest`, `pantograph_health`) of the trace's pantograph
+/// inside the caller's transaction, which has just written a fit of the trace. The pantograph
+/// row is locked first, so fits of one serial written concurrently refresh one after the other
+/// and the later one (READ COMMITTED: a fresh snapshot per statement) sees the earlier fit.
+async fn refresh_health(conn: &mut PgConnection, trace_id: &str) -> Result<()> {
+    let serial: Option<Option<String>> =
+        query_scalar("SELECT serial FROM traces WHERE trace_id = $1")
+            .bind(trace_id)
+            .fetch_optional(&mut *conn)
+            .await?;
+    let Some(serial) = serial.flatten() else {
+        return Ok(());
+    };
+    query("SELECT serial FROM pantographs WHERE serial = $1 FOR UPDATE")
+        .bind(&serial)
+        .execute(&mut *conn)
+        .await?;
+    query("DELETE FROM joint_latest WHERE serial = $1")
+        .bind(&serial)
+        .execute(&mut *conn)
+        .await?;
+    query(JOINT_LATEST_REFRESH_SQL)
+        .bind(&serial)
+        .execute(&mut *conn)
+        .await?;
+    query("DELETE FROM pantograph_health WHERE serial = $1")
+        .bind(&serial)
+        .execute(&mut *conn)
+        .await?;
+    query(
+        "INSERT INTO pantograph_health (serial, worst, not_ok)
+         SELECT serial,
+                max(CASE status WHEN 'alarm' THEN 3 WHEN 'watch' THEN 2 WHEN 'ok' THEN 1 ELSE 0 END),
+                string_agg(CASE WHEN status <> 'ok' THEN joint || ':' || status END, chr(31))
+         FROM joint_latest WHERE serial = $1 GROUP BY serial",
+    )
+    .bind(&serial)
+    .execute(&mut *conn)
+    .await?;
+    Ok(())
+}
+
+#[cfg(test)]
+impl PgStore {
+    /// The fleet health by the window over every fit (the pre-0004 query), for the tests.
+    pub(crate) async fn fleet_health_by_window(
+        &self,
+        filter: &FleetFilter,
+        page: Page,
+    ) -> Result<FleetPage> {
+        let rank = filter.status.map(Status::rank);
+        let total: i64 = query_scalar(concat!(fleet_cte!(), "SELECT count(*) FROM fleet"))
+            .bind(rank)
+            .bind(&filter.vehicle_id)
+            .fetch_one(&self.pool)
+            .await?;
+        let rows = query(concat!(
+            fleet_cte!(),
+            "SELECT * FROM fleet ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4"
+        ))
+        .bind(rank)
+        .bind(&filter.vehicle_id)
+        .bind(i64::from(page.limit))
+        .bind(i64::try_from(page.offset).unwrap_or(i64::MAX))
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(fleet_row_from)
+        .collect::<Result<Vec<_>>>()?;
+        Ok(FleetPage {
+            total: u64::try_from(total).unwrap_or(0),
+            rows,
+        })
+    }
+
+    /// Each joint's latest state by the window (left) and from `joint_latest` (right), sorted.
+    pub(crate) async fn latest_both_ways(&self) -> Result<(Vec<LatestRow>, Vec<LatestRow>)> {
+        let window = query(concat!(
+            points_cte!(""),
+            "SELECT serial, joint, trace_id, fit_id, status FROM pts WHERE rn = 1
+             ORDER BY serial, joint"
+        ))
+        .fetch_all(&self.pool)
+        .await?;
+        let table = query(
+            "SELECT serial, joint, trace_id, fit_id, status FROM joint_latest ORDER BY serial, joint",
+        )
+        .fetch_all(&self.pool)
+        .await?;
+        let rows = |v: Vec<PgRow>| -> Result<Vec<LatestRow>> {
+            v.iter()
+                .map(|r| {
+                    Ok((
+                        r.text("serial")?,
+                        r.text("joint")?,
+                        r.text("trace_id")?,
+                        r.int("fit_id")?,
+                        r.text("status")?,
+                    ))
+                })
+                .collect()
+        };
+        Ok((rows(window)?, rows(table)?))
+    }
+}
+
 /// Writes the fit for (trace, model version) once, inside the caller's transaction.
 async fn insert_fit_tx(
     conn: &mut PgConnection,
@@ -206,6 +332,7 @@ async fn insert_fit_tx(
         .execute(&mut *conn)
         .await?;
     }
+    refresh_health(conn, trace_id).await?;
     Ok(FitWrite {
         fit_id,
         created: true,
@@ -523,14 +650,17 @@ impl Backend for PgStore {
 
     async fn fleet_health(&self, filter: &FleetFilter, page: Page) -> Result<FleetPage> {
         let rank = filter.status.map(Status::rank);
-        let total: i64 = query_scalar(concat!(fleet_cte!(), "SELECT count(*) FROM fleet"))
+        let total: i64 = query_scalar(concat!(fleet_sql!(), "SELECT count(*) FROM fleet"))
             .bind(rank)
             .bind(&filter.vehicle_id)
             .fetch_one(&self.pool)
             .await?;
         let rows = query(concat!(
-            fleet_cte!(),
-            "SELECT * FROM fleet ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4"
+            fleet_sql!(),
+            "SELECT fleet.*,
+                    (SELECT max(t.recorded_at) FROM traces t WHERE t.serial = fleet.serial)
+                        AS last_test
+             FROM fleet ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4"
         ))
         .bind(rank)
         .bind(&filter.vehicle_id)

@@ -152,6 +152,7 @@ contract!(
     alert_raises_race_to_one_alert,
     webhook_outbox_claim_retry_finish,
     latest_informed_verdict_wins,
+    health_table_agrees_with_window,
 );
 
 // ---------------------------------------------------------------- fixtures
@@ -1688,4 +1689,153 @@ async fn latest_informed_verdict_wins(store: &Store) {
             .len(),
         3
     );
+}
+
+/// `joint_latest` / `pantograph_health` (kept at each fit write) against the window over every
+/// fit they replace: equal after out-of-order uploads, re-fits by a new model version (which
+/// may drop a joint or make it unidentifiable), mount moves, fits written concurrently for one
+/// pantograph, and for every filter and page.
+async fn health_table_agrees_with_window(store: &Store) {
+    async fn agree(store: &Store, step: &str) {
+        let (window, table) = match store {
+            Store::Sqlite(s) => s.latest_both_ways().await,
+            Store::Postgres(s) => s.latest_both_ways().await,
+        }
+        .expect("latest both ways");
+        assert!(!window.is_empty(), "{step}: the window found no joint");
+        assert_eq!(
+            table, window,
+            "{step}: joint_latest differs from the window"
+        );
+        let filters = [
+            None,
+            Some(Status::Alarm),
+            Some(Status::Watch),
+            Some(Status::Ok),
+            Some(Status::Unknown),
+        ]
+        .into_iter()
+        .flat_map(|s| {
+            [None, Some("VA"), Some("VB")].map(move |v| FleetFilter {
+                status: s,
+                vehicle_id: v.map(str::to_owned),
+            })
+        });
+        for f in filters {
+            for page in [
+                Page::default(),
+                Page {
+                    limit: 2,
+                    offset: 0,
+                },
+                Page {
+                    limit: 2,
+                    offset: 3,
+                },
+            ] {
+                let new = store.fleet_health(&f, page).await.expect("fleet");
+                let old = match store {
+                    Store::Sqlite(s) => s.fleet_health_by_window(&f, page).await,
+                    Store::Postgres(s) => s.fleet_health_by_window(&f, page).await,
+                }
+                .expect("fleet by window");
+                assert_eq!(new, old, "{step}: fleet health differs for {f:?} {page:?}");
+            }
+        }
+    }
+    const STATUSES: [Status; 4] = [Status::Ok, Status::Watch, Status::Alarm, Status::Unknown];
+    const JOINTS: [&str; 4] = ["J1", "J2", "J3", "J5"];
+    // A small deterministic generator: which joints a fit has and their statuses.
+    let mut seed: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut next = move || {
+        seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+        (seed >> 33) as usize
+    };
+    let mut fitted = Vec::new();
+    // Five pantographs, months uploaded out of order (month 3 before month 1).
+    for month in [3, 1, 2, 5, 4] {
+        for p in 0..5 {
+            let id = format!("P{p}-m{month}");
+            let vehicle = if p < 3 { "VA" } else { "VB" };
+            let when = format!("2026-0{month}-0{}T08:00:00Z", p + 1);
+            insert_ok(store, trace(&id, vehicle, Some(&format!("P{p}")), &when)).await;
+            let n = 1 + next() % 3;
+            let joints: Vec<(&str, Status)> = (0..n)
+                .map(|k| (JOINTS[(next() + k) % 4], STATUSES[next() % 4]))
+                .collect::<BTreeMap<_, _>>()
+                .into_iter()
+                .collect();
+            store
+                .insert_fit(&id, "v1", &fit(&id, &joints))
+                .await
+                .expect("fit");
+            fitted.push(id);
+        }
+    }
+    // A pantograph with a trace but no fit yet, and a trace without a serial.
+    insert_ok(
+        store,
+        trace("P9-m1", "VB", Some("P9"), "2026-01-09T08:00:00Z"),
+    )
+    .await;
+    let (anon, _) = insert_ok(store, trace("anon", "VA", None, "2026-01-09T08:00:00Z")).await;
+    store
+        .insert_fit(&anon, "v1", &fit(&anon, &[("J1", Status::Alarm)]))
+        .await
+        .expect("fit");
+    agree(store, "after first fits").await;
+
+    // Re-fits by a new model version: the newest fit of a trace replaces its points, even when it
+    // drops a joint or can no longer identify it.
+    for id in fitted.iter().step_by(3) {
+        let joints = [(JOINTS[next() % 4], STATUSES[next() % 4])];
+        store
+            .insert_fit(id, "v2", &fit(id, &joints))
+            .await
+            .expect("re-fit");
+    }
+    // Writing an existing (trace, version) again changes nothing.
+    let w = store
+        .insert_fit(&fitted[0], "v2", &fit(&fitted[0], &[("J1", Status::Alarm)]))
+        .await
+        .expect("again");
+    assert!(!w.created);
+    agree(store, "after re-fits").await;
+
+    // P1 moves to VB; a later month of P0 arrives.
+    insert_ok(
+        store,
+        trace("P1-m6", "VB", Some("P1"), "2026-06-02T08:00:00Z"),
+    )
+    .await;
+    store
+        .insert_fit("P1-m6", "v1", &fit("P1-m6", &[("J2", Status::Watch)]))
+        .await
+        .expect("fit");
+    agree(store, "after a move").await;
+
+    // Fits of one pantograph written concurrently (PostgreSQL: the pantograph row lock orders
+    // the refreshes; SQLite: BEGIN IMMEDIATE).
+    let mut ids = Vec::new();
+    for d in 1..=8 {
+        let id = format!("P2-c{d}");
+        insert_ok(
+            store,
+            trace(&id, "VA", Some("P2"), &format!("2026-07-0{d}T08:00:00Z")),
+        )
+        .await;
+        ids.push(id);
+    }
+    let writes = ids.iter().enumerate().map(|(k, id)| {
+        let store = store.clone();
+        let id = id.clone();
+        tokio::spawn(async move {
+            let joints = [("J1", STATUSES[k % 4]), ("J3", STATUSES[(k + 1) % 4])];
+            store.insert_fit(&id, "v1", &fit(&id, &joints)).await
+        })
+    });
+    for w in writes.collect::<Vec<_>>() {
+        w.await.expect("task").expect("concurrent fit");
+    }
+    agree(store, "after concurrent fits").await;
 }
