@@ -36,6 +36,8 @@ enum Command {
     Bench(cli::bench::BenchArgs),
     /// Fit the shared example traces and show the results against their truth.
     Examples,
+    /// Concurrent uploaders against a running service, then a read-back check (counts, SHA-256).
+    Load(Box<cli::load::LoadArgs>),
 }
 
 fn main() {
@@ -70,6 +72,7 @@ fn main() {
             init_logging(&LogSettings::default());
             cli::examples::run(&thresholds)
         }
+        Command::Load(a) => cli::load::run(*a),
     };
     if let Err(e) = res {
         eprintln!("error: {e:#}");
