@@ -112,3 +112,46 @@ async fn a_worker_killed_mid_fit_has_its_job_run_again_and_written_once() {
     );
     store.close().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigterm_past_the_grace_period_releases_the_running_job() {
+    let db = fresh_db(Backend::Postgres).await;
+    let store = Store::connect(&db.url).await.expect("store");
+    let intake = Intake::new(store.clone(), Arc::new(Notify::new()));
+    let id = intake
+        .upload(
+            BodyFormat::Json,
+            with_id(&shared_json("reference/lift-example.json"), "term-0").into(),
+        )
+        .await
+        .expect("upload")
+        .trace_id;
+    let env = [("PANTOWATCH__WORKER__SHUTDOWN_GRACE_MS", "0")];
+    let mut w = procs::spawn("worker", &["worker", "--workers", "1"], &db.url, &env);
+    wait_until("the job running", Duration::from_secs(60), || async {
+        let j = jobs(&store, std::slice::from_ref(&id)).await.remove(0);
+        (j.state == JobState::Running).then_some(())
+    })
+    .await;
+    let t0 = Instant::now();
+    let st = w.terminate(Duration::from_secs(30));
+    let stopped_in = t0.elapsed();
+    assert!(st.success(), "exit after SIGTERM: {st}");
+    let j = jobs(&store, std::slice::from_ref(&id)).await.remove(0);
+    if j.state == JobState::Done {
+        // The fit ended between the look and the signal: nothing to release (rare).
+        eprintln!("SIGTERM drill: the fit finished before the signal; job done");
+    } else {
+        assert_eq!(
+            (j.state, j.attempts, j.worker.as_deref()),
+            (JobState::Queued, 0, None),
+            "{j:?}"
+        );
+        assert_eq!(w.count("released to the queue"), 1, "{:?}", w.log());
+        eprintln!(
+            "SIGTERM drill: grace 0, running job released (attempts 0), process exited 0 in {:.2} s",
+            stopped_in.as_secs_f64()
+        );
+    }
+    store.close().await;
+}

@@ -225,3 +225,31 @@ async fn a_request_in_flight_at_shutdown_is_answered() {
     );
     store.close().await;
 }
+
+#[test]
+fn grace_and_acquire_timeout_are_settings_and_zero_timeout_is_refused() {
+    let env = |pairs: &[(&str, &str)]| -> Vec<(String, String)> {
+        pairs
+            .iter()
+            .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
+            .collect()
+    };
+    let s = Settings::load_from(
+        None,
+        env(&[
+            ("PANTOWATCH__WORKER__SHUTDOWN_GRACE_MS", "250"),
+            ("PANTOWATCH__DATABASE__ACQUIRE_TIMEOUT_MS", "400"),
+        ]),
+    )
+    .expect("settings");
+    assert_eq!(s.shutdown_grace(), Duration::from_millis(250));
+    assert_eq!(s.pool_options().acquire_timeout, Duration::from_millis(400));
+    let o = pantowatch::server::worker_options(&s, 1);
+    assert_eq!(o.shutdown_grace, Duration::from_millis(250));
+    let e = Settings::load_from(
+        None,
+        env(&[("PANTOWATCH__DATABASE__ACQUIRE_TIMEOUT_MS", "0")]),
+    )
+    .expect_err("0 ms refused");
+    assert!(e.to_string().contains("database.acquire_timeout_ms"), "{e}");
+}
