@@ -123,6 +123,9 @@ impl Default for WebSettings {
 pub struct DatabaseSettings {
     /// `postgres://…` for PostgreSQL; otherwise a SQLite file path (created if missing).
     pub url: SecretString,
+    /// Longest wait for a database connection, milliseconds; past it (database down, pool
+    /// exhausted) a request is answered 503 with `Retry-After` instead of hanging.
+    pub acquire_timeout_ms: u64,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -132,6 +135,9 @@ pub struct WorkerSettings {
     pub lease_secs: u64,
     /// How often an idle worker looks for jobs queued by other processes, milliseconds.
     pub poll_ms: u64,
+    /// On shutdown a running fit may finish within this many milliseconds; then its job is
+    /// released to the queue (not counted as an attempt) and the process stops.
+    pub shutdown_grace_ms: u64,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -192,6 +198,7 @@ impl Default for DatabaseSettings {
     fn default() -> Self {
         DatabaseSettings {
             url: SecretString::new("pantowatch.db"),
+            acquire_timeout_ms: 1000,
         }
     }
 }
@@ -201,6 +208,7 @@ impl Default for WorkerSettings {
         WorkerSettings {
             lease_secs: 60,
             poll_ms: 500,
+            shutdown_grace_ms: 8_000,
         }
     }
 }
@@ -335,6 +343,9 @@ impl Settings {
         if self.database.url.expose_secret().trim().is_empty() {
             return Err("database.url is empty".into());
         }
+        if self.database.acquire_timeout_ms == 0 {
+            return Err("database.acquire_timeout_ms must be > 0".into());
+        }
         if self.worker.lease_secs == 0 || self.worker.poll_ms == 0 {
             return Err("worker.lease_secs and worker.poll_ms must be > 0".into());
         }
@@ -375,6 +386,18 @@ impl Settings {
 
     pub fn poll(&self) -> Duration {
         Duration::from_millis(self.worker.poll_ms)
+    }
+
+    /// How long a shutdown waits for a running fit before releasing its job.
+    pub fn shutdown_grace(&self) -> Duration {
+        Duration::from_millis(self.worker.shutdown_grace_ms)
+    }
+
+    /// The store's pool options.
+    pub fn pool_options(&self) -> crate::store::PoolOptions {
+        crate::store::PoolOptions {
+            acquire_timeout: Duration::from_millis(self.database.acquire_timeout_ms),
+        }
     }
 }
 

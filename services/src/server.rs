@@ -23,6 +23,7 @@ pub fn worker_options(settings: &Settings, workers: usize) -> WorkerOptions {
         workers,
         lease: settings.lease(),
         poll: settings.poll(),
+        shutdown_grace: settings.shutdown_grace(),
         thresholds: settings.thresholds(),
         alerts: AlertOptions {
             horizon_days: settings.alerts.horizon_days,

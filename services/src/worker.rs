@@ -2,7 +2,8 @@
 //! fit off the async runtime (`spawn_blocking`) and write each result once with `complete`.
 //!
 //! A worker that dies keeps its job only until the lease runs out; then another claims it.
-//! On shutdown a worker finishes the fit it is running (milliseconds) and stops.
+//! On shutdown a worker finishes the fit it is running if it ends within the grace period, else
+//! (and for a job claimed but not started) it releases the job to the queue, then stops.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -25,6 +26,8 @@ pub struct WorkerOptions {
     pub lease: Duration,
     /// Idle poll interval (jobs queued by other processes; in-process uploads wake at once).
     pub poll: Duration,
+    /// After shutdown starts, how long a running fit may take before its job is released.
+    pub shutdown_grace: Duration,
     pub thresholds: DriftThresholds,
     /// The alert rules run after each fit written.
     pub alerts: AlertOptions,
@@ -45,6 +48,8 @@ pub enum JobEvent {
     Failed { trace_id: String, error: String },
     /// Another worker took the job over after this one's lease ran out: nothing written.
     LeaseLost { trace_id: String },
+    /// Shutdown: the job went back to the queue unfinished (attempt not counted).
+    Released { trace_id: String },
 }
 
 /// Called after every job (the demo's progress bar; only the CLI knows about terminals).
@@ -118,7 +123,7 @@ async fn run_worker(
         let notified = wake.notified();
         tokio::pin!(notified);
         notified.as_mut().enable();
-        match process_next(&store, &id, &opts).await {
+        match process_next(&store, &id, &opts, &shutdown).await {
             Ok(Some(ev)) => {
                 backoff = opts.poll;
                 if let Some(cb) = &on_job {
@@ -148,11 +153,13 @@ async fn run_worker(
     tracing::debug!(worker = %id, "worker stopped");
 }
 
-/// Claims one job and processes it; `None` when the queue is empty.
+/// Claims one job and processes it; `None` when the queue is empty. Once `shutdown` is true a
+/// job not yet started is released, and a running fit gets `opts.shutdown_grace` to finish.
 pub async fn process_next(
     store: &Store,
     worker: &str,
     opts: &WorkerOptions,
+    shutdown: &watch::Receiver<bool>,
 ) -> Result<Option<JobEvent>, StoreError> {
     let Some(job) = store.claim(worker, opts.lease).await? else {
         return Ok(None);
@@ -170,10 +177,25 @@ pub async fn process_next(
         Ok(d) => d,
         Err(msg) => return fail(store, worker, job.id, trace_id, msg).await.map(Some),
     };
+    if *shutdown.borrow() {
+        return release(store, worker, job.id, trace_id, "before its fit started")
+            .await
+            .map(Some);
+    }
     let thresholds = opts.thresholds;
     let t0 = Instant::now();
-    let fitted =
-        tokio::task::spawn_blocking(move || fitting::fit_document(&doc, &thresholds)).await;
+    let mut fit_task =
+        tokio::task::spawn_blocking(move || fitting::fit_document(&doc, &thresholds));
+    let fitted = tokio::select! {
+        r = &mut fit_task => r,
+        () = grace_over(shutdown.clone(), opts.shutdown_grace) => {
+            // The blocking fit cannot be interrupted: it keeps its thread until it returns and
+            // its result is dropped; the process exit ends it.
+            return release(store, worker, job.id, trace_id, "its fit outlasted the shutdown grace period")
+                .await
+                .map(Some);
+        }
+    };
     let fit_seconds = t0.elapsed().as_secs_f64();
     metrics::histogram!("pantowatch_fit_duration_seconds").record(fit_seconds);
     let result = match fitted {
@@ -238,6 +260,39 @@ pub async fn process_next(
                 .increment(1);
             tracing::warn!(job = job.id, trace = %trace_id, "lease lost: another worker took the job");
             Ok(Some(JobEvent::LeaseLost { trace_id }))
+        }
+    }
+}
+
+/// Resolves `grace` after shutdown starts (never if the shutdown sender is gone unsent).
+async fn grace_over(mut shutdown: watch::Receiver<bool>, grace: Duration) {
+    if shutdown.wait_for(|s| *s).await.is_err() {
+        std::future::pending::<()>().await;
+    }
+    tokio::time::sleep(grace).await;
+}
+
+/// Gives the job back to the queue at shutdown; a failed release is logged (the lease expiry
+/// hands the job on instead).
+async fn release(
+    store: &Store,
+    worker: &str,
+    job_id: i64,
+    trace_id: String,
+    why: &str,
+) -> Result<JobEvent, StoreError> {
+    match store.release(job_id, worker).await {
+        Ok(true) => {
+            metrics::counter!("pantowatch_jobs_processed_total", "outcome" => "released")
+                .increment(1);
+            tracing::info!(job = job_id, trace = %trace_id, "shutdown: job released to the queue {why}");
+            Ok(JobEvent::Released { trace_id })
+        }
+        Ok(false) => Ok(JobEvent::LeaseLost { trace_id }),
+        Err(e) => {
+            tracing::warn!(job = job_id, trace = %trace_id, error = %e,
+                "shutdown: could not release the job; it is claimable again when its lease expires");
+            Err(e)
         }
     }
 }

@@ -2,7 +2,8 @@
 //! (`application/problem+json`: `type`, `title`, `status`, `detail`, `field`).
 //!
 //! Server faults are logged with `tracing` and answered without details; user input never
-//! produces a 5xx.
+//! produces a 5xx. Database faults an operator can act on are named: unavailable (503 with
+//! `Retry-After`), read-only (503), full (507).
 
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -11,7 +12,7 @@ use utoipa::ToSchema;
 
 use crate::ids::IdError;
 use crate::ingest::IngestError;
-use crate::store::StoreError;
+use crate::store::{DbFault, StoreError};
 use crate::trace::TraceError;
 
 /// Media type of every error answer.
@@ -75,6 +76,12 @@ pub enum AppError {
     MethodNotAllowed(String),
     #[error("{0}")]
     Unavailable(String),
+    /// The database refuses writes (read-only file, database or standby).
+    #[error("{0}")]
+    ReadOnly(String),
+    /// The database has no space left for the write.
+    #[error("{0}")]
+    StorageFull(String),
     #[error("request took longer than {0} s")]
     Timeout(u64),
     /// A server fault: logged, never shown.
@@ -125,6 +132,16 @@ impl AppError {
                 "unavailable",
                 "Service unavailable",
             ),
+            ReadOnly(_) => (
+                StatusCode::SERVICE_UNAVAILABLE,
+                "database-read-only",
+                "Database is read-only",
+            ),
+            StorageFull(_) => (
+                StatusCode::INSUFFICIENT_STORAGE,
+                "database-full",
+                "Database is full",
+            ),
             Timeout(_) => (
                 StatusCode::SERVICE_UNAVAILABLE,
                 "timeout",
@@ -135,6 +152,17 @@ impl AppError {
                 "internal",
                 "Internal server error",
             ),
+        }
+    }
+
+    /// Seconds a client should wait before retrying, for answers that say "not now".
+    pub fn retry_after_s(&self) -> Option<u32> {
+        match self {
+            // A restarting database is usually back within seconds.
+            AppError::Unavailable(_) | AppError::Timeout(_) => Some(1),
+            // Someone has to act (free space, lift read-only): poll slowly.
+            AppError::ReadOnly(_) | AppError::StorageFull(_) => Some(30),
+            _ => None,
         }
     }
 
@@ -190,7 +218,12 @@ impl IntoResponse for AppError {
         if let AppError::Internal(e) = &self {
             tracing::error!(error = %e, "request failed");
         }
-        problem_response(&self.problem())
+        let mut resp = problem_response(&self.problem());
+        if let Some(s) = self.retry_after_s() {
+            resp.headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(s));
+        }
+        resp
     }
 }
 
@@ -203,7 +236,18 @@ impl From<StoreError> for AppError {
                 field: None,
                 detail: m,
             },
-            other => AppError::Internal(other.to_string()),
+            other => match other.fault() {
+                Some(f) => {
+                    tracing::warn!(error = %other, "database fault: {}", f.describe());
+                    let detail = f.describe().to_owned();
+                    match f {
+                        DbFault::Unavailable => AppError::Unavailable(detail),
+                        DbFault::ReadOnly => AppError::ReadOnly(detail),
+                        DbFault::Full => AppError::StorageFull(detail),
+                    }
+                }
+                None => AppError::Internal(other.to_string()),
+            },
         }
     }
 }

@@ -41,7 +41,7 @@ pub async fn open_store(s: &Settings) -> anyhow::Result<Store> {
         database = backend_name(&s.database.url),
         "opening the database"
     );
-    Store::connect(s.database.url.expose_secret())
+    Store::connect_with(s.database.url.expose_secret(), s.pool_options())
         .await
         .with_context(|| format!("opening the {} database", backend_name(&s.database.url)))
 }
@@ -74,7 +74,8 @@ pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
     if let Some(w) = a.workers {
         s.workers = w;
     }
-    runtime()?.block_on(async {
+    let rt = runtime()?;
+    let res = rt.block_on(async {
         let store = open_store(&s).await?;
         let listener = tokio::net::TcpListener::bind(s.listen)
             .await
@@ -83,8 +84,14 @@ pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
         let res = server::run(listener, store.clone(), &s, server::shutdown_signal()).await;
         store.close().await;
         res
-    })
+    });
+    // A fit abandoned after the grace period (its job released) must not hold the exit.
+    rt.shutdown_timeout(ABANDONED_FIT_WAIT);
+    res
 }
+
+/// How long the exit waits for blocking work left running after the shutdown grace period.
+const ABANDONED_FIT_WAIT: std::time::Duration = std::time::Duration::from_millis(200);
 
 #[derive(Debug, clap::Args)]
 pub struct WorkerArgs {
@@ -101,10 +108,13 @@ pub fn worker(a: WorkerArgs) -> anyhow::Result<()> {
     if n == 0 {
         anyhow::bail!("`pantowatch worker` with 0 workers has nothing to do (--workers N)");
     }
-    runtime()?.block_on(async {
+    let rt = runtime()?;
+    rt.block_on(async {
         let store = open_store(&s).await?;
         server::run_workers(store.clone(), &s, n, server::shutdown_signal()).await;
         store.close().await;
-        Ok(())
-    })
+        anyhow::Ok(())
+    })?;
+    rt.shutdown_timeout(ABANDONED_FIT_WAIT);
+    Ok(())
 }

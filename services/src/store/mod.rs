@@ -14,6 +14,7 @@
 //! - A worker *holds* a job while the job is `running` under its worker id: once another worker
 //!   has reclaimed an expired lease, the first worker's `complete`/`fail` are no-ops.
 
+mod fault;
 pub mod keys;
 mod postgres;
 pub mod samples;
@@ -27,6 +28,7 @@ use std::time::Duration;
 use chrono::{DateTime, SubsecRound, Utc};
 use serde::{Deserialize, Serialize};
 
+pub use fault::DbFault;
 pub use postgres::PgStore;
 pub use samples::{Channels, CodecError};
 pub use sqlite::SqliteStore;
@@ -63,6 +65,22 @@ pub enum StoreError {
 impl From<getrandom::Error> for StoreError {
     fn from(e: getrandom::Error) -> Self {
         StoreError::Rng(e.to_string())
+    }
+}
+
+/// How the connection pool waits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PoolOptions {
+    /// Longest wait for a connection (a free one, or a new one while the server refuses):
+    /// past it the operation fails with [`DbFault::Unavailable`] instead of hanging.
+    pub acquire_timeout: Duration,
+}
+
+impl Default for PoolOptions {
+    fn default() -> Self {
+        PoolOptions {
+            acquire_timeout: Duration::from_secs(1),
+        }
     }
 }
 
@@ -590,6 +608,7 @@ pub(crate) trait Backend {
         error: &str,
         retry: bool,
     ) -> impl Future<Output = Result<FailOutcome>> + Send;
+    fn release(&self, job_id: i64, worker: &str) -> impl Future<Output = Result<bool>> + Send;
     fn requeue(
         &self,
         vehicle_id: Option<&str>,
@@ -683,10 +702,15 @@ impl Store {
     /// `sqlite:` URL, created if missing (WAL, foreign keys on, `synchronous=FULL` so that an
     /// accepted upload survives a power cut).
     pub async fn connect(url: &str) -> Result<Store> {
+        Self::connect_with(url, PoolOptions::default()).await
+    }
+
+    /// As [`Store::connect`] with explicit pool options.
+    pub async fn connect_with(url: &str, pool: PoolOptions) -> Result<Store> {
         if url.starts_with("postgres://") || url.starts_with("postgresql://") {
-            Ok(Store::Postgres(PgStore::connect(url).await?))
+            Ok(Store::Postgres(PgStore::connect(url, pool).await?))
         } else {
-            Ok(Store::Sqlite(SqliteStore::connect(url).await?))
+            Ok(Store::Sqlite(SqliteStore::connect(url, pool).await?))
         }
     }
 
@@ -798,6 +822,13 @@ impl Store {
         retry: bool,
     ) -> Result<FailOutcome> {
         dispatch!(self, s => s.fail(job_id, worker, error, retry).await)
+    }
+
+    /// Gives a job this worker holds back to the queue without counting the attempt (shutdown:
+    /// claimed but not started, or the grace period ran out mid-fit). False when `worker` no
+    /// longer holds it (nothing written).
+    pub async fn release(&self, job_id: i64, worker: &str) -> Result<bool> {
+        dispatch!(self, s => s.release(job_id, worker).await)
     }
 
     /// Queues a fit at `model_version` for every trace without one; returns jobs created.

@@ -103,10 +103,12 @@ pub struct PgStore {
 
 impl PgStore {
     /// Connects to the `postgres://` URL and migrates (concurrent migrators take a lock).
-    pub async fn connect(url: &str) -> Result<Self> {
+    /// While the server is down every operation fails after `opts.acquire_timeout`; pooled
+    /// connections are tested before use, so the pool heals by itself when it is back.
+    pub async fn connect(url: &str, opts: PoolOptions) -> Result<Self> {
         let pool = PgPoolOptions::new()
             .max_connections(10)
-            .acquire_timeout(Duration::from_secs(10))
+            .acquire_timeout(opts.acquire_timeout)
             .connect(url)
             .await?;
         MIGRATOR.run(&pool).await?;
@@ -800,6 +802,22 @@ impl Backend for PgStore {
         .await?;
         tx.commit().await?;
         Ok(outcome)
+    }
+
+    async fn release(&self, job_id: i64, worker: &str) -> Result<bool> {
+        // The claim counted an attempt; a release is not a failure, so it is given back.
+        let n = query(concat!(
+            "UPDATE jobs SET state = 'queued', attempts = GREATEST(attempts - 1, 0), worker = NULL,
+                             lease_until = NULL, updated_at = ",
+            now!(),
+            " WHERE id = $1 AND state = 'running' AND worker = $2"
+        ))
+        .bind(job_id)
+        .bind(worker)
+        .execute(&self.pool)
+        .await?
+        .rows_affected();
+        Ok(n == 1)
     }
 
     async fn requeue(&self, vehicle_id: Option<&str>, model_version: &str) -> Result<u64> {

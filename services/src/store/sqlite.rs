@@ -105,7 +105,10 @@ pub struct SqliteStore {
 
 impl SqliteStore {
     /// Opens (creating if missing) the file at `url` (a path or `sqlite:` URL) and migrates.
-    pub async fn connect(url: &str) -> Result<Self> {
+    /// Pool waits on a file are bounded by `pool_opts.acquire_timeout`, lock waits by the 30 s
+    /// busy timeout. An in-memory database (one connection, no outage possible) keeps sqlx's
+    /// 30 s acquire wait: its callers queue on the one connection by design.
+    pub async fn connect(url: &str, pool_opts: PoolOptions) -> Result<Self> {
         let opts = if url.starts_with("sqlite:") {
             SqliteConnectOptions::from_str(url)?
         } else {
@@ -126,7 +129,9 @@ impl SqliteStore {
                 .idle_timeout(None)
                 .max_lifetime(None)
         } else {
-            SqlitePoolOptions::new().max_connections(8)
+            SqlitePoolOptions::new()
+                .max_connections(8)
+                .acquire_timeout(pool_opts.acquire_timeout)
         }
         .connect_with(opts)
         .await?;
@@ -789,6 +794,22 @@ impl Backend for SqliteStore {
         .await?;
         tx.commit().await?;
         Ok(outcome)
+    }
+
+    async fn release(&self, job_id: i64, worker: &str) -> Result<bool> {
+        // The claim counted an attempt; a release is not a failure, so it is given back.
+        let n = query(concat!(
+            "UPDATE jobs SET state = 'queued', attempts = MAX(attempts - 1, 0), worker = NULL,
+                             lease_until = NULL, updated_at = ",
+            now!(),
+            " WHERE id = $1 AND state = 'running' AND worker = $2"
+        ))
+        .bind(job_id)
+        .bind(worker)
+        .execute(&self.pool)
+        .await?
+        .rows_affected();
+        Ok(n == 1)
     }
 
     async fn requeue(&self, vehicle_id: Option<&str>, model_version: &str) -> Result<u64> {

@@ -119,7 +119,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
                     failed.fetch_add(1, Ordering::Relaxed);
                     bar.set_message(format!("{} failed", failed.load(Ordering::Relaxed)));
                 }
-                JobEvent::LeaseLost { .. } => return,
+                JobEvent::LeaseLost { .. } | JobEvent::Released { .. } => return,
                 JobEvent::Done { .. } => {}
             }
             bar.inc(1);
@@ -130,6 +130,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
         workers: 2,
         database: crate::config::DatabaseSettings {
             url: SecretString::new(db.clone()),
+            ..Default::default()
         },
         ..Settings::default()
     };
