@@ -165,6 +165,12 @@ pub async fn process_next(
         return Ok(None);
     };
     let trace_id = job.trace_id.clone();
+    // Shutdown between the claim and the start of the work: give the job back untouched.
+    if *shutdown.borrow() {
+        return release(store, worker, job.id, trace_id, "before its fit started")
+            .await
+            .map(Some);
+    }
     let doc = match (
         store.get_trace(&trace_id).await?,
         load_samples(store, &trace_id).await?,
@@ -177,11 +183,6 @@ pub async fn process_next(
         Ok(d) => d,
         Err(msg) => return fail(store, worker, job.id, trace_id, msg).await.map(Some),
     };
-    if *shutdown.borrow() {
-        return release(store, worker, job.id, trace_id, "before its fit started")
-            .await
-            .map(Some);
-    }
     let thresholds = opts.thresholds;
     let t0 = Instant::now();
     let mut fit_task =

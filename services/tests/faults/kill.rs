@@ -121,7 +121,7 @@ async fn sigterm_past_the_grace_period_releases_the_running_job() {
     let id = intake
         .upload(
             BodyFormat::Json,
-            with_id(&shared_json("reference/lift-example.json"), "term-0").into(),
+            with_id(&procs::slow_lift(), "term-0").into(),
         )
         .await
         .expect("upload")

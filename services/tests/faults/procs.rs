@@ -142,6 +142,29 @@ pub fn shared_json(rel: &str) -> Value {
     serde_json::from_slice(&crate::harness::shared(rel)).expect("shared JSON")
 }
 
+/// A lift trace whose fit is slow enough to be caught running (raise and lower: ~0.8 s on an
+/// idle core, several seconds under load), simulated by `pantowatch simulate`.
+pub fn slow_lift() -> Value {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("raise-and-lower.json");
+    let st = Command::new(env!("CARGO_BIN_EXE_pantowatch"))
+        .args([
+            "simulate",
+            "--kind",
+            "lift",
+            "--protocol",
+            "raise-and-lower",
+            "-o",
+        ])
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .expect("pantowatch simulate");
+    assert!(st.success(), "pantowatch simulate --kind lift: {st}");
+    serde_json::from_slice(&std::fs::read(&out).expect("read")).expect("lift JSON")
+}
+
 /// `doc` with another `trace_id` (a distinct trace, same samples).
 pub fn with_id(doc: &Value, id: &str) -> Vec<u8> {
     let mut d = doc.clone();

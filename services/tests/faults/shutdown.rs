@@ -13,7 +13,7 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::sync::{Notify, watch};
 
 use crate::harness::{Backend, Opts, fresh_db, spawn_app_with};
-use crate::procs::{shared_json, wait_until, with_id};
+use crate::procs::{shared_json, slow_lift, wait_until, with_id};
 
 async fn upload(store: &Store, doc: &serde_json::Value, id: &str) -> String {
     Intake::new(store.clone(), Arc::new(Notify::new()))
@@ -102,8 +102,8 @@ async fn postgres_claimed_job_is_released_uncounted() {
     claimed_job_is_released_uncounted(Backend::Postgres).await;
 }
 
-/// Starts one worker, uploads a lift trace (a fit of ~0.2–1 s), waits until it runs, stops the
-/// pool; returns the trace id and how long the pool took to stop.
+/// Starts one worker, uploads a slow lift trace, waits until its fit runs, stops the pool;
+/// returns the trace id and how long the pool took to stop.
 async fn stop_during_fit(store: &Store, grace: Duration, id: &str) -> (String, Duration) {
     let (tx, rx) = watch::channel(false);
     let pool = WorkerPool::spawn(
@@ -113,7 +113,7 @@ async fn stop_during_fit(store: &Store, grace: Duration, id: &str) -> (String, D
         rx,
         None,
     );
-    let id = upload(store, &shared_json("reference/lift-example.json"), id).await;
+    let id = upload(store, &slow_lift(), id).await;
     wait_until("the job running", Duration::from_secs(30), || async {
         let j = job_of(store, &id).await;
         (j.state == JobState::Running).then_some(())
@@ -121,7 +121,7 @@ async fn stop_during_fit(store: &Store, grace: Duration, id: &str) -> (String, D
     .await;
     let t0 = std::time::Instant::now();
     tx.send(true).expect("signal");
-    tokio::time::timeout(Duration::from_secs(30), pool.join())
+    tokio::time::timeout(grace + Duration::from_secs(30), pool.join())
         .await
         .expect("the pool stops");
     (id, t0.elapsed())
@@ -156,11 +156,11 @@ async fn a_fit_outlasting_the_grace_period_has_its_job_released() {
 async fn a_fit_within_the_grace_period_is_written() {
     let db = fresh_db(Backend::Sqlite).await;
     let store = Store::connect(&db.url).await.expect("store");
-    let (id, stopped_in) = stop_during_fit(&store, Duration::from_secs(30), "grace-in").await;
+    let (id, stopped_in) = stop_during_fit(&store, Duration::from_secs(90), "grace-in").await;
     let job = job_of(&store, &id).await;
     assert_eq!((job.state, job.attempts), (JobState::Done, 1), "{job:?}");
     assert!(store.get_fit(&id).await.expect("fit").is_some());
-    eprintln!("grace 30 s: pool stopped {stopped_in:?} after the signal, fit written");
+    eprintln!("grace 90 s: pool stopped {stopped_in:?} after the signal, fit written");
     store.close().await;
 }
 
