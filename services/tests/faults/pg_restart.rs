@@ -19,8 +19,10 @@ use crate::procs::{shared_json, wait_until, with_id};
 const OUTAGE: Duration = Duration::from_secs(4);
 /// Concurrent upload loops (each: upload, wait 50 ms, again).
 const LOOPS: usize = 3;
-/// Longest acceptable answer while it is down.
-const FAST: Duration = Duration::from_secs(2);
+/// Longest acceptable answer while it is down: the 1 s pool acquire timeout plus slack for a
+/// 2-core CI machine running this binary's other tests at once (1.83 s seen at load 17); a
+/// request that waited on the database would take the old 10–30 s.
+const FAST: Duration = Duration::from_secs(3);
 
 /// A private PostgreSQL cluster.
 pub struct Cluster {
