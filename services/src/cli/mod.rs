@@ -6,6 +6,7 @@ pub mod demo;
 pub mod examples;
 pub mod fit;
 pub mod keys;
+pub mod migrate;
 pub mod refit;
 pub mod report;
 pub mod serve;
