@@ -130,6 +130,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
         workers: 2,
         database: crate::config::DatabaseSettings {
             url: SecretString::new(db.clone()),
+            ..Default::default()
         },
         ..Settings::default()
     };
