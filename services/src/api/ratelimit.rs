@@ -174,9 +174,9 @@ pub async fn limit(State(rl): State<RateLimit>, req: Request, next: Next) -> Res
         Ok(()) => next.run(req).await,
         Err(wait) => {
             if let RateKey::Key(id) = key {
-                tracing::info!(key_id = id, "rate limit exceeded");
+                tracing::debug!(key_id = id, "rate limit exceeded");
             } else {
-                tracing::info!("rate limit exceeded for a caller without a valid key");
+                tracing::debug!("rate limit exceeded for a caller without a valid key");
             }
             too_many_requests(wait, &rl)
         }
