@@ -389,7 +389,7 @@ async fn postgres_over_tls() {
 
 // ---------------------------------------------------------------- logs
 
-/// A PostgreSQL role with a password and a database it owns; dropped by [`PgRole::drop_all`].
+/// A PostgreSQL role with a password and a database it owns; both dropped with it.
 struct PgRole {
     admin: String,
     name: String,
@@ -443,21 +443,30 @@ impl PgRole {
             self.name, self.password, self.name
         )
     }
+}
 
-    async fn drop_all(self) {
-        let mut c = sqlx::PgConnection::connect(&self.admin)
-            .await
-            .expect("admin");
-        c.execute(AssertSqlSafe(format!(
-            "DROP DATABASE IF EXISTS {} WITH (FORCE)",
-            self.name
-        )))
-        .await
-        .expect("DROP DATABASE");
-        c.execute(AssertSqlSafe(format!("DROP ROLE IF EXISTS {}", self.name)))
-            .await
-            .expect("DROP ROLE");
-        c.close().await.ok();
+/// Drops the database and the role even when the test fails (a runtime on its own thread:
+/// `Drop` cannot await and the test's runtime may be gone).
+impl Drop for PgRole {
+    fn drop(&mut self) {
+        let (admin, name) = (self.admin.clone(), self.name.clone());
+        let _ = std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .ok()?;
+            rt.block_on(async {
+                let mut c = sqlx::PgConnection::connect(&admin).await.ok()?;
+                for sql in [
+                    format!("DROP DATABASE IF EXISTS {name} WITH (FORCE)"),
+                    format!("DROP ROLE IF EXISTS {name}"),
+                ] {
+                    c.execute(AssertSqlSafe(sql)).await.ok()?;
+                }
+                c.close().await.ok()
+            })
+        })
+        .join();
     }
 }
 
@@ -504,6 +513,18 @@ fn run_to_end(mut cmd: Command) -> (bool, String) {
     t1.join().ok();
     t2.join().ok();
     (status, cap.text())
+}
+
+/// A child process that is killed if the test fails while it runs.
+struct KillOnDrop(Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        if self.0.try_wait().ok().flatten().is_none() {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
 }
 
 fn wait_with_timeout(child: &mut Child, limit: Duration) -> bool {
@@ -566,7 +587,8 @@ async fn no_secrets_in_logs() {
         "--database",
     ])
     .arg(&url);
-    let mut child = cmd.spawn().expect("spawn pantowatch serve");
+    let mut child = KillOnDrop(cmd.spawn().expect("spawn pantowatch serve"));
+    let child = &mut child.0;
     let cap = Captured::default();
     let t1 = cap.drain(child.stdout.take().expect("stdout"));
     let t2 = cap.drain(child.stderr.take().expect("stderr"));
@@ -639,7 +661,7 @@ async fn no_secrets_in_logs() {
         .expect("kill -TERM")
         .success();
     assert!(ok, "SIGTERM");
-    let stopped = wait_with_timeout(&mut child, Duration::from_secs(30));
+    let stopped = wait_with_timeout(child, Duration::from_secs(30));
     t1.join().ok();
     t2.join().ok();
     let out = cap.text();
@@ -690,7 +712,7 @@ async fn no_secrets_in_logs() {
         "serve with TLS required",
     );
 
-    role.drop_all().await;
+    drop(role);
 }
 
 // ---------------------------------------------------------------- SQL
