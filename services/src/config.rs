@@ -126,6 +126,10 @@ pub struct DatabaseSettings {
     /// Longest wait for a database connection, milliseconds; past it (database down, pool
     /// exhausted) a request is answered 503 with `Retry-After` instead of hanging.
     pub acquire_timeout_ms: u64,
+    /// Refuse to start unless the PostgreSQL URL asks for TLS (`sslmode=require`, `verify-ca`
+    /// or `verify-full`; sqlx honours `sslmode` and `sslrootcert` in the URL). Assumes the
+    /// URL is the only place the mode is set: a `PGSSLMODE` variable is not consulted here.
+    pub require_tls: bool,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -147,6 +151,14 @@ pub struct HttpSettings {
     pub body_limit_mib: u64,
     /// Longest a request may take before it is answered 503, seconds.
     pub request_timeout_secs: u64,
+    /// Sustained requests per second allowed to one API key (or, without a valid key, to one
+    /// client IP) in this process; 0 turns the limit off. Replicas count separately.
+    pub rate_limit_per_s: f64,
+    /// Requests one key (or IP) may send at once before the sustained rate applies.
+    pub rate_limit_burst: u32,
+    /// Browser origins (`https://host[:port]`) allowed to call the API cross-origin; empty:
+    /// no CORS headers at all, so browsers refuse cross-origin reads.
+    pub cors_origins: Vec<String>,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -199,6 +211,7 @@ impl Default for DatabaseSettings {
         DatabaseSettings {
             url: SecretString::new("pantowatch.db"),
             acquire_timeout_ms: 1000,
+            require_tls: false,
         }
     }
 }
@@ -218,6 +231,9 @@ impl Default for HttpSettings {
         HttpSettings {
             body_limit_mib: 64,
             request_timeout_secs: 60,
+            rate_limit_per_s: 20.0,
+            rate_limit_burst: 100,
+            cors_origins: Vec::new(),
         }
     }
 }
@@ -352,6 +368,19 @@ impl Settings {
         if self.http.body_limit_mib == 0 || self.http.request_timeout_secs == 0 {
             return Err("http.body_limit_mib and http.request_timeout_secs must be > 0".into());
         }
+        let rate = self.http.rate_limit_per_s;
+        if !(rate.is_finite() && (0.0..=MAX_RATE_PER_S).contains(&rate)) {
+            return Err(format!(
+                "http.rate_limit_per_s must be a number in [0, {MAX_RATE_PER_S}] (0: no limit)"
+            ));
+        }
+        if rate > 0.0 && self.http.rate_limit_burst == 0 {
+            return Err("http.rate_limit_burst must be > 0 when http.rate_limit_per_s > 0".into());
+        }
+        for (i, origin) in self.http.cors_origins.iter().enumerate() {
+            check_origin(origin).map_err(|m| format!("http.cors_origins[{i}] {origin:?}: {m}"))?;
+        }
+        self.check_tls()?;
         if !(self.alerts.horizon_days.is_finite() && self.alerts.horizon_days >= 0.0) {
             return Err("alerts.horizon_days must be a number ≥ 0".into());
         }
@@ -365,6 +394,31 @@ impl Settings {
             return Err("web.session_hours must be > 0".into());
         }
         Ok(())
+    }
+
+    /// `database.require_tls`: a PostgreSQL URL whose `sslmode` insists on TLS.
+    fn check_tls(&self) -> Result<(), String> {
+        if !self.database.require_tls {
+            return Ok(());
+        }
+        let url = self.database.url.expose_secret();
+        if backend_name(&self.database.url) != "postgresql" {
+            return Err(
+                "database.require_tls is true but database.url is not a postgres:// URL".into(),
+            );
+        }
+        match postgres_sslmode(url) {
+            Some("require" | "verify-ca" | "verify-full") => Ok(()),
+            Some(mode) => Err(format!(
+                "database.require_tls is true but database.url has sslmode={mode}; \
+                 use sslmode=require, verify-ca or verify-full"
+            )),
+            None => Err(
+                "database.require_tls is true but database.url has no sslmode; \
+                 add ?sslmode=verify-full (or require, verify-ca)"
+                    .into(),
+            ),
+        }
     }
 
     /// The drift bands as the models take them.
@@ -399,6 +453,38 @@ impl Settings {
             acquire_timeout: Duration::from_millis(self.database.acquire_timeout_ms),
         }
     }
+}
+
+/// Highest `http.rate_limit_per_s` (the limiter's period is 1 ns at 10⁹/s).
+pub const MAX_RATE_PER_S: f64 = 1e6;
+
+/// A CORS origin as browsers send it: `http(s)://host[:port]`, nothing after the authority.
+fn check_origin(origin: &str) -> Result<(), String> {
+    let rest = origin
+        .strip_prefix("https://")
+        .or_else(|| origin.strip_prefix("http://"))
+        .ok_or("must start with https:// or http:// (a wildcard `*` is not allowed)")?;
+    if rest.is_empty() {
+        return Err("has no host".into());
+    }
+    if rest.contains(['/', '?', '#', '*', '@']) || rest.chars().any(|c| c.is_whitespace()) {
+        return Err("must be scheme://host[:port] with no path, wildcard or credentials".into());
+    }
+    if !origin.is_ascii() {
+        return Err("must be ASCII (use the punycode form of the host)".into());
+    }
+    Ok(())
+}
+
+/// The last `sslmode` (or `ssl-mode`) parameter of a `postgres://` URL's query, as sqlx reads it.
+pub fn postgres_sslmode(url: &str) -> Option<&str> {
+    let (_, query) = url.split_once('?')?;
+    query
+        .split('&')
+        .filter_map(|kv| kv.split_once('='))
+        .filter(|(k, _)| *k == "sslmode" || *k == "ssl-mode")
+        .map(|(_, v)| v)
+        .next_back()
 }
 
 /// Which backend a database URL selects (what may be logged about it).
@@ -475,6 +561,167 @@ mod tests {
         let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/pantowatch.example.toml");
         let s = Settings::load_from(Some(&file), Vec::new()).expect("example config");
         assert_eq!(s, Settings::default());
+    }
+
+    #[test]
+    fn limits_and_origins_come_from_the_environment() {
+        let s = Settings::load_from(
+            None,
+            env(&[
+                ("PANTOWATCH__HTTP__RATE_LIMIT_PER_S", "2.5"),
+                ("PANTOWATCH__HTTP__RATE_LIMIT_BURST", "7"),
+                (
+                    "PANTOWATCH__HTTP__CORS_ORIGINS",
+                    r#"["https://depot.example", "http://localhost:5173"]"#,
+                ),
+            ]),
+        )
+        .expect("settings");
+        assert_eq!(s.http.rate_limit_per_s, 2.5);
+        assert_eq!(s.http.rate_limit_burst, 7);
+        assert_eq!(
+            s.http.cors_origins,
+            ["https://depot.example", "http://localhost:5173"]
+        );
+        // An integer rate is a rate too; 0 switches the limit off.
+        let s = Settings::load_from(None, env(&[("PANTOWATCH__HTTP__RATE_LIMIT_PER_S", "0")]))
+            .expect("settings");
+        assert_eq!(s.http.rate_limit_per_s, 0.0);
+        assert!(
+            Settings::default().http.cors_origins.is_empty(),
+            "no CORS by default"
+        );
+    }
+
+    #[test]
+    fn bad_limits_and_origins_are_refused_by_name() {
+        for (var, value, named) in [
+            (
+                "PANTOWATCH__HTTP__RATE_LIMIT_PER_S",
+                "-1",
+                "http.rate_limit_per_s",
+            ),
+            (
+                "PANTOWATCH__HTTP__RATE_LIMIT_PER_S",
+                "nan",
+                "http.rate_limit_per_s",
+            ),
+            (
+                "PANTOWATCH__HTTP__RATE_LIMIT_BURST",
+                "0",
+                "http.rate_limit_burst",
+            ),
+            (
+                "PANTOWATCH__HTTP__CORS_ORIGINS",
+                r#"["*"]"#,
+                "http.cors_origins[0]",
+            ),
+            (
+                "PANTOWATCH__HTTP__CORS_ORIGINS",
+                r#"["https://ok.example", "https://a.example/path"]"#,
+                "http.cors_origins[1]",
+            ),
+            (
+                "PANTOWATCH__HTTP__CORS_ORIGINS",
+                r#"["depot.example"]"#,
+                "http.cors_origins[0]",
+            ),
+            (
+                "PANTOWATCH__HTTP__CORS_ORIGINS",
+                r#"["https://"]"#,
+                "http.cors_origins[0]",
+            ),
+        ] {
+            let e = Settings::load_from(None, env(&[(var, value)])).unwrap_err();
+            assert!(e.to_string().contains(named), "{var}={value}: {e}");
+        }
+    }
+
+    #[test]
+    fn require_tls_needs_a_tls_sslmode() {
+        let with = |url: &str| {
+            Settings::load_from(
+                None,
+                env(&[
+                    ("PANTOWATCH__DATABASE__URL", url),
+                    ("PANTOWATCH__DATABASE__REQUIRE_TLS", "true"),
+                ]),
+            )
+        };
+        for ok in [
+            "postgres://u:p@db:5432/pw?sslmode=require",
+            "postgresql://u@db/pw?application_name=x&sslmode=verify-full&sslrootcert=/ca.pem",
+            "postgres://u@db/pw?ssl-mode=verify-ca",
+        ] {
+            assert!(with(ok).is_ok(), "{ok}");
+        }
+        for (bad, says) in [
+            ("postgres://u:p@db/pw", "no sslmode"),
+            ("postgres://u:p@db/pw?sslmode=prefer", "sslmode=prefer"),
+            (
+                "postgres://u@db/pw?sslmode=require&sslmode=disable",
+                "sslmode=disable",
+            ),
+            ("pantowatch.db", "not a postgres:// URL"),
+        ] {
+            let e = with(bad).unwrap_err().to_string();
+            assert!(
+                e.contains("database.require_tls") && e.contains(says),
+                "{bad}: {e}"
+            );
+            assert!(
+                !e.contains("u:p"),
+                "the URL's password is not in the error: {e}"
+            );
+        }
+        assert_eq!(
+            postgres_sslmode("postgres://h/d?sslmode=require"),
+            Some("require")
+        );
+        assert_eq!(postgres_sslmode("postgres://h/d"), None);
+    }
+
+    /// The `PANTOWATCH__*` values of deploy/k8s (ConfigMap + placeholder Secret) and of
+    /// deploy/compose.yaml are settings this version accepts (a renamed key fails here).
+    #[test]
+    fn deploy_manifests_set_only_known_settings() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy");
+        let mut vars = Vec::new();
+        for file in ["k8s/configmap.yaml", "k8s/secret.yaml", "compose.yaml"] {
+            let text = std::fs::read_to_string(root.join(file)).expect("deploy file");
+            for line in text.lines() {
+                let Some((k, v)) = line.trim().split_once(": ") else {
+                    continue;
+                };
+                if k.starts_with(ENV_PREFIX) {
+                    // Compose interpolations stand for a value given at `up` time.
+                    let v = v.trim().trim_matches('"');
+                    let v = if v.contains("${") { "x" } else { v };
+                    vars.push((k.to_owned(), v.to_owned()));
+                }
+            }
+        }
+        assert!(vars.len() >= 10, "found {} variables", vars.len());
+        let names: Vec<&str> = vars.iter().map(|(k, _)| k.as_str()).collect();
+        for must in [
+            "PANTOWATCH__DATABASE__URL",
+            "PANTOWATCH__HTTP__RATE_LIMIT_PER_S",
+        ] {
+            assert!(names.contains(&must), "{must} not set in deploy/");
+        }
+        for (k, v) in &vars {
+            // One at a time, so a failure names its variable.
+            let mut one = vec![(k.clone(), v.clone())];
+            if k == "PANTOWATCH__DATABASE__REQUIRE_TLS" {
+                one.push((
+                    "PANTOWATCH__DATABASE__URL".into(),
+                    "postgres://u@h/d?sslmode=verify-full".into(),
+                ));
+            }
+            if let Err(e) = Settings::load_from(None, one) {
+                panic!("deploy/ sets {k}={v}: {e}");
+            }
+        }
     }
 
     #[test]

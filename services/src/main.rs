@@ -24,6 +24,8 @@ enum Command {
     Serve(cli::serve::ServeArgs),
     /// Run fitting workers only (against a shared database).
     Worker(cli::serve::WorkerArgs),
+    /// Apply the database migrations and exit (the one-shot step before scaling out).
+    Migrate(cli::migrate::MigrateArgs),
     /// Queue re-fits by the current model version (all traces, or one vehicle's).
     Refit(cli::refit::RefitArgs),
     /// Create, list or revoke API keys.
@@ -54,6 +56,7 @@ fn main() {
         Command::Demo(a) => cli::demo::run(a),
         Command::Serve(a) => cli::serve::serve(a),
         Command::Worker(a) => cli::serve::worker(a),
+        Command::Migrate(a) => cli::migrate::run(a),
         Command::Refit(a) => cli::refit::run(a),
         Command::Keys(a) => cli::keys::run(a),
         Command::Fit(a) => {

@@ -88,7 +88,9 @@ pub async fn run(
     tracing::info!(%addr, workers = settings.workers, database = backend_label(&store),
         model_version = MODEL_VERSION, "pantowatch serving");
     let mut stop = stop_rx;
-    let served = axum::serve(listener, api::router(state))
+    // Connect info: the rate limit charges callers without a key to their peer address.
+    let app = api::router(state).into_make_service_with_connect_info::<std::net::SocketAddr>();
+    let served = axum::serve(listener, app)
         .with_graceful_shutdown(async move {
             let _ = stop.wait_for(|s| *s).await;
             tracing::info!("shutting down: finishing requests and fits in flight");

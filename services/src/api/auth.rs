@@ -11,6 +11,7 @@ use axum::http::request::Parts;
 
 use super::AppState;
 use super::error::AppError;
+use super::ratelimit::VerifiedKey;
 use crate::store::{ApiKey, Role};
 
 /// The least role a route needs.
@@ -49,7 +50,7 @@ pub type Writer = Auth<WriterRole>;
 pub type Admin = Auth<AdminRole>;
 
 /// The key presented in an `Authorization: Bearer <key>` header.
-fn bearer(parts: &Parts) -> Result<&str, AppError> {
+pub(crate) fn bearer(parts: &Parts) -> Result<&str, AppError> {
     let value = parts.headers.get(AUTHORIZATION).ok_or_else(|| {
         AppError::Unauthorized("this route needs `Authorization: Bearer <key>`".into())
     })?;
@@ -70,11 +71,13 @@ impl<R: MinRole> FromRequestParts<AppState> for Auth<R> {
 
     async fn from_request_parts(parts: &mut Parts, state: &AppState) -> Result<Self, AppError> {
         let secret = bearer(parts)?;
-        let key = state
-            .store
-            .verify_api_key(secret)
-            .await?
-            .ok_or_else(|| AppError::Unauthorized("unknown or revoked API key".into()))?;
+        // The rate limiter's `identify` has usually checked this very header already.
+        let verified = match parts.extensions.get::<VerifiedKey>() {
+            Some(VerifiedKey(found)) => found.clone(),
+            None => state.store.verify_api_key(secret).await?,
+        };
+        let key =
+            verified.ok_or_else(|| AppError::Unauthorized("unknown or revoked API key".into()))?;
         if key.role < R::ROLE {
             return Err(AppError::Forbidden(format!(
                 "this route needs a {} key; this key is a {} key",

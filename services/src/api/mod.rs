@@ -2,7 +2,8 @@
 //! `/metrics` and `/openapi.json`, the OpenAPI document generated from these handlers.
 //!
 //! Each module has a `router()`; [`router`] merges them (and the web pages, `crate::web`) in one
-//! place, adds the fallbacks and the layers (body limit, telemetry and timeout, panic guard).
+//! place, adds the fallbacks and the layers (body limit, rate limit per key, telemetry and
+//! timeout, CORS from the configured origins, panic guard).
 
 pub mod admin;
 pub mod alerts;
@@ -11,6 +12,7 @@ pub mod error;
 pub mod extract;
 pub mod fleet;
 pub mod ops;
+pub mod ratelimit;
 pub mod telemetry;
 pub mod traces;
 pub mod webhooks;
@@ -20,12 +22,13 @@ use std::time::Duration;
 
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
-use axum::http::{Method, Uri};
+use axum::http::{HeaderValue, Method, Uri, header};
 use axum::middleware::from_fn_with_state;
 use axum::routing::get;
 use metrics_exporter_prometheus::PrometheusHandle;
 use tokio::sync::Notify;
 use tower_http::catch_panic::CatchPanicLayer;
+use tower_http::cors::{AllowOrigin, CorsLayer};
 use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
 use utoipa::openapi::{ContentBuilder, Ref, RefOr, ResponseBuilder};
 use utoipa::{Modify, OpenApi};
@@ -53,6 +56,10 @@ pub struct AppState {
     pub alert_wake: Arc<Notify>,
     /// Signs the web pages' session cookies.
     pub sessions: Arc<crate::web::session::SessionKey>,
+    /// Requests per key (or per peer IP without a key); `None`: no limit.
+    pub rate_limit: Option<ratelimit::RateLimit>,
+    /// Origins answered with CORS headers (empty: none).
+    pub cors_origins: Vec<HeaderValue>,
 }
 
 impl AppState {
@@ -67,10 +74,12 @@ impl AppState {
             alerts: AlertOptions::default(),
             alert_wake: Arc::new(Notify::new()),
             sessions: Arc::new(crate::web::session::SessionKey::random(12)),
+            rate_limit: None,
+            cors_origins: Vec::new(),
         }
     }
 
-    /// Takes the alert rules and session settings from `settings`.
+    /// Takes the alert rules, session, rate-limit and CORS settings from `settings`.
     pub fn configure(
         mut self,
         settings: &Settings,
@@ -88,6 +97,16 @@ impl AppState {
         } else {
             crate::web::session::SessionKey::from_secret(secret, hours)
         });
+        self.rate_limit = ratelimit::RateLimit::from_settings(&settings.http);
+        self.cors_origins = settings
+            .http
+            .cors_origins
+            .iter()
+            .map(|o| {
+                HeaderValue::from_str(&o.to_ascii_lowercase())
+                    .map_err(|_| anyhow::anyhow!("http.cors_origins: {o:?} is not a header value"))
+            })
+            .collect::<anyhow::Result<_>>()?;
         Ok(self)
     }
 }
@@ -185,13 +204,44 @@ async fn not_found(method: Method, uri: Uri) -> AppError {
     AppError::NotFound(format!("no route {method} {}", uri.path()))
 }
 
-/// The whole HTTP application.
+/// CORS for the configured origins only: their requests (and preflights) get the headers a
+/// browser needs to call the API with a bearer key; any other origin gets none. No
+/// credentials mode, so a foreign page can never ride a web session cookie.
+fn cors(origins: &[HeaderValue]) -> Option<CorsLayer> {
+    if origins.is_empty() {
+        return None;
+    }
+    Some(
+        CorsLayer::new()
+            .allow_origin(AllowOrigin::list(origins.iter().cloned()))
+            .allow_methods([
+                Method::GET,
+                Method::POST,
+                Method::PUT,
+                Method::PATCH,
+                Method::DELETE,
+            ])
+            .allow_headers([header::AUTHORIZATION, header::CONTENT_TYPE, header::ACCEPT])
+            .expose_headers([
+                header::RETRY_AFTER,
+                header::LOCATION,
+                header::WWW_AUTHENTICATE,
+            ])
+            .max_age(Duration::from_secs(600)),
+    )
+}
+
+/// The whole HTTP application. Layers, outermost first: panic guard, CORS, telemetry and
+/// timeout, key identification + rate limit (when configured), body limit.
 pub fn router(state: AppState) -> Router {
     let (routes, doc) = api_routes().split_for_parts();
     let doc = Arc::new(doc);
     let limit = state.body_limit;
     let timeout = state.timeout;
-    routes
+    let rate_limit = state.rate_limit.clone();
+    let cors = cors(&state.cors_origins);
+    let identify_state = state.clone();
+    let mut app = routes
         .route(
             "/openapi.json",
             get(move || {
@@ -202,7 +252,15 @@ pub fn router(state: AppState) -> Router {
         .merge(crate::web::router())
         .fallback(not_found)
         .with_state(state)
-        .layer(DefaultBodyLimit::max(limit))
-        .layer(from_fn_with_state(timeout, telemetry::track))
-        .layer(CatchPanicLayer::custom(telemetry::panic_response))
+        .layer(DefaultBodyLimit::max(limit));
+    if let Some(rl) = rate_limit {
+        app = app
+            .layer(from_fn_with_state(rl, ratelimit::limit))
+            .layer(from_fn_with_state(identify_state, ratelimit::identify));
+    }
+    app = app.layer(from_fn_with_state(timeout, telemetry::track));
+    if let Some(cors) = cors {
+        app = app.layer(cors);
+    }
+    app.layer(CatchPanicLayer::custom(telemetry::panic_response))
 }

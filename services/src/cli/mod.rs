@@ -7,6 +7,7 @@ pub mod examples;
 pub mod fit;
 pub mod keys;
 pub mod load;
+pub mod migrate;
 pub mod refit;
 pub mod report;
 pub mod serve;

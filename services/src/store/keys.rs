@@ -26,7 +26,9 @@ pub fn hash(key: &str) -> String {
     hex::encode(Sha256::digest(key.as_bytes()))
 }
 
-/// Constant-time equality of two hashes (time independent of where they differ).
+/// Constant-time equality of two hashes: `subtle` compares every byte whatever the first
+/// difference, so the time tells nothing about how much of a guess was right. Only the length
+/// may short-cut, and it is public (every stored hash is 64 hex digits).
 pub fn hashes_equal(a: &str, b: &str) -> bool {
     a.len() == b.len() && bool::from(a.as_bytes().ct_eq(b.as_bytes()))
 }
@@ -67,5 +69,31 @@ mod tests {
         let u = new_uuid().expect("rng");
         assert_eq!(u.len(), 36);
         assert_eq!(&u[14..15], "4");
+    }
+
+    /// The compare path: equal hashes match; one differing digit anywhere (first, middle,
+    /// last), a case change, a prefix or an extension of the hash never does.
+    #[test]
+    fn compare_path_matches_only_the_exact_hash() {
+        let key = generate().expect("rng");
+        let h = hash(&key);
+        assert!(hashes_equal(&h, &hash(&key.clone())));
+        for i in [0, 1, 31, 32, 62, 63] {
+            let mut b = h.clone().into_bytes();
+            b[i] = if b[i] == b'0' { b'f' } else { b'0' };
+            let other = String::from_utf8(b).expect("hex");
+            assert!(!hashes_equal(&h, &other), "differs at {i}");
+            assert!(!hashes_equal(&other, &h), "differs at {i} (swapped)");
+        }
+        assert!(!hashes_equal(&h, &h.to_uppercase()) || h.bytes().all(|c| c.is_ascii_digit()));
+        assert!(!hashes_equal(&h, &h[..63]));
+        assert!(!hashes_equal(&h, &format!("{h}0")));
+        assert!(!hashes_equal(&h, ""));
+        // The stored form is the SHA-256 of the key, never the key (FIPS 180-2 test vector).
+        assert_eq!(
+            hash("abc"),
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+        );
+        assert_ne!(hash(&key), key);
     }
 }

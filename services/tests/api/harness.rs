@@ -183,6 +183,10 @@ pub async fn spawn_app_with(db: Arc<TestDb>, opts: Opts) -> TestApp {
     settings.worker.lease_secs = opts.lease_secs;
     settings.worker.poll_ms = 50;
     settings.http.body_limit_mib = BODY_LIMIT_MIB;
+    // The limiter stays on (every request still goes through key identification) but far
+    // above what a test sends; security.rs tests the limit itself.
+    settings.http.rate_limit_per_s = 10_000.0;
+    settings.http.rate_limit_burst = 100_000;
     // Webhook deliveries on a test's time scale: retries after 100 ms, 200 ms; 500 ms timeout.
     settings.webhooks.backoff_base_ms = 100;
     settings.webhooks.max_attempts = 3;
