@@ -213,6 +213,7 @@ pub fn stored_doc(meta: &TraceMeta, channels: Vec<(String, Vec<f64>)>) -> Result
         "pendulum" => Kind::Pendulum,
         "slider" => Kind::Slider,
         "lift" => Kind::Lift,
+        crate::trace::QUADRANGLE_SWING => Kind::QuadrangleSwing,
         other => return Err(format!("stored trace has unknown kind `{other}`")),
     };
     let test: Value = serde_json::from_str(&meta.test_json)

@@ -8,6 +8,9 @@ use std::collections::BTreeMap;
 use pantowatch_models::data::{self, Attachment, PantographType};
 use pantowatch_models::identify::JointTest;
 use pantowatch_models::lift::report::LiftChannels;
+use pantowatch_models::lift::vec2::V2;
+use pantowatch_models::quadrangle::model::{PointMass, QBody};
+use pantowatch_models::quadrangle::report::{QuadChannels, QuadRig};
 use pantowatch_models::rig::BodySpec;
 use pantowatch_models::testspec::{Baseline, PendulumSpec, SliderSpec};
 use serde_json::{Map, Value};
@@ -18,7 +21,7 @@ pub const FORMAT: &str = "pantograph-trace/1";
 pub const MAX_SAMPLES: usize = 2_000_000;
 /// Longest accepted identifier or free-text string, characters.
 pub const MAX_STRING: usize = 256;
-/// The lower-quadrangle swing kind (docs/TRACE_FORMAT.md): documented, not fitted yet.
+/// The lower-quadrangle swing kind (docs/TRACE_FORMAT.md, paper Fig 12).
 pub const QUADRANGLE_SWING: &str = "quadrangle_swing";
 /// Most channels in one document.
 pub const MAX_CHANNELS: usize = 32;
@@ -44,6 +47,8 @@ pub enum Kind {
     Pendulum,
     Slider,
     Lift,
+    /// The lower articulated quadrangle swinging on an inclined frame (paper, Fig 12).
+    QuadrangleSwing,
 }
 
 impl Kind {
@@ -52,6 +57,7 @@ impl Kind {
             Kind::Pendulum => "pendulum",
             Kind::Slider => "slider",
             Kind::Lift => "lift",
+            Kind::QuadrangleSwing => QUADRANGLE_SWING,
         }
     }
     /// Channels the kind needs, and optional ones.
@@ -60,6 +66,7 @@ impl Kind {
             Kind::Pendulum => (&["alpha_deg"], &[]),
             Kind::Slider => (&["h_mm"], &["F_N"]),
             Kind::Lift => (&["H_m", "T_Nm", "Fs_N"], &["Fm_N"]),
+            Kind::QuadrangleSwing => (&["alpha_deg", "beta_deg"], &[]),
         }
     }
 }
@@ -301,17 +308,11 @@ impl TraceDoc {
             Some("pendulum") => Kind::Pendulum,
             Some("slider") => Kind::Slider,
             Some("lift") => Kind::Lift,
-            Some(QUADRANGLE_SWING) => {
-                return Err(bad(
-                    "test.kind",
-                    "`quadrangle_swing` (lower-quadrangle swing, paper Fig 12; docs/TRACE_FORMAT.md) \
-                     is not fitted yet: no model version can identify it, so it is not accepted",
-                ));
-            }
+            Some(QUADRANGLE_SWING) => Kind::QuadrangleSwing,
             Some(k) => {
                 return Err(bad(
                     "test.kind",
-                    format!("unknown kind `{k}` (pendulum, slider, lift)"),
+                    format!("unknown kind `{k}` (pendulum, slider, lift, {QUADRANGLE_SWING})"),
                 ));
             }
             None => unreachable!("required"),
@@ -405,10 +406,16 @@ impl TraceDoc {
             channels,
         };
         // Check the rig now, so a document the model cannot use is rejected at the door.
-        if doc.kind == Kind::Lift {
-            doc.lift_channels()?;
-        } else {
-            doc.joint_test()?;
+        match doc.kind {
+            Kind::Lift => {
+                doc.lift_channels()?;
+            }
+            Kind::QuadrangleSwing => {
+                doc.quadrangle_channels()?;
+            }
+            Kind::Pendulum | Kind::Slider => {
+                doc.joint_test()?;
+            }
         }
         Ok(doc)
     }
@@ -463,6 +470,104 @@ impl TraceDoc {
             fs_n: get("Fs_N"),
             fm_n: get("Fm_N"),
         })
+    }
+
+    /// The channels and stand of a `quadrangle_swing` test for the lower-quadrangle model
+    /// (built-in 160EC geometry). `test.rig`: `incline_deg` (default 70), `gravity_m_s2`
+    /// (default 9.81), `attachments` (point masses fixed to a body, at body coordinates).
+    pub fn quadrangle_channels(&self) -> Result<(QuadChannels<'_>, QuadRig), TraceError> {
+        if self.kind != Kind::QuadrangleSwing {
+            return Err(bad("test.kind", "not a quadrangle_swing test"));
+        }
+        if self.pantograph_model != "160EC" {
+            return Err(bad(
+                "pantograph.model",
+                format!(
+                    "quadrangle swings are fitted with the 160EC geometry only, got `{}`",
+                    self.pantograph_model
+                ),
+            ));
+        }
+        if let Some(j) = &self.joint {
+            return Err(bad(
+                "test.joint",
+                format!(
+                    "a quadrangle swing is of joints J1, J2, J2', J3 together, got joint `{j}`"
+                ),
+            ));
+        }
+        let rig = self
+            .test
+            .get("rig")
+            .and_then(Value::as_object)
+            .cloned()
+            .unwrap_or_default();
+        only_keys(
+            &rig,
+            &["incline_deg", "gravity_m_s2", "attachments"],
+            "test.rig",
+        )?;
+        let mut q = QuadRig::default();
+        if let Some(v) = number(&rig, "incline_deg", "test.rig.incline_deg")? {
+            q.incline_deg = v;
+        }
+        if let Some(v) = number(&rig, "gravity_m_s2", "test.rig.gravity_m_s2")? {
+            q.gravity_m_s2 = v;
+        }
+        match rig.get("attachments") {
+            None | Some(Value::Null) => {}
+            Some(a) => {
+                let arr = a
+                    .as_array()
+                    .ok_or_else(|| bad("test.rig.attachments", "must be an array"))?;
+                if arr.len() > 16 {
+                    return Err(bad("test.rig.attachments", "more than 16 attachments"));
+                }
+                for (i, x) in arr.iter().enumerate() {
+                    let f = format!("test.rig.attachments[{i}]");
+                    let m = obj(x, &f)?;
+                    only_keys(m, &["kind", "mass_kg", "body", "position_m"], &f)?;
+                    if m.get("kind").and_then(Value::as_str) != Some("point") {
+                        return Err(bad(format!("{f}.kind"), "must be `point`"));
+                    }
+                    let mass_kg = number(m, "mass_kg", &format!("{f}.mass_kg"))?
+                        .ok_or_else(|| bad(format!("{f}.mass_kg"), "is required"))?;
+                    let body = match m.get("body").and_then(Value::as_str) {
+                        Some(k) => QBody::named(k),
+                        None => None,
+                    }
+                    .ok_or_else(|| {
+                        bad(
+                            format!("{f}.body"),
+                            "must be `lower_arm`, `coupling_rod` or `upper_arm`",
+                        )
+                    })?;
+                    let pos = m
+                        .get("position_m")
+                        .and_then(Value::as_array)
+                        .filter(|a| a.len() == 2)
+                        .and_then(|a| Some([a[0].as_f64()?, a[1].as_f64()?]))
+                        .ok_or_else(|| {
+                            bad(format!("{f}.position_m"), "must be two numbers [x, y], m")
+                        })?;
+                    q.attachments.push(PointMass {
+                        body,
+                        mass_kg,
+                        position_m: V2::from_array(pos),
+                    });
+                }
+            }
+        }
+        q.model().map_err(|e| bad(e.field, e.message))?;
+        let get = |name: &str| self.channel(name).unwrap_or_default();
+        Ok((
+            QuadChannels {
+                t_s: get("t_s"),
+                alpha_deg: get("alpha_deg"),
+                beta_deg: get("beta_deg"),
+            },
+            q,
+        ))
     }
 
     /// The pantograph type's data when compiled in (`160EC`); `None` for other models.
@@ -624,6 +729,10 @@ impl TraceDoc {
                 "test.kind",
                 "a lift test is of the whole pantograph: see `lift_channels`",
             )),
+            Kind::QuadrangleSwing => Err(bad(
+                "test.kind",
+                "a quadrangle swing is of four joints together: see `quadrangle_channels`",
+            )),
         }
     }
 
@@ -699,8 +808,30 @@ mod tests {
         cases.push((d, "test.joint"));
         let mut d = doc();
         d["test"] = json!({"kind": "quadrangle_swing", "rig": {"incline_deg": 70.0}});
-        d["channels"]["beta_deg"] = json!([1.0, 2.0, 3.0]);
-        cases.push((d, "test.kind"));
+        cases.push((d, "channels.beta_deg"));
+        let quad = |rig: Value| {
+            let mut d = doc();
+            d["test"] = json!({"kind": "quadrangle_swing", "rig": rig});
+            d["channels"]["beta_deg"] = json!([1.0, 2.0, 3.0]);
+            d
+        };
+        cases.push((quad(json!({"incline_deg": 95.0})), "test.rig.incline_deg"));
+        cases.push((quad(json!({"incline": 70.0})), "test.rig.incline"));
+        cases.push((
+            quad(json!({"attachments": [{"kind": "point", "mass_kg": 10.0, "body": "head", "position_m": [1.0, 0.0]}]})),
+            "test.rig.attachments[0].body",
+        ));
+        cases.push((
+            quad(json!({"attachments": [{"kind": "point", "mass_kg": 0.0, "body": "lower_arm", "position_m": [1.0, 0.0]}]})),
+            "test.rig.attachments[0].mass_kg",
+        ));
+        cases.push((
+            quad(json!({"attachments": [{"kind": "point", "mass_kg": 1.0, "body": "lower_arm", "position_m": [1.0]}]})),
+            "test.rig.attachments[0].position_m",
+        ));
+        let mut d = quad(json!({}));
+        d["test"]["joint"] = json!("J3");
+        cases.push((d, "test.joint"));
         let mut d = doc();
         d["test"] = json!({"kind": "lift", "rig": {"L1_m": 1.6}});
         d["channels"] =
@@ -742,6 +873,23 @@ mod tests {
             TraceDoc::from_json(b"{\"a\": NaN}").unwrap_err().field,
             "body"
         );
+    }
+
+    /// A quadrangle swing with its rig is accepted as written in docs/TRACE_FORMAT.md and
+    /// round-trips; its channels and stand reach the model.
+    #[test]
+    fn accepts_a_quadrangle_swing() {
+        let mut d = doc();
+        d["test"] = json!({"kind": "quadrangle_swing", "rig": {"incline_deg": 65.0,
+            "attachments": [{"kind": "point", "mass_kg": 5.0, "body": "upper_arm", "position_m": [0.5, 0.0]}]}});
+        d["channels"]["beta_deg"] = json!([-3.6, -3.6, -3.59]);
+        let doc = TraceDoc::from_value(&d).unwrap();
+        assert_eq!(doc.kind, Kind::QuadrangleSwing);
+        let (ch, rig) = doc.quadrangle_channels().unwrap();
+        assert_eq!(ch.beta_deg, [-3.6, -3.6, -3.59]);
+        assert_eq!(rig.incline_deg, 65.0);
+        assert_eq!(rig.attachments.len(), 1);
+        assert_eq!(TraceDoc::from_value(&doc.to_value()).unwrap(), doc);
     }
 
     #[test]

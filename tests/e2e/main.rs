@@ -4,4 +4,5 @@
 mod coverage;
 mod examples;
 mod lift;
+mod quadrangle;
 mod residual;

@@ -522,7 +522,7 @@ mod tests {
         let mut m = Quadrangle::new(builtin_160ec(), 70f64.to_radians());
         m.friction.dry_mu[joint.index()] *= factor;
         let t: Vec<f64> = (0..=6000).map(|k| f64::from(k) * 0.002).collect();
-        let a0 = m.rest_alpha_rad(0.4).unwrap() - f64::to_radians(10.1);
+        let a0 = m.rest_alpha_rad(0.4).expect("rest at 70°") - f64::to_radians(10.1);
         let run = simulate_swing(&m, &t, a0, 0.0, &SwingOptions::default()).unwrap();
         let mut rng = Noise::new(seed);
         let s = 0.05f64.to_radians();

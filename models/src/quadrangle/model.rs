@@ -604,26 +604,27 @@ impl Quadrangle {
         lhs - rhs
     }
 
-    /// The static rest angle without friction near `guess_rad` (Newton on the generalised
-    /// gravity force), rad.
-    pub fn rest_alpha_rad(&self, guess_rad: f64) -> Result<f64, DynamicsError> {
+    /// The stable rest angle without friction near `guess_rad` (Newton on the generalised
+    /// gravity force), rad; `None` when the loop has none there (at this incline it falls
+    /// into a toggle of its assembly range instead).
+    pub fn rest_alpha_rad(&self, guess_rad: f64) -> Option<f64> {
+        let q_at = |a: f64| self.pose(a).ok().map(|p| self.gravity_torque_nm(&p));
         let mut a = guess_rad;
         for _ in 0..50 {
             let h = 1e-6;
-            let q = self.gravity_torque_nm(&self.pose(a)?);
-            let dq = (self.gravity_torque_nm(&self.pose(a + h)?)
-                - self.gravity_torque_nm(&self.pose(a - h)?))
-                / (2.0 * h);
-            if dq == 0.0 || !dq.is_finite() {
-                break;
+            let q = q_at(a)?;
+            let dq = (q_at(a + h)? - q_at(a - h)?) / (2.0 * h);
+            // Stable: gravity's generalised force falls through zero (dQ/dα < 0).
+            if !(dq < 0.0 && dq.is_finite()) {
+                return None;
             }
             let step = (q / dq).clamp(-0.1, 0.1);
             a -= step;
             if step.abs() < 1e-13 {
-                return Ok(a);
+                return Some(a);
             }
         }
-        Err(DynamicsError::Singular { alpha_rad: a })
+        None
     }
 }
 
@@ -773,6 +774,9 @@ mod tests {
         assert_eq!(q.breakaway(&p).unwrap(), Some(1.0));
         // At the rest angle itself nothing moves.
         assert_eq!(q.breakaway(&q.pose(rest).unwrap()).unwrap(), None);
+        // Level frame, arms hanging straight down: no rest inside the assembly range.
+        let level = Quadrangle::new(builtin_160ec(), 0.0);
+        assert_eq!(level.rest_alpha_rad(0.4), None);
     }
 
     #[test]

@@ -97,6 +97,11 @@ pub enum QuadReportError {
     Rig(#[from] RigError),
     #[error(transparent)]
     Fit(#[from] QuadFitError),
+    #[error(
+        "`test.rig.incline_deg`: the loop has no rest position at {incline_deg}° on this \
+         geometry (it falls into a toggle of its assembly range): no default release"
+    )]
+    NoRest { incline_deg: f64 },
 }
 
 /// Fit one swing with the MAP identification ([`QuadFitOptions::default`] with these drift
@@ -246,9 +251,9 @@ pub fn record_swing(r: &SwingRecipe) -> Result<SwingRecord, QuadReportError> {
     let release_rad = match r.release_deg {
         Some(d) => d.to_radians(),
         None => {
-            m.rest_alpha_rad(0.4)
-                .map_err(|e| QuadReportError::Fit(SwingError::from(e).into()))?
-                + PAPER_DEFLECTION_DEG.to_radians()
+            m.rest_alpha_rad(0.4).ok_or(QuadReportError::NoRest {
+                incline_deg: r.rig.incline_deg,
+            })? + PAPER_DEFLECTION_DEG.to_radians()
         }
     };
     let n = (r.duration_s * r.fs_hz).round() as usize + 1;

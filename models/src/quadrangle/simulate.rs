@@ -65,10 +65,15 @@ impl OdeSystem for Segment<'_> {
         2
     }
     fn rhs(&self, _t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), OdeError> {
-        let pose = self
-            .model
-            .pose(y[0])
-            .map_err(|e| OdeError::Model(e.to_string()))?;
+        // Near a toggle the loop stops assembling and its joint forces diverge: say so.
+        let toggle = |e: String| {
+            OdeError::Model(format!(
+                "the swing reaches a toggle of the loop near alpha = {:.1} deg ({e}): release \
+                 closer to the rest angle",
+                y[0].to_degrees()
+            ))
+        };
+        let pose = self.model.pose(y[0]).map_err(|e| toggle(e.to_string()))?;
         let s = QState {
             alpha_rad: y[0],
             alpha_dot_rad_s: y[1],
@@ -76,7 +81,7 @@ impl OdeSystem for Segment<'_> {
         let e = self
             .model
             .eval(&pose, &s, &self.model.signs(&pose, self.direction))
-            .map_err(|e| OdeError::Model(e.to_string()))?;
+            .map_err(|e| toggle(e.to_string()))?;
         dy[0] = y[1];
         dy[1] = e.alpha_ddot_rad_s2;
         Ok(())
@@ -241,7 +246,7 @@ mod tests {
         let mut q = Quadrangle::new(builtin_160ec(), 70f64.to_radians());
         q.friction = QuadFriction::frictionless();
         let t = times(20.0, 0.002);
-        let a0 = q.rest_alpha_rad(0.4).unwrap() - f64::to_radians(10.1);
+        let a0 = q.rest_alpha_rad(0.4).expect("rest at 70°") - f64::to_radians(10.1);
         let run = simulate_swing(&q, &t, a0, 0.0, &SwingOptions::default()).unwrap();
         let energy = |k: usize| {
             let s = QState {
@@ -280,7 +285,7 @@ mod tests {
     fn table4_swing_decays_and_sticks() {
         let q = Quadrangle::new(builtin_160ec(), 70f64.to_radians());
         let t = times(60.0, 0.002);
-        let a0 = q.rest_alpha_rad(0.4).unwrap() - f64::to_radians(10.1);
+        let a0 = q.rest_alpha_rad(0.4).expect("rest at 70°") - f64::to_radians(10.1);
         let run = simulate_swing(&q, &t, a0, 0.0, &SwingOptions::default()).unwrap();
         let stuck = run.stuck_at_s.expect("sticks within 60 s");
         eprintln!(
@@ -302,7 +307,7 @@ mod tests {
     #[test]
     fn a_loop_released_at_rest_within_the_dead_band_never_moves() {
         let q = Quadrangle::new(builtin_160ec(), 70f64.to_radians());
-        let rest = q.rest_alpha_rad(0.4).unwrap();
+        let rest = q.rest_alpha_rad(0.4).expect("rest at 70°");
         let t = times(1.0, 0.01);
         let run = simulate_swing(&q, &t, rest, 0.0, &SwingOptions::default()).unwrap();
         assert_eq!(run.stuck_at_s, Some(0.0));

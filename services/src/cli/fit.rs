@@ -44,7 +44,14 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
     let mut s = String::new();
     let id = doc.trace_id.as_deref().unwrap_or("(no trace_id)");
     let lift = doc.kind == Kind::Lift;
-    if lift {
+    let quad = doc.kind == Kind::QuadrangleSwing;
+    if quad {
+        s += &format!(
+            "trace {id}  vehicle {}  lower-quadrangle swing (J1, J2, J2', J3; MAP with Table 4 \
+             prior sd 0.5 × baseline), {} samples fitted\n",
+            doc.vehicle_id, r.fit.samples_fitted
+        );
+    } else if lift {
         s += &format!(
             "trace {id}  vehicle {}  lift test (complete pantograph, MAP with Table 4 prior sd \
              0.5 × baseline), {} samples fitted\n",
@@ -78,6 +85,30 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
             );
         }
         s += &format!("{:<6} joint status: {}\n", j.joint, j.status.as_str());
+    }
+    if quad {
+        let informed: Vec<&str> = r
+            .joints
+            .iter()
+            .filter(|j| j.identifiable)
+            .map(|j| j.joint.as_str())
+            .collect();
+        let ci = r.fit.sensor_offset_ci95.unwrap_or([f64::NAN; 2]);
+        s += &format!(
+            "informed by this trace: {}; the others are reported at baseline, not identified\n\
+             RMSE {:.4} deg (alpha and beta); release {:.3} deg at {:.3} deg/s; alpha sensor zero \
+             {:.3} deg [{:.3}, {:.3}]; {} after {} iterations (no residual loop on swings)\n",
+            informed.join(", "),
+            r.rmse.value,
+            r.fit.release_position.value,
+            r.fit.release_rate.value,
+            r.fit.sensor_offset.value,
+            ci[0],
+            ci[1],
+            r.fit.termination,
+            r.fit.iterations
+        );
+        return s;
     }
     if lift {
         let informed: Vec<&str> = r
@@ -128,6 +159,72 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
         r.rmse.unit
     );
     s
+}
+
+/// `fit` of a quadrangle swing: the table or JSON, and α measured vs fitted as SVG.
+fn run_quadrangle(
+    args: &FitArgs,
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.report.is_none(),
+        "--report: the residual loop does not run on quadrangle swings"
+    );
+    let rep =
+        crate::fitting::fit_quadrangle(doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&rep.result)?);
+    } else {
+        print!("{}", table(doc, &rep.result));
+    }
+    if let Some(path) = &args.plot {
+        let t = doc.channel("t_s").unwrap_or_default();
+        let a = doc.channel("alpha_deg").unwrap_or_default();
+        let fitted: Vec<f64> = rep
+            .fit
+            .fitted_alpha_rad
+            .iter()
+            .map(|v| v.to_degrees())
+            .collect();
+        let residual: Vec<f64> = rep
+            .fit
+            .residual_alpha_rad
+            .iter()
+            .map(|v| v.to_degrees())
+            .collect();
+        let title = format!(
+            "{} — alpha measured vs fitted (RMSE {:.4} deg)",
+            doc.trace_id.as_deref().unwrap_or(""),
+            rep.result.rmse.value
+        );
+        let svg = fit_svg(
+            &title,
+            t,
+            "deg",
+            &[
+                Series {
+                    name: "measured",
+                    y: a,
+                    color: RGBColor(120, 120, 120),
+                },
+                Series {
+                    name: "fitted model",
+                    y: &fitted,
+                    color: RGBColor(200, 30, 30),
+                },
+            ],
+            &[Series {
+                name: "residual",
+                y: &residual,
+                color: RGBColor(30, 60, 200),
+            }],
+        )
+        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+        std::fs::write(path, svg).with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("plot written to {}", path.display());
+    }
+    Ok(())
 }
 
 /// `fit` of a lift trace: the table or JSON, and H measured vs fitted as SVG.
@@ -192,6 +289,9 @@ pub fn run(args: FitArgs, thresholds: &DriftThresholds) -> anyhow::Result<()> {
     let doc = super::read_trace(&args.trace)?;
     if doc.kind == Kind::Lift {
         return run_lift(&args, &doc, thresholds);
+    }
+    if doc.kind == Kind::QuadrangleSwing {
+        return run_quadrangle(&args, &doc, thresholds);
     }
     let (result, fit, finding) =
         crate::fitting::fit_with_finding(&doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))?;

@@ -1,4 +1,5 @@
-//! `pantowatch simulate`: write a trace document of a pendulum, slider or lift test with chosen
+//! `pantowatch simulate`: write a trace document of a pendulum, slider, lift or lower-quadrangle
+//! swing test with chosen
 //! friction, release, noise, sample rate and seed — what the tests and the demo use.
 
 use std::path::PathBuf;
@@ -14,7 +15,7 @@ use crate::trace::{FORMAT, TraceDoc};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateArgs {
-    /// Test kind: pendulum, slider or lift.
+    /// Test kind: pendulum, slider, lift or quadrangle_swing.
     #[arg(long, default_value = "pendulum")]
     pub kind: String,
     /// Joint: J1 J2 J2' J3 J4 J5 J6 J7 (pendulum), J8 (slider).
@@ -26,7 +27,9 @@ pub struct SimulateArgs {
     /// Dry friction coefficient μ; default Table 4.
     #[arg(long)]
     pub dry: Option<f64>,
-    /// Release angle (deg, pendulum) or displacement (mm, slider); default the paper rig's.
+    /// Release angle (deg, pendulum; lower-arm α, quadrangle_swing) or displacement (mm,
+    /// slider); default the paper rig's (quadrangle_swing: 10.1° below the loop's rest angle,
+    /// the paper's Fig 12 deflection).
     #[arg(long)]
     pub release: Option<f64>,
     /// Sensor noise, standard deviation in channel units (deg or mm).
@@ -35,7 +38,7 @@ pub struct SimulateArgs {
     /// Sensor quantisation step in channel units (0: none).
     #[arg(long, default_value_t = 0.01)]
     pub quantum: f64,
-    /// Sensor zero added to the readings, channel units.
+    /// Sensor zero added to the readings, channel units (quadrangle_swing: the α channel's).
     #[arg(long, default_value_t = 0.0)]
     pub offset: f64,
     /// Sample rate, Hz.
@@ -73,13 +76,20 @@ pub struct SimulateArgs {
     /// t = −0.5 s at `--fs`.
     #[arg(long, default_value = "raise-and-lower")]
     pub protocol: String,
-    /// Lift only: scale a joint's friction from Table 4, `JOINT:dry=1.8,viscous=1.2`
-    /// (repeatable; J1 J2 J2' J3 J4 J5 J7 J8 viscous/dry, J9 viscous).
+    /// Lift and quadrangle_swing: scale a joint's friction from Table 4,
+    /// `JOINT:dry=1.8,viscous=1.2` (repeatable; lift: J1 J2 J2' J3 J4 J5 J7 J8 viscous/dry, J9
+    /// viscous; quadrangle_swing: J1 J2 J2' J3).
     #[arg(long = "scale-joint")]
     pub scale_joints: Vec<String>,
     /// Lift only: noise of the H channel, standard deviation in mm.
     #[arg(long, default_value_t = 1.0)]
     pub h_noise_mm: f64,
+    /// Quadrangle_swing only: the frame plane's incline to the horizontal, deg (paper: 70).
+    #[arg(long, default_value_t = 70.0)]
+    pub incline: f64,
+    /// Quadrangle_swing only: sensor zero of the β channel, deg.
+    #[arg(long, default_value_t = 0.0)]
+    pub beta_offset: f64,
     /// Output file (default: stdout).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
@@ -90,6 +100,9 @@ pub fn simulate_doc(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     if a.kind == "lift" {
         return simulate_lift(a);
     }
+    if a.kind == crate::trace::QUADRANGLE_SWING {
+        return simulate_quadrangle(a);
+    }
     let data = builtin_160ec();
     let (test_json, channel) = match a.kind.as_str() {
         "pendulum" => (
@@ -97,7 +110,7 @@ pub fn simulate_doc(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
             "alpha_deg",
         ),
         "slider" => (json!({"kind": "slider", "joint": "J8", "rig": {}}), "h_mm"),
-        k => anyhow::bail!("--kind: `{k}` (pendulum, slider or lift)"),
+        k => anyhow::bail!("--kind: `{k}` (pendulum, slider, lift or quadrangle_swing)"),
     };
     if !(a.fs > 0.0 && a.duration > 0.0 && a.noise >= 0.0 && a.quantum >= 0.0) {
         anyhow::bail!("--fs and --duration must be > 0, --noise and --quantum >= 0");
@@ -222,6 +235,84 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     let mut doc = json!({"format": FORMAT, "vehicle_id": a.vehicle, "pantograph": {"model": "160EC", "serial": a.serial},
         "recorded_at": a.recorded_at, "test": {"kind": "lift", "rig": {}},
         "channels": {"t_s": rec.t_s, "H_m": rec.strip_height_m, "T_Nm": rec.torque_nm, "Fs_N": rec.fs_n, "Fm_N": rec.fm_n}});
+    if let Some(id) = &a.trace_id {
+        doc["trace_id"] = json!(id);
+    }
+    TraceDoc::from_value(&doc).map_err(|e| anyhow::anyhow!("{e}"))
+}
+
+/// Parse `--scale-joint JOINT:kind=factor,…` into (joint, kind, factor) triples.
+fn scale_specs(specs: &[String]) -> anyhow::Result<Vec<(String, String, f64)>> {
+    let mut out = Vec::new();
+    for spec in specs {
+        let (joint, rest) = spec
+            .split_once(':')
+            .ok_or_else(|| anyhow::anyhow!("--scale-joint {spec}: expected JOINT:kind=factor"))?;
+        for pair in rest.split(',').filter(|p| !p.is_empty()) {
+            let (kind, v) = pair.split_once('=').ok_or_else(|| {
+                anyhow::anyhow!("--scale-joint {spec}: `{pair}` is not kind=factor")
+            })?;
+            let f: f64 = v
+                .parse()
+                .map_err(|_| anyhow::anyhow!("--scale-joint {spec}: `{v}` is not a number"))?;
+            anyhow::ensure!(
+                f.is_finite() && f >= 0.0,
+                "--scale-joint {spec}: factor must be finite and >= 0"
+            );
+            out.push((joint.to_string(), kind.to_string(), f));
+        }
+    }
+    Ok(out)
+}
+
+/// A lower-quadrangle swing (paper Fig 12) on a frame inclined at `--incline`, released at rest
+/// from α = `--release`, friction scaled by `--scale-joint`, both angle channels with
+/// `--noise` and their sensor zeros (`--offset`, `--beta-offset`).
+fn simulate_quadrangle(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
+    use pantowatch_models::quadrangle::identify::QuadParam;
+    use pantowatch_models::quadrangle::model::QJoint;
+    use pantowatch_models::quadrangle::report::{QuadRig, SwingRecipe, record_swing};
+    anyhow::ensure!(
+        a.fs > 0.0 && a.fs <= 10_000.0 && a.duration > 0.0 && a.duration <= 600.0,
+        "--fs must be in (0, 10000] Hz and --duration in (0, 600] s"
+    );
+    anyhow::ensure!(
+        a.noise >= 0.0 && a.noise.is_finite() && a.offset.is_finite() && a.beta_offset.is_finite(),
+        "--noise must be >= 0, --offset and --beta-offset finite"
+    );
+    let mut scale = Vec::new();
+    for (joint, kind, f) in scale_specs(&a.scale_joints)? {
+        let j = QJoint::ALL
+            .into_iter()
+            .find(|j| j.name() == joint)
+            .ok_or_else(|| {
+                anyhow::anyhow!("--scale-joint: `{joint}` is not a quadrangle joint (J1 J2 J2' J3)")
+            })?;
+        let p = match kind.as_str() {
+            "viscous" => QuadParam::Viscous(j),
+            "dry" => QuadParam::Dry(j),
+            k => anyhow::bail!("--scale-joint: `{k}` is not viscous or dry"),
+        };
+        scale.push((p, f));
+    }
+    let rig = QuadRig {
+        incline_deg: a.incline,
+        ..QuadRig::default()
+    };
+    let rec = record_swing(&SwingRecipe {
+        rig,
+        scale,
+        release_deg: a.release,
+        fs_hz: a.fs,
+        duration_s: a.duration,
+        noise_deg: a.noise,
+        zeros_deg: (a.offset, a.beta_offset),
+        seed: a.seed,
+    })
+    .context("quadrangle swing simulation")?;
+    let mut doc = json!({"format": FORMAT, "vehicle_id": a.vehicle, "pantograph": {"model": "160EC", "serial": a.serial},
+        "recorded_at": a.recorded_at, "test": {"kind": crate::trace::QUADRANGLE_SWING, "rig": {"incline_deg": a.incline}},
+        "channels": {"t_s": rec.t_s, "alpha_deg": rec.alpha_deg, "beta_deg": rec.beta_deg}});
     if let Some(id) = &a.trace_id {
         doc["trace_id"] = json!(id);
     }

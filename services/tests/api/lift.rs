@@ -1,6 +1,5 @@
 //! Lift traces over HTTP (issue 5): the reference lift is fitted like any other kind, with
-//! every joint J1…J9 in the result; the documented-but-unfitted `quadrangle_swing` kind is
-//! refused with 422 and nothing is stored.
+//! every joint J1…J9 in the result (the `quadrangle_swing` kind: `quadrangle.rs`).
 
 use reqwest::{Method, StatusCode};
 use serde_json::{Value, json};
@@ -54,31 +53,5 @@ pub async fn lift_trace_is_fitted_with_every_joint(b: Backend) {
     assert_eq!(r.status(), StatusCode::ACCEPTED);
     assert_eq!(r.json::<Value>().await.expect("json")["queued"], 0);
 
-    // The lower-quadrangle swing is documented (docs/TRACE_FORMAT.md) but not fitted yet.
-    let before = app.counts().await;
-    let t: Vec<f64> = (0..100).map(|i| f64::from(i) * 0.01).collect();
-    let swing = json!({"format": "pantograph-trace/1", "vehicle_id": "V-SWING",
-        "pantograph": {"model": "160EC", "serial": "S-SWING"}, "recorded_at": "2026-03-02T07:15:00Z",
-        "test": {"kind": "quadrangle_swing", "rig": {"incline_deg": 70.0}},
-        "channels": {"t_s": t, "alpha_deg": vec![-10.1; 100], "beta_deg": vec![-3.6; 100]}});
-    let r = app
-        .upload_json(&serde_json::to_vec(&swing).expect("json"))
-        .await;
-    let v = assert_problem(
-        r,
-        StatusCode::UNPROCESSABLE_ENTITY,
-        Some("test.kind"),
-        "quadrangle_swing",
-    )
-    .await;
-    assert!(
-        v["detail"]
-            .as_str()
-            .unwrap_or("")
-            .contains("not fitted yet"),
-        "{v}"
-    );
-    let after = app.counts().await;
-    assert_eq!((after.traces, after.jobs), (before.traces, before.jobs));
     app.stop().await;
 }

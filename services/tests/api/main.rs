@@ -11,6 +11,7 @@ mod cases;
 mod corpus;
 mod harness;
 mod lift;
+mod quadrangle;
 mod security;
 
 use harness::Backend;
