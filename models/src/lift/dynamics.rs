@@ -152,6 +152,8 @@ pub struct Eval {
     /// J9 spring force on the head along the slide (preload − k·h) and its damping, N.
     pub j9_spring_n: f64,
     pub j9_damping_n: f64,
+    /// Revolute joints: the sign law's value σ at the relative rate (0 for J6, locked).
+    pub sign: [f64; N_REV],
     /// Fixed-point iterations taken to make friction and reactions consistent.
     pub iterations: u32,
 }
@@ -376,6 +378,7 @@ impl LiftModel {
             e.reactions = r;
             e.iterations = it;
             if change <= ITER_RTOL * (1.0 + scale) {
+                e.sign = sgn;
                 // One more pass is not needed: the accelerations above used torques within
                 // the tolerance of the ones stored.
                 return Ok(e);
@@ -545,7 +548,6 @@ impl LiftModel {
         loads: &Loads,
         e: &Eval,
     ) -> Result<[[f64; N_Q]; 2], DynamicsError> {
-        use nalgebra::{SMatrix, SVector};
         let k = self.kane(pose, head, s, loads);
         let det = k.m_aa * k.m_hh - k.m_ah * k.m_ah;
         // M⁻¹ applied to a generalised-force change (δb_α, δb_h).
@@ -571,8 +573,12 @@ impl LiftModel {
             k.f_axial,
         );
         let j6 = RevJoint::J6.index();
-        let mut a = SMatrix::<f64, 2, N_Q>::zeros();
-        let mut c = SMatrix::<f64, N_Q, N_Q>::identity();
+        let mut a = [[0.0; N_Q]; 2];
+        // I − C, built as the identity minus the feedback.
+        let mut c = [[0.0; N_Q]; N_Q];
+        for (i, row) in c.iter_mut().enumerate() {
+            row[i] = 1.0;
+        }
         for l in 0..N_Q {
             if l == j6 {
                 continue;
@@ -583,8 +589,8 @@ impl LiftModel {
                 _ => (1.0, 0.0),
             };
             let (da, dh) = minv(ba, bh);
-            a[(0, l)] = da;
-            a[(1, l)] = dh;
+            a[0][l] = da;
+            a[1][l] = dh;
             let mut t = torque;
             let mut fax = k.f_axial;
             if l < N_REV {
@@ -609,22 +615,71 @@ impl LiftModel {
                 }
                 // μRσ = dry torque / N.
                 let dn = base.force_n[j].dot(r.force_n[j] - base.force_n[j]) / n;
-                c[(j, l)] -= e.dry_torque_nm[j] / n * dn;
+                c[j][l] -= e.dry_torque_nm[j] / n * dn;
             }
         }
-        // Φ = A·(I − C)⁻¹ ⇔ (I − C)ᵀ Φᵀ = Aᵀ.
-        let lu = c.transpose().lu();
-        let mut out = [[0.0; N_Q]; 2];
-        for row in 0..2 {
-            let rhs: SVector<f64, N_Q> = a.row(row).transpose();
-            let x = lu.solve(&rhs).ok_or(DynamicsError::FrictionNotConverged {
+        // Φ = A·(I − C)⁻¹ ⇔ Φ·(I − C) = A: two row systems, solved in place on the stack.
+        solve_rows(c, a).ok_or(DynamicsError::FrictionNotConverged {
+            alpha_rad: s.alpha_rad,
+        })
+    }
+
+    /// Accelerations at a state `s` near a converged evaluation whose friction torques are
+    /// `t0` and whose response is `phi` ([`LiftModel::response`]): one reaction recovery at the
+    /// torques `t0`, one fixed-point update δT, and the fixed point's remaining change through
+    /// Φ: acc(t0) + Φ·δT. Exact to first order in the state change (the neglected terms are
+    /// O(|Δy|·|δT|) = O(|Δy|²)), so a one-sided difference quotient built from it has the same
+    /// O(Δy) truncation as one built from a fully iterated [`LiftModel::eval_with_head`], at the
+    /// cost of one recovery instead of several. `sign`: the revolute joints' sign-law values
+    /// when the caller knows them unchanged (α and α̇ as at the evaluation), else computed.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn accelerations_near(
+        &self,
+        pose: &LinkagePose,
+        head: &HeadKin,
+        s: &State,
+        loads: &Loads,
+        t0: &[f64; N_REV],
+        phi: &[[f64; N_Q]; 2],
+        sign: Option<&[f64; N_REV]>,
+    ) -> Result<[f64; 2], DynamicsError> {
+        let ad = s.alpha_dot_rad_s;
+        let f = &self.friction;
+        let k = self.kane(pose, head, s, loads);
+        let det = k.m_aa * k.m_hh - k.m_ah * k.m_ah;
+        if det.is_nan() || det <= 0.0 {
+            return Err(DynamicsError::Singular {
                 alpha_rad: s.alpha_rad,
-            })?;
-            for l in 0..N_Q {
-                out[row][l] = x[l];
-            }
+            });
         }
-        Ok(out)
+        let mut rate = [0.0; N_REV];
+        let mut b = k.b_a;
+        for j in RevJoint::ALL {
+            let i = j.index();
+            rate[i] = pose.rel_rate(j);
+            b -= t0[i] * rate[i];
+        }
+        let add = (b * k.m_hh - k.m_ah * k.b_h) / det;
+        let hdd = (k.m_aa * k.b_h - k.m_ah * b) / det;
+        let r = self.reactions(pose, head, ad * ad, add, hdd, t0, loads, k.f_axial);
+        let j6 = RevJoint::J6.index();
+        let mut acc = [add, hdd];
+        for i in 0..N_REV {
+            if i == j6 {
+                continue;
+            }
+            let w = rate[i] * ad;
+            let sg = match sign {
+                Some(sg) => sg[i],
+                None => self.sign_law.revolute(w, rate[i]),
+            };
+            let t = f.viscous_nms_per_rad[i] * w
+                + f.dry_mu[i] * self.pin_radius_m[i] * r.force_n[i].norm() * sg;
+            let dt = t - t0[i];
+            acc[0] += phi[0][i] * dt;
+            acc[1] += phi[1][i] * dt;
+        }
+        Ok(acc)
     }
 
     /// Residual of the two equations the reaction recovery leaves unused (lower-arm moment
@@ -678,6 +733,47 @@ impl LiftModel {
         e += -self.preload_n * s.h_m + 0.5 * self.j9_stiffness_n_per_m() * s.h_m * s.h_m;
         e
     }
+}
+
+/// X with X·M = B for the 2 × [`N_Q`] right-hand side B: Gaussian elimination with partial
+/// pivoting on Mᵀ (fixed size, on the stack). `None` if M is singular.
+fn solve_rows(m: [[f64; N_Q]; N_Q], b: [[f64; N_Q]; 2]) -> Option<[[f64; N_Q]; 2]> {
+    // Mᵀ·xᵀ = bᵀ: work on t = Mᵀ with the two right-hand sides as extra columns.
+    let mut t = [[0.0; N_Q + 2]; N_Q];
+    for i in 0..N_Q {
+        for j in 0..N_Q {
+            t[i][j] = m[j][i];
+        }
+        t[i][N_Q] = b[0][i];
+        t[i][N_Q + 1] = b[1][i];
+    }
+    for col in 0..N_Q {
+        let piv = (col..N_Q).max_by(|&x, &y| t[x][col].abs().total_cmp(&t[y][col].abs()))?;
+        if t[piv][col] == 0.0 || !t[piv][col].is_finite() {
+            return None;
+        }
+        t.swap(col, piv);
+        let inv = 1.0 / t[col][col];
+        for row in col + 1..N_Q {
+            let f = t[row][col] * inv;
+            if f != 0.0 {
+                for k in col..N_Q + 2 {
+                    t[row][k] -= f * t[col][k];
+                }
+            }
+        }
+    }
+    let mut out = [[0.0; N_Q]; 2];
+    for r in 0..2 {
+        for i in (0..N_Q).rev() {
+            let mut v = t[i][N_Q + r];
+            for k in i + 1..N_Q {
+                v -= t[i][k] * out[r][k];
+            }
+            out[r][i] = v / t[i][i];
+        }
+    }
+    Some(out)
 }
 
 /// The force f with r1 × f = m1 and r2 × f = m2.

@@ -12,8 +12,10 @@
 //! - [`sensitivity`] — ∂H/∂θ along a simulated lift (friction of every joint, torque offset).
 //! - [`report`] — a lift fit as the contract's fit result (every joint J1…J9).
 //! - [`identify`] — Fisher information per trace, MAP fit with Table 4 as prior, verdicts.
+//! - [`batch`] — many lift fits on all cores, results in input order, progress by callback.
 //! - `integrate` — DOPRI5 over a sampled record, dense output at the samples.
 
+pub mod batch;
 pub mod dynamics;
 pub mod geometry;
 pub mod identify;

@@ -5,6 +5,8 @@
 //! f_θ exactly from the model's linear response to the friction inputs (normal-force feedback
 //! included); the initial state's dependence on the offset by a central difference.
 
+use std::cell::Cell;
+
 use super::dynamics::{DynamicsError, LiftModel, Q_DRIVE, Q_SLIDE, State};
 use super::integrate::{Segmented, integrate};
 use super::simulate::{LiftInputs, SimError, SimOptions, initial_state};
@@ -122,6 +124,8 @@ struct SensSys<'a> {
     params: &'a [LiftParam],
     offset_nm: f64,
     fm_n: f64,
+    /// Friction torques of the last evaluation: the next fixed point's starting guess.
+    last_torque: Cell<Option<[f64; N_REV]>>,
 }
 
 impl Segmented for SensSys<'_> {
@@ -143,13 +147,20 @@ impl SensSys<'_> {
         let loads = self.inputs.loads(t, self.fm_n, self.offset_nm);
         let pose = m.linkage.pose(s.alpha_rad)?;
         let head = m.linkage.head(&pose, s.h_m, s.alpha_dot_rad_s, s.h_dot_m_s);
-        let e = m.eval_with_head(&pose, &head, &s, &loads, None)?;
+        // The fixed point starts from the last evaluation's torques (a nearby state: the
+        // previous stage); it converges to the same 10⁻¹⁴ tolerance from any start.
+        let guess = self.last_torque.get();
+        let e = m.eval_with_head(&pose, &head, &s, &loads, guess.as_ref())?;
         let acc = [e.alpha_ddot_rad_s2, e.h_ddot_m_s2];
         let mut torque = [0.0; N_REV];
         for i in 0..N_REV {
             torque[i] = e.viscous_torque_nm[i] + e.dry_torque_nm[i];
         }
-        // State Jacobian of the accelerations, one column per state component.
+        self.last_torque.set(Some(torque));
+        let phi = m.response(&pose, &head, &s, &loads, &e)?;
+        // State Jacobian of the accelerations, one column per state component: one-sided
+        // differences of the accelerations linearised in the friction torques about this
+        // evaluation (`accelerations_near`: first-order exact, one reaction recovery each).
         let mut jy = [[0.0; 4]; 2];
         for c in 0..4 {
             let mut sp = s;
@@ -160,22 +171,23 @@ impl SensSys<'_> {
                 2 => sp.alpha_dot_rad_s += d,
                 _ => sp.h_dot_m_s += d,
             }
-            let ep = if c == 0 {
+            let ap = if c == 0 {
                 let pp = m.linkage.pose(sp.alpha_rad)?;
                 let hp = m
                     .linkage
                     .head(&pp, sp.h_m, sp.alpha_dot_rad_s, sp.h_dot_m_s);
-                m.eval_with_head(&pp, &hp, &sp, &loads, Some(&torque))?
+                m.accelerations_near(&pp, &hp, &sp, &loads, &torque, &phi, None)?
             } else {
                 let hp = m
                     .linkage
                     .head(&pose, sp.h_m, sp.alpha_dot_rad_s, sp.h_dot_m_s);
-                m.eval_with_head(&pose, &hp, &sp, &loads, Some(&torque))?
+                // h and ḣ leave the revolute joints' rates, so their sign-law values, as they were.
+                let sign = (c != 2).then_some(&e.sign);
+                m.accelerations_near(&pose, &hp, &sp, &loads, &torque, &phi, sign)?
             };
-            jy[0][c] = (ep.alpha_ddot_rad_s2 - acc[0]) / d;
-            jy[1][c] = (ep.h_ddot_m_s2 - acc[1]) / d;
+            jy[0][c] = (ap[0] - acc[0]) / d;
+            jy[1][c] = (ap[1] - acc[1]) / d;
         }
-        let phi = m.response(&pose, &head, &s, &loads, &e)?;
         dy[0] = y[2];
         dy[1] = y[3];
         dy[2] = acc[0];
@@ -278,6 +290,7 @@ pub fn simulate_sensitivities(
         params,
         offset_nm,
         fm_n: inputs.fm(0),
+        last_torque: Cell::new(None),
     };
     let mut out = SensitivityRun {
         strip_height_m: Vec::with_capacity(n),
