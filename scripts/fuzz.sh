@@ -38,13 +38,14 @@ for target in trace_json trace_csv; do
     # Seeds: the example traces (fuzz/seeds, see make_seeds.py) and the malformed-upload corpus.
     cargo fuzz run -s "$sanitizer" -O "$target" "$corpus" "$root/fuzz/seeds/$target" "$root/tests/corpus" -- \
         -max_total_time="$secs" -max_len=65536 -timeout=10 -rss_limit_mb=2048 \
-        -print_final_stats=1 -artifact_prefix="$artifacts/" 2>&1 | tee "$log" | grep -E '^(#[0-9]+ +(INITED|DONE|pulse)|==|SUMMARY|.*panicked)' || true
-    rc=${PIPESTATUS[0]}
+        -print_final_stats=1 -artifact_prefix="$artifacts/" >"$log" 2>&1
+    rc=$?
     set -e
+    grep -E '^(#[0-9]+[[:space:]]+(INITED|DONE)|==|SUMMARY|.*panicked)' "$log" || true
     after=$(find "$artifacts" -type f | wc -l)
     crashes=$((after - before))
-    execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
-    cov=$(grep -oE 'cov: [0-9]+ ft: [0-9]+ corp: [0-9]+/[0-9a-zA-Z]+' "$log" | tail -1)
+    execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1 || true)
+    cov=$(grep -oE 'cov: [0-9]+ ft: [0-9]+ corp: [0-9]+/[0-9a-zA-Z]+' "$log" | tail -1 || true)
     line="$target: ${secs}s, execs ${execs:-?}, ${cov:-no coverage line}, crashes $crashes, exit $rc"
     summary="$summary$line"$'\n'
     if [ "$rc" -ne 0 ] || [ "$crashes" -ne 0 ]; then
