@@ -658,6 +658,13 @@ pub async fn run_load(a: &LoadArgs, key: String) -> anyhow::Result<LoadSummary> 
         key,
         max_retries: a.max_retries,
     });
+    // Fail fast on a wrong --url rather than retrying every upload against nothing.
+    let health = format!("{}/healthz", http.base);
+    match http.client.get(&health).send().await {
+        Ok(r) if r.status().is_success() => {}
+        Ok(r) => anyhow::bail!("--url: GET {health} answered HTTP {}", r.status()),
+        Err(e) => anyhow::bail!("--url: cannot reach {health}: {e}"),
+    }
     let base = Arc::new(
         tokio::task::spawn_blocking({
             let (d, f) = (a.duration_s, a.fs_hz);
