@@ -13,6 +13,8 @@ pub mod suite;
 
 use std::path::PathBuf;
 
+use crate::config::{LogSettings, init_logging};
+
 #[derive(Debug, clap::Args)]
 #[command(args_conflicts_with_subcommands = true)]
 pub struct BenchArgs {
@@ -34,11 +36,21 @@ pub enum BenchCommand {
     Suite(suite::SuiteArgs),
 }
 
-/// `bench FILE…` or `bench suite`.
+/// `bench FILE…` or `bench suite`. The suite logs warnings only (`RUST_LOG` still wins): its
+/// in-process service would otherwise log every timed request.
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     match a.command {
-        Some(BenchCommand::Suite(s)) => suite::run(s),
-        None => files::run(a),
+        Some(BenchCommand::Suite(s)) => {
+            init_logging(&LogSettings {
+                filter: "warn".into(),
+                ..LogSettings::default()
+            });
+            suite::run(s)
+        }
+        None => {
+            init_logging(&LogSettings::default());
+            files::run(a)
+        }
     }
 }
 

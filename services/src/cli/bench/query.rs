@@ -240,6 +240,16 @@ async fn backend(url: &str, sizes: &Sizes, writers: usize) -> anyhow::Result<Mea
         r??;
     }
     let fill_s = t0.elapsed().as_secs_f64();
+    // Fresh planner statistics, as autovacuum (PostgreSQL) or `PRAGMA optimize` (SQLite) would
+    // give a store that was not written a minute ago.
+    match &store {
+        Store::Postgres(s) => {
+            sqlx::query("ANALYZE").execute(s.pool()).await?;
+        }
+        Store::Sqlite(s) => {
+            sqlx::query("ANALYZE").execute(s.pool()).await?;
+        }
+    }
     let check = store
         .fleet_health(&FleetFilter::default(), Page::default())
         .await?;
