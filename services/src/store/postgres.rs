@@ -158,16 +158,19 @@ fn mount_row(r: Option<PgRow>) -> Result<Option<(String, DateTime<Utc>)>> {
 }
 
 /// Fleet rows from `pantograph_health` with the filters `$1` (worst rank) and `$2` (current
-/// vehicle); `last_test` is looked up only for the page's rows (index `traces_serial`).
+/// vehicle); the current mount by `DISTINCT ON`, one index scan.
 macro_rules! fleet_sql {
     () => {
         concat!(
-            "WITH fleet AS (
+            "WITH mount AS (
+                SELECT DISTINCT ON (serial) serial, vehicle_id FROM pantograph_mounts
+                ORDER BY serial, since DESC
+            ),
+            fleet AS (
                 SELECT p.serial, p.model, m.vehicle_id, h.worst, h.not_ok
                 FROM pantographs p
-                LEFT JOIN pantograph_mounts m ON m.serial = p.serial AND ",
-            current_mount!(),
-            " LEFT JOIN pantograph_health h ON h.serial = p.serial
+                LEFT JOIN mount m ON m.serial = p.serial
+                LEFT JOIN pantograph_health h ON h.serial = p.serial
                 WHERE ($1::bigint IS NULL OR h.worst = $1::bigint)
                   AND ($2::text IS NULL OR m.vehicle_id = $2::text)
             ) "
@@ -652,27 +655,40 @@ impl Backend for PgStore {
 
     async fn fleet_health(&self, filter: &FleetFilter, page: Page) -> Result<FleetPage> {
         let rank = filter.status.map(Status::rank);
-        let total: i64 = query_scalar(concat!(fleet_sql!(), "SELECT count(*) FROM fleet"))
-            .bind(rank)
-            .bind(&filter.vehicle_id)
-            .fetch_one(&self.pool)
-            .await?;
-        let rows = query(concat!(
+        // One statement: the page, the total over all pages (a window count before the limit),
+        // and `last_test` looked up for the page's rows only.
+        let found = query(concat!(
             fleet_sql!(),
-            "SELECT fleet.*,
-                    (SELECT max(t.recorded_at) FROM traces t WHERE t.serial = fleet.serial)
-                        AS last_test
-             FROM fleet ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4"
+            ", page AS (
+                SELECT fleet.*, count(*) OVER () AS total FROM fleet
+                ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4
+            )
+            SELECT page.*,
+                   (SELECT max(t.recorded_at) FROM traces t WHERE t.serial = page.serial)
+                       AS last_test
+            FROM page ORDER BY worst DESC NULLS LAST, serial"
         ))
         .bind(rank)
         .bind(&filter.vehicle_id)
         .bind(i64::from(page.limit))
         .bind(i64::try_from(page.offset).unwrap_or(i64::MAX))
         .fetch_all(&self.pool)
-        .await?
-        .iter()
-        .map(fleet_row_from)
-        .collect::<Result<Vec<_>>>()?;
+        .await?;
+        let total: i64 = match found.first() {
+            Some(r) => r.int("total")?,
+            // Past the last page (or nothing matches): the total needs its own count.
+            None => {
+                query_scalar(concat!(fleet_sql!(), "SELECT count(*) FROM fleet"))
+                    .bind(rank)
+                    .bind(&filter.vehicle_id)
+                    .fetch_one(&self.pool)
+                    .await?
+            }
+        };
+        let rows = found
+            .iter()
+            .map(fleet_row_from)
+            .collect::<Result<Vec<_>>>()?;
         Ok(FleetPage {
             total: u64::try_from(total).unwrap_or(0),
             rows,

@@ -645,27 +645,40 @@ impl Backend for SqliteStore {
 
     async fn fleet_health(&self, filter: &FleetFilter, page: Page) -> Result<FleetPage> {
         let rank = filter.status.map(Status::rank);
-        let total: i64 = query_scalar(concat!(fleet_sql!(), "SELECT count(*) FROM fleet"))
-            .bind(rank)
-            .bind(&filter.vehicle_id)
-            .fetch_one(&self.pool)
-            .await?;
-        let rows = query(concat!(
+        // One statement: the page, the total over all pages (a window count before the limit),
+        // and `last_test` looked up for the page's rows only.
+        let found = query(concat!(
             fleet_sql!(),
-            "SELECT fleet.*,
-                    (SELECT max(t.recorded_at) FROM traces t WHERE t.serial = fleet.serial)
-                        AS last_test
-             FROM fleet ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4"
+            ", page AS (
+                SELECT fleet.*, count(*) OVER () AS total FROM fleet
+                ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4
+            )
+            SELECT page.*,
+                   (SELECT max(t.recorded_at) FROM traces t WHERE t.serial = page.serial)
+                       AS last_test
+            FROM page ORDER BY worst DESC NULLS LAST, serial"
         ))
         .bind(rank)
         .bind(&filter.vehicle_id)
         .bind(i64::from(page.limit))
         .bind(i64::try_from(page.offset).unwrap_or(i64::MAX))
         .fetch_all(&self.pool)
-        .await?
-        .iter()
-        .map(fleet_row_from)
-        .collect::<Result<Vec<_>>>()?;
+        .await?;
+        let total: i64 = match found.first() {
+            Some(r) => r.int("total")?,
+            // Past the last page (or nothing matches): the total needs its own count.
+            None => {
+                query_scalar(concat!(fleet_sql!(), "SELECT count(*) FROM fleet"))
+                    .bind(rank)
+                    .bind(&filter.vehicle_id)
+                    .fetch_one(&self.pool)
+                    .await?
+            }
+        };
+        let rows = found
+            .iter()
+            .map(fleet_row_from)
+            .collect::<Result<Vec<_>>>()?;
         Ok(FleetPage {
             total: u64::try_from(total).unwrap_or(0),
             rows,

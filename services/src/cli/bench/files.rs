@@ -3,7 +3,6 @@
 //! Lift traces are timed too: the complete-pantograph MAP fit with its fit-result mapping (one
 //! thread; "viscous"/"dry" show J3's, the joint a lift informs best).
 
-use std::path::PathBuf;
 use std::time::Instant;
 
 use pantowatch_models::drift::DriftThresholds;
@@ -12,23 +11,9 @@ use serde_json::json;
 
 use crate::trace::{Kind, TraceDoc};
 
-#[derive(Debug, clap::Args)]
-pub struct BenchArgs {
-    /// Trace documents to fit.
-    pub files: Vec<PathBuf>,
-    /// Fits per file; the median time is reported.
-    #[arg(long, default_value_t = 5)]
-    pub repeat: usize,
-    /// One JSON line per file instead of a table.
-    #[arg(long)]
-    pub json: bool,
-}
+use super::{BenchArgs, median};
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
+/// Times every file of `a.files` and prints a table or JSON lines.
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     if !a.json {
         println!(
@@ -37,7 +22,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         );
     }
     for f in &a.files {
-        let doc = super::read_trace(f)?;
+        let doc = crate::cli::read_trace(f)?;
         if doc.kind == Kind::Lift {
             bench_lift(&a, f, &doc)?;
             continue;
