@@ -732,6 +732,14 @@ const DYNAMIC_SQL: [&str; 5] = [
 /// Files of services/src that are compiled only for tests (`#[cfg(test)] mod …;`).
 const TEST_ONLY: [&str; 1] = ["store/tests.rs"];
 
+/// Reviewed exceptions: (file, exactly this many hits, why). A new hit in such a file fails too.
+const REVIEWED: [(&str, usize, &str); 1] = [(
+    "cli/bench/harness.rs",
+    3,
+    "CREATE/DROP DATABASE of a name the benchmark generated itself (`pw_bench_` + 12 hex digits, \
+     checked by `bench_database_name` before use): an identifier cannot be a bound parameter",
+)];
+
 fn dynamic_sql_in(text: &str) -> Vec<(usize, &'static str)> {
     let mut hits = Vec::new();
     let lines: Vec<&str> = text.lines().collect();
@@ -789,7 +797,13 @@ fn sql_is_only_constant_text_with_bound_values() {
         }
         let text = std::fs::read_to_string(f).expect("read");
         queries += text.matches("query(").count() + text.matches("query_scalar(").count();
-        for (line, pat) in dynamic_sql_in(&text) {
+        let hits = dynamic_sql_in(&text);
+        if let Some((_, n, _)) = REVIEWED.iter().find(|r| rel == Path::new(r.0)) {
+            if hits.len() == *n {
+                continue;
+            }
+        }
+        for (line, pat) in hits {
             bad.push(format!("{}:{line}: {pat}", rel.display()));
         }
     }

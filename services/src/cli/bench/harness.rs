@@ -19,6 +19,21 @@ pub struct FreshPg {
     pub url: String,
 }
 
+/// `name` if it is a benchmark database name (`pw_bench_` + 12 lowercase hex digits): the only
+/// text ever spliced into SQL here (CREATE/DROP DATABASE take no bound parameters).
+fn bench_database_name(name: &str) -> anyhow::Result<String> {
+    let ok = name.strip_prefix("pw_bench_").is_some_and(|h| {
+        h.len() == 12
+            && h.bytes()
+                .all(|c| c.is_ascii_digit() || (b'a'..=b'f').contains(&c))
+    });
+    if ok {
+        Ok(name.to_owned())
+    } else {
+        anyhow::bail!("not a benchmark database name: {name:?}")
+    }
+}
+
 /// The admin URL with its database name replaced.
 fn with_database(url: &str, name: &str) -> String {
     let (base, query) = match url.split_once('?') {
@@ -38,7 +53,7 @@ impl FreshPg {
     pub async fn create(admin: &str) -> anyhow::Result<FreshPg> {
         let mut b = [0u8; 6];
         getrandom::fill(&mut b).map_err(|e| anyhow::anyhow!("random name: {e}"))?;
-        let name = format!("pw_bench_{}", hex::encode(b));
+        let name = bench_database_name(&format!("pw_bench_{}", hex::encode(b)))?;
         let mut c = sqlx::PgConnection::connect(admin)
             .await
             .with_context(|| "PostgreSQL unreachable (set --pg-url)".to_string())?;
@@ -56,7 +71,10 @@ impl FreshPg {
     /// Drops the database (after every connection to it is closed or forced out).
     pub async fn drop_now(self) {
         if let Ok(mut c) = sqlx::PgConnection::connect(&self.admin).await {
-            let sql = format!("DROP DATABASE IF EXISTS {} WITH (FORCE)", self.name);
+            let Ok(name) = bench_database_name(&self.name) else {
+                return;
+            };
+            let sql = format!("DROP DATABASE IF EXISTS {name} WITH (FORCE)");
             if let Err(e) = c.execute(AssertSqlSafe(sql)).await {
                 eprintln!("   warning: could not drop {}: {e}", self.name);
             }
@@ -121,5 +139,25 @@ impl Server {
             h.await.context("server task")??;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bench_database_name;
+
+    #[test]
+    fn only_generated_names_reach_sql() {
+        assert!(bench_database_name("pw_bench_0123456789ab").is_ok());
+        for bad in [
+            "pw_bench_0123456789AB",
+            "pw_bench_0123456789a",
+            "pw_bench_0123456789abc",
+            "pw_bench_01234567; DROP",
+            "postgres",
+            "",
+        ] {
+            assert!(bench_database_name(bad).is_err(), "{bad:?} accepted");
+        }
     }
 }
