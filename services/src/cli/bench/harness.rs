@@ -101,6 +101,9 @@ impl Server {
             ..Settings::default()
         };
         settings.web.session_secret = SecretString::new("bench session secret");
+        // One key sends every measured request: the per-key rate limit (default 20/s) is off, so
+        // the suite measures the service, not the limiter.
+        settings.http.rate_limit_per_s = 0.0;
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
         let addr = listener.local_addr()?;
         let (tx, rx) = oneshot::channel::<()>();
