@@ -37,7 +37,7 @@ pub struct DemoArgs {
     #[arg(long)]
     pub no_serve: bool,
     /// Vehicles in the fleet (two pantographs each).
-    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u16).range(1..=1000))]
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u16).range(1..=1000))]
     pub vehicles: u16,
     /// Fitting workers while the fleet is fitted (default: every core).
     #[arg(long)]
