@@ -40,7 +40,14 @@ pub struct BodyKin {
 }
 
 impl BodyKin {
-    fn new(rot: Rot, w1: f64, w2: f64, anchor: PointKin, anchor_local: V2, com_local: V2) -> Self {
+    pub(crate) fn new(
+        rot: Rot,
+        w1: f64,
+        w2: f64,
+        anchor: PointKin,
+        anchor_local: V2,
+        com_local: V2,
+    ) -> Self {
         let mut b = Self {
             rot,
             w1,

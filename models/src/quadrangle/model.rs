@@ -24,7 +24,7 @@
 
 use crate::lift::dynamics::DynamicsError;
 use crate::lift::geometry::{Geometry, Points};
-use crate::lift::kinematics::{AssemblyError, PointKin};
+use crate::lift::kinematics::{AssemblyError, BodyKin, PointKin};
 use crate::lift::topology::{BodyId, RevJoint};
 use crate::lift::vec2::{Rot, V2};
 
@@ -134,58 +134,18 @@ pub struct RigError {
     pub message: String,
 }
 
-/// One body's configuration at α: rotation, angle derivatives in α, an anchor point (a joint
-/// whose motion is known) and the centre of mass.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct QBodyKin {
-    pub rot: Rot,
-    /// dθ/dα and d²θ/dα².
-    pub w1: f64,
-    pub w2: f64,
-    anchor: PointKin,
-    anchor_local: V2,
-    pub com: PointKin,
-}
-
-impl QBodyKin {
-    fn new(rot: Rot, w1: f64, w2: f64, anchor: PointKin, anchor_local: V2, com_local: V2) -> Self {
-        let mut b = Self {
-            rot,
-            w1,
-            w2,
-            anchor,
-            anchor_local,
-            com: PointKin::default(),
-        };
-        b.com = b.at(com_local);
-        b
-    }
-    /// A body-frame point with its α-derivatives (rigid-body transport from the anchor).
-    pub fn at(&self, local: V2) -> PointKin {
-        let r = self.rot.apply(local - self.anchor_local);
-        PointKin {
-            p: self.anchor.p + r,
-            d1: self.anchor.d1 + self.w1 * r.perp(),
-            d2: self.anchor.d2 + self.w2 * r.perp() - (self.w1 * self.w1) * r,
-        }
-    }
-    pub fn theta_rad(&self) -> f64 {
-        self.rot.angle()
-    }
-}
-
 /// The quadrangle at one α.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct QPose {
     pub alpha_rad: f64,
     /// [`QBody`] order.
-    pub bodies: [QBodyKin; 3],
+    pub bodies: [BodyKin; 3],
     /// Joint centres, [`QJoint`] order.
     pub joints: [PointKin; N_JOINT],
 }
 
 impl QPose {
-    pub fn body(&self, b: QBody) -> &QBodyKin {
+    pub fn body(&self, b: QBody) -> &BodyKin {
         &self.bodies[b.index()]
     }
     /// Rate coefficient of a joint: ω_rel = r·α̇, ω_rel = θ̇(second) − θ̇(first) as in the lift.
@@ -370,7 +330,7 @@ impl Quadrangle {
             p: x,
             ..Default::default()
         };
-        let lower = QBodyKin::new(
+        let lower = BodyKin::new(
             Rot::from_angle(alpha_rad),
             1.0,
             0.0,
@@ -392,8 +352,8 @@ impl Quadrangle {
         let (a, b) = (w_u.perp(), -w_c.perp());
         let (u1, c1) = solve2(a, b, -j3.d1);
         let (u2, c2) = solve2(a, b, -j3.d2 + (u1 * u1) * w_u - (c1 * c1) * w_c);
-        let upper = QBodyKin::new(rot_u, u1, u2, j3, p.upper_arm_j3, self.com_local[2]);
-        let coupling = QBodyKin::new(
+        let upper = BodyKin::new(rot_u, u1, u2, j3, p.upper_arm_j3, self.com_local[2]);
+        let coupling = BodyKin::new(
             rot_c,
             c1,
             c2,
