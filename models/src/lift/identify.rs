@@ -270,7 +270,7 @@ impl Problem for MapProblem<'_> {
 }
 
 /// Inverse of a symmetric positive-definite matrix (Cholesky), or a pseudo-inverse.
-fn inverse_spd(a: &DMatrix<f64>) -> DMatrix<f64> {
+pub(crate) fn inverse_spd(a: &DMatrix<f64>) -> DMatrix<f64> {
     match a.clone().cholesky() {
         Some(c) => c.inverse(),
         None => pinv(a),

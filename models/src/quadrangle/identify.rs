@@ -24,6 +24,7 @@ use super::model::{QJoint, Quadrangle};
 use super::simulate::{SwingError, SwingOptions, simulate_swing};
 use crate::drift::{DriftThresholds, Status};
 use crate::identify::lm::{LmOptions, Problem, Termination, minimize};
+use crate::lift::identify::inverse_spd;
 
 /// A friction parameter of the quadrangle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -296,17 +297,6 @@ impl Problem for SwingProblem<'_> {
         v.extend([f64::INFINITY; N_NUIS]);
         v
     }
-}
-
-/// Inverse of a symmetric positive semi-definite matrix: Cholesky, else a pseudo-inverse.
-fn inverse_spd(a: &DMatrix<f64>) -> DMatrix<f64> {
-    if let Some(c) = a.clone().cholesky() {
-        return c.inverse();
-    }
-    let svd = a.clone().svd(true, true);
-    let smax = svd.singular_values.max();
-    svd.pseudo_inverse(smax * 1e-12)
-        .unwrap_or_else(|_| DMatrix::zeros(a.nrows(), a.ncols()))
 }
 
 fn check(trace: &SwingTrace) -> Result<(), QuadFitError> {
