@@ -161,6 +161,44 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
     s
 }
 
+/// One trace channel measured against the fitted model, with the residual, as an SVG file.
+fn write_plot(
+    path: &std::path::Path,
+    title: &str,
+    t: &[f64],
+    unit: &str,
+    measured: &[f64],
+    fitted: &[f64],
+    residual: &[f64],
+) -> anyhow::Result<()> {
+    let svg = fit_svg(
+        title,
+        t,
+        unit,
+        &[
+            Series {
+                name: "measured",
+                y: measured,
+                color: RGBColor(120, 120, 120),
+            },
+            Series {
+                name: "fitted model",
+                y: fitted,
+                color: RGBColor(200, 30, 30),
+            },
+        ],
+        &[Series {
+            name: "residual",
+            y: residual,
+            color: RGBColor(30, 60, 200),
+        }],
+    )
+    .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+    std::fs::write(path, svg).with_context(|| format!("writing {}", path.display()))?;
+    eprintln!("plot written to {}", path.display());
+    Ok(())
+}
+
 /// `fit` of a quadrangle swing: the table or JSON, and α measured vs fitted as SVG.
 fn run_quadrangle(
     args: &FitArgs,
@@ -198,31 +236,7 @@ fn run_quadrangle(
             doc.trace_id.as_deref().unwrap_or(""),
             rep.result.rmse.value
         );
-        let svg = fit_svg(
-            &title,
-            t,
-            "deg",
-            &[
-                Series {
-                    name: "measured",
-                    y: a,
-                    color: RGBColor(120, 120, 120),
-                },
-                Series {
-                    name: "fitted model",
-                    y: &fitted,
-                    color: RGBColor(200, 30, 30),
-                },
-            ],
-            &[Series {
-                name: "residual",
-                y: &residual,
-                color: RGBColor(30, 60, 200),
-            }],
-        )
-        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-        std::fs::write(path, svg).with_context(|| format!("writing {}", path.display()))?;
-        eprintln!("plot written to {}", path.display());
+        write_plot(path, &title, t, "deg", a, &fitted, &residual)?;
     }
     Ok(())
 }
@@ -256,31 +270,7 @@ fn run_lift(args: &FitArgs, doc: &TraceDoc, thresholds: &DriftThresholds) -> any
             doc.trace_id.as_deref().unwrap_or(""),
             rep.result.rmse.value * 1e3
         );
-        let svg = fit_svg(
-            &title,
-            t,
-            "m",
-            &[
-                Series {
-                    name: "measured",
-                    y: h,
-                    color: RGBColor(120, 120, 120),
-                },
-                Series {
-                    name: "fitted model",
-                    y: &rep.fitted_height_m,
-                    color: RGBColor(200, 30, 30),
-                },
-            ],
-            &[Series {
-                name: "residual",
-                y: &residual,
-                color: RGBColor(30, 60, 200),
-            }],
-        )
-        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-        std::fs::write(path, svg).with_context(|| format!("writing {}", path.display()))?;
-        eprintln!("plot written to {}", path.display());
+        write_plot(path, &title, t, "m", h, &rep.fitted_height_m, &residual)?;
     }
     Ok(())
 }
