@@ -4,6 +4,10 @@
 //! and simulations. Error control may be restricted to the first `n_ctrl` components (the state),
 //! leaving forward sensitivities appended after it to ride on the same steps.
 
+pub mod rosw;
+
+pub use rosw::{Rosw, WSystem};
+
 /// Something the integrator cannot continue past.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum OdeError {

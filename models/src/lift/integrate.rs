@@ -1,14 +1,62 @@
-//! Integration over a sampled record: DOPRI5 steps freely between breakpoints (samples where
-//! an input jumps), landing only on them, and the samples are read off the dense output.
+//! Integration over a sampled record: a stepper (DOPRI5 or the Rosenbrock-W method) steps
+//! freely between breakpoints (samples where an input jumps), landing only on them, and the
+//! samples are read off its dense output.
 //!
-//! Allocation-free per step: the caller owns the state and one sample buffer.
+//! Allocation-free per step: the caller owns the stepper, the state and one sample buffer.
 
-use crate::ode::{Dopri5, OdeError, OdeSystem, Step, Tolerances};
+use crate::ode::{Dopri5, OdeError, OdeSystem, Rosw, Step, WSystem};
 
 /// A system whose inputs change definition at breakpoints (a held input steps there).
-pub(super) trait Segmented: OdeSystem {
+pub(super) trait Segmented {
     /// The integration is about to run from sample `k`, a breakpoint, to the next one.
     fn enter_segment(&mut self, k: usize);
+}
+
+/// What [`integrate`] needs of a one-step method with dense output, for systems `S`.
+pub(super) trait Stepper<S> {
+    /// Forget what was evaluated at the current point (the equations changed).
+    fn reset(&mut self);
+    fn initial_step(&mut self, sys: &S, t: f64, y: &[f64]) -> Result<f64, OdeError>;
+    fn step(&mut self, sys: &S, t: f64, y: &mut [f64], h: f64) -> Result<Step, OdeError>;
+    /// The dense state at `t` inside the last accepted step.
+    fn dense_all(&self, t: f64, out: &mut [f64]);
+    fn n_rhs(&self) -> usize;
+}
+
+impl<S: OdeSystem> Stepper<S> for Dopri5 {
+    fn reset(&mut self) {
+        Dopri5::reset(self);
+    }
+    fn initial_step(&mut self, sys: &S, t: f64, y: &[f64]) -> Result<f64, OdeError> {
+        Dopri5::initial_step(self, sys, t, y)
+    }
+    fn step(&mut self, sys: &S, t: f64, y: &mut [f64], h: f64) -> Result<Step, OdeError> {
+        Dopri5::step(self, sys, t, y, h)
+    }
+    fn dense_all(&self, t: f64, out: &mut [f64]) {
+        Dopri5::dense_all(self, t, out);
+    }
+    fn n_rhs(&self) -> usize {
+        self.n_rhs
+    }
+}
+
+impl<S: WSystem> Stepper<S> for Rosw {
+    fn reset(&mut self) {
+        Rosw::reset(self);
+    }
+    fn initial_step(&mut self, sys: &S, t: f64, y: &[f64]) -> Result<f64, OdeError> {
+        Rosw::initial_step(self, sys, t, y)
+    }
+    fn step(&mut self, sys: &S, t: f64, y: &mut [f64], h: f64) -> Result<Step, OdeError> {
+        Rosw::step(self, sys, t, y, h)
+    }
+    fn dense_all(&self, t: f64, out: &mut [f64]) {
+        Rosw::dense_all(self, t, out);
+    }
+    fn n_rhs(&self) -> usize {
+        self.n_rhs
+    }
 }
 
 /// Why an integration stopped early.
@@ -27,23 +75,22 @@ pub(super) struct Work {
     pub rhs: usize,
 }
 
-/// Integrate `sys` from `y` at `t_s[0]` through `t_s[last]`, calling `sample(k, y_k)` at
-/// every sample (k = 0 with the initial state). `is_break(k)` marks samples where an input
-/// jumps: the integrator lands there and restarts. Error control on `y[..n_ctrl]` only.
+/// Integrate `sys` from `y` at `t_s[0]` through `t_s[last]` with `ode` (made for `y.len()`
+/// components, its error control and tolerances set), calling `sample(k, y_k)` at every
+/// sample (k = 0 with the initial state). `is_break(k)` marks samples where an input jumps:
+/// the integrator lands there and restarts.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn integrate<S: Segmented, E>(
+pub(super) fn integrate<S: Segmented, O: Stepper<S>, E>(
     sys: &mut S,
+    ode: &mut O,
     t_s: &[f64],
     is_break: impl Fn(usize) -> bool,
     y: &mut [f64],
-    n_ctrl: usize,
-    tol: Tolerances,
     max_steps: usize,
     buf: &mut [f64],
     mut sample: impl FnMut(usize, &[f64]) -> Result<(), E>,
 ) -> Result<Work, IntegrateError<E>> {
     let n = t_s.len();
-    let mut ode = Dopri5::new(y.len(), n_ctrl, tol);
     let mut work = Work::default();
     sample(0, y).map_err(IntegrateError::Sample)?;
     let mut next = 1;
@@ -91,6 +138,6 @@ pub(super) fn integrate<S: Segmented, E>(
         }
         seg = end;
     }
-    work.rhs = ode.n_rhs;
+    work.rhs = ode.n_rhs();
     Ok(work)
 }

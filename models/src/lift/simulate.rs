@@ -9,7 +9,7 @@ use super::dynamics::{DynamicsError, LiftModel, Loads, State};
 use super::integrate::{IntegrateError, Segmented, integrate};
 use super::statics::{StaticFriction, StaticsError, root_in_range, static_h_m, static_point};
 use super::topology::{N_REV, RevJoint};
-use crate::ode::{OdeError, OdeSystem, Tolerances};
+use crate::ode::{Dopri5, OdeError, OdeSystem, Tolerances};
 
 /// The lift test's input channels, sampled at `t_s` (contract `lift` kind).
 #[derive(Debug, Clone, Copy)]
@@ -398,13 +398,13 @@ pub fn simulate(
         h_max: opts.h_max_s,
         ..Default::default()
     };
+    let mut ode = Dopri5::new(dim, N_STATE, tol);
     let work = integrate(
         &mut sys,
+        &mut ode,
         inputs.t_s,
         |k| inputs.is_break(k),
         &mut y,
-        N_STATE,
-        tol,
         opts.max_steps,
         &mut buf,
         |_, y| -> Result<(), DynamicsError> {

@@ -1,0 +1,532 @@
+//! Rosenbrock-W method ROS34PW2 (Rang & Angermann, BIT 45 (2005) 761–787): four stages, order 3
+//! with an embedded order-2 error estimate, L-stable and stiffly accurate, linearly implicit.
+//!
+//! Why here: a smoothed dry-friction law is stiff at rest (|λ| ~ 10³/s), where an explicit
+//! method is held at its stability limit; this one steps through rest at the accuracy's step.
+//! It is a *W-method*: order 3 holds for any matrix W in place of ∂f/∂y, so W may be a
+//! difference approximation, omit ∂f/∂t, and ignore the state's coupling into forward
+//! sensitivities. W is block diagonal here: one `b × b` block (the state's Jacobian) repeated
+//! over the state and every sensitivity column appended after it.
+//!
+//! Allocation-free after construction. Dense output: the cubic Hermite interpolant through
+//! both ends of the step (f at the new point is computed on acceptance and is the next step's
+//! first stage, so it costs nothing extra).
+
+// The coefficients are written as published (17 significant digits), so they can be checked
+// against the paper digit by digit.
+#![allow(clippy::excessive_precision)]
+
+use super::{OdeError, Step, Tolerances};
+
+/// A system y' = f(t, y) that also gives the diagonal block of its W matrix.
+pub trait WSystem {
+    fn dim(&self) -> usize;
+    /// Size b of the repeated diagonal block of W (dim must be a multiple of it), at most
+    /// [`MAX_BLOCK`].
+    fn block(&self) -> usize;
+    /// Write f(t, y) into `dy`; when `w` is given, also the b × b block of W (row-major),
+    /// an approximation of ∂f/∂y restricted to the block's components.
+    fn rhs_w(
+        &self,
+        t: f64,
+        y: &[f64],
+        dy: &mut [f64],
+        w: Option<&mut [f64]>,
+    ) -> Result<(), OdeError>;
+}
+
+/// Largest block of W the stepper handles (its LU lives on the stack).
+pub const MAX_BLOCK: usize = 8;
+
+// The method's coefficients in the form k_i = h f(y₀ + Σ a_ij k_j) + h W Σ_{j≤i} γ_ij k_j
+// (Hairer & Wanner II, IV.7, (7.4) with W), y₁ = y₀ + Σ b_i k_i; Rang & Angermann's Table of
+// ROS34PW2. Stage times: t₀ + α_i h with α_i = Σ_j a_ij (W has no ∂f/∂t column).
+const GAMMA: f64 = 4.358_665_215_084_59e-1;
+const A21: f64 = 8.717_330_430_169_180_1e-1;
+const A31: f64 = 8.445_706_001_536_942_3e-1;
+const A32: f64 = -1.129_906_423_648_418_5e-1;
+// a41 = a42 = 0, a43 = 1.
+const G21: f64 = -8.717_330_430_169_180_1e-1;
+const G31: f64 = -9.033_805_701_304_408_2e-1;
+const G32: f64 = 5.418_067_238_809_532_6e-2;
+const G41: f64 = 2.421_238_070_609_534_6e-1;
+const G42: f64 = -1.223_250_583_904_514_7;
+const G43: f64 = 5.452_602_553_351_021_4e-1;
+const B: [f64; 4] = [
+    2.421_238_070_609_534_6e-1,
+    -1.223_250_583_904_514_7,
+    1.545_260_255_335_102,
+    GAMMA,
+];
+const B_HAT: [f64; 4] = [
+    3.781_090_314_581_936_9e-1,
+    -9.604_229_221_242_317_8e-2,
+    0.5,
+    2.179_332_607_542_295e-1,
+];
+const ALPHA2: f64 = A21;
+const ALPHA3: f64 = A31 + A32;
+const ALPHA4: f64 = 1.0;
+
+/// The stepper with its stage buffers and the ends of the last accepted step.
+pub struct Rosw {
+    n: usize,
+    b: usize,
+    n_ctrl: usize,
+    pub tol: Tolerances,
+    k: [Vec<f64>; 4],
+    /// f and W at the current point (valid after the first evaluation until `reset`).
+    f0: Vec<f64>,
+    w0: [f64; MAX_BLOCK * MAX_BLOCK],
+    f1: Vec<f64>,
+    w1: [f64; MAX_BLOCK * MAX_BLOCK],
+    current: bool,
+    ytmp: Vec<f64>,
+    rhs: Vec<f64>,
+    y1: Vec<f64>,
+    /// Hermite data of the last accepted step: y and f at its start (its end is the state).
+    y_old: Vec<f64>,
+    f_old: Vec<f64>,
+    y_end: Vec<f64>,
+    f_end: Vec<f64>,
+    t_old: f64,
+    h_old: f64,
+    last_rejected: bool,
+    /// Statistics: right-hand-side evaluations and accepted steps.
+    pub n_rhs: usize,
+    pub n_steps: usize,
+}
+
+/// LU factors (partial pivoting) of a b × b matrix, row-major, on the stack.
+struct Lu {
+    b: usize,
+    a: [f64; MAX_BLOCK * MAX_BLOCK],
+    piv: [usize; MAX_BLOCK],
+}
+
+impl Lu {
+    /// Factor I − hγ·W; `None` if singular.
+    fn of_shifted(w: &[f64], b: usize, hg: f64) -> Option<Lu> {
+        let mut a = [0.0; MAX_BLOCK * MAX_BLOCK];
+        for r in 0..b {
+            for c in 0..b {
+                a[r * b + c] = f64::from(u8::from(r == c)) - hg * w[r * b + c];
+            }
+        }
+        let mut piv = [0; MAX_BLOCK];
+        for col in 0..b {
+            let p = (col..b)
+                .max_by(|&i, &j| a[i * b + col].abs().total_cmp(&a[j * b + col].abs()))
+                .unwrap_or(col);
+            piv[col] = p;
+            if a[p * b + col] == 0.0 || !a[p * b + col].is_finite() {
+                return None;
+            }
+            if p != col {
+                for c in 0..b {
+                    a.swap(p * b + c, col * b + c);
+                }
+            }
+            let d = a[col * b + col];
+            for r in col + 1..b {
+                let f = a[r * b + col] / d;
+                a[r * b + col] = f;
+                for c in col + 1..b {
+                    a[r * b + c] -= f * a[col * b + c];
+                }
+            }
+        }
+        Some(Lu { b, a, piv })
+    }
+
+    /// Solve in place for one block `x` (length b).
+    #[inline]
+    fn solve(&self, x: &mut [f64]) {
+        let (b, a) = (self.b, &self.a);
+        for col in 0..b {
+            x.swap(col, self.piv[col]);
+        }
+        for r in 1..b {
+            let mut s = x[r];
+            for c in 0..r {
+                s -= a[r * b + c] * x[c];
+            }
+            x[r] = s;
+        }
+        for r in (0..b).rev() {
+            let mut s = x[r];
+            for c in r + 1..b {
+                s -= a[r * b + c] * x[c];
+            }
+            x[r] = s / a[r * b + r];
+        }
+    }
+}
+
+/// out += s·(W ⊗ blocks)·v: W applied to every block of v.
+#[inline]
+fn add_w_times(w: &[f64], b: usize, s: f64, v: &[f64], out: &mut [f64]) {
+    for (vb, ob) in v.chunks_exact(b).zip(out.chunks_exact_mut(b)) {
+        for r in 0..b {
+            let row = &w[r * b..r * b + b];
+            let mut acc = 0.0;
+            for c in 0..b {
+                acc += row[c] * vb[c];
+            }
+            ob[r] += s * acc;
+        }
+    }
+}
+
+impl Rosw {
+    /// A stepper for systems of dimension `n` with W blocks of size `b` (n a multiple of b,
+    /// b ≤ [`MAX_BLOCK`]), controlling the error on the first `n_ctrl` components.
+    ///
+    /// # Panics
+    /// If `b` is 0 or above [`MAX_BLOCK`], or does not divide `n` (a programming error).
+    pub fn new(n: usize, b: usize, n_ctrl: usize, tol: Tolerances) -> Self {
+        assert!(
+            b > 0 && b <= MAX_BLOCK && n.is_multiple_of(b),
+            "block {b} of dimension {n}"
+        );
+        let z = || vec![0.0; n];
+        Self {
+            n,
+            b,
+            n_ctrl: n_ctrl.min(n),
+            tol,
+            k: [z(), z(), z(), z()],
+            f0: z(),
+            w0: [0.0; MAX_BLOCK * MAX_BLOCK],
+            f1: z(),
+            w1: [0.0; MAX_BLOCK * MAX_BLOCK],
+            current: false,
+            ytmp: z(),
+            rhs: z(),
+            y1: z(),
+            y_old: z(),
+            f_old: z(),
+            y_end: z(),
+            f_end: z(),
+            t_old: 0.0,
+            h_old: 0.0,
+            last_rejected: false,
+            n_rhs: 0,
+            n_steps: 0,
+        }
+    }
+
+    pub fn dim(&self) -> usize {
+        self.n
+    }
+
+    /// Forget f and W at the current point: call after the state or the equations change.
+    pub fn reset(&mut self) {
+        self.current = false;
+    }
+
+    fn ensure_current<S: WSystem>(&mut self, sys: &S, t: f64, y: &[f64]) -> Result<(), OdeError> {
+        if !self.current {
+            sys.rhs_w(t, y, &mut self.f0, Some(&mut self.w0[..self.b * self.b]))?;
+            self.n_rhs += 1;
+            self.current = true;
+        }
+        Ok(())
+    }
+
+    /// A starting step size (the same heuristic as [`super::Dopri5::initial_step`]).
+    pub fn initial_step<S: WSystem>(
+        &mut self,
+        sys: &S,
+        t: f64,
+        y: &[f64],
+    ) -> Result<f64, OdeError> {
+        self.ensure_current(sys, t, y)?;
+        let (mut d0, mut d1) = (0.0f64, 0.0f64);
+        for i in 0..self.n_ctrl {
+            let sc = self.tol.atol + self.tol.rtol * y[i].abs();
+            d0 += (y[i] / sc).powi(2);
+            d1 += (self.f0[i] / sc).powi(2);
+        }
+        let (d0, d1) = (
+            (d0 / self.n_ctrl as f64).sqrt(),
+            (d1 / self.n_ctrl as f64).sqrt(),
+        );
+        let h = if d0 < 1e-5 || d1 < 1e-5 {
+            1e-6
+        } else {
+            0.01 * d0 / d1
+        };
+        Ok(h.min(self.tol.h_max))
+    }
+
+    /// Attempt one step of size `h` from (t, y). On acceptance `y` is advanced in place and
+    /// the dense output of the step becomes available through [`Rosw::dense_all`].
+    pub fn step<S: WSystem>(
+        &mut self,
+        sys: &S,
+        t: f64,
+        y: &mut [f64],
+        h: f64,
+    ) -> Result<Step, OdeError> {
+        if h.abs() < self.tol.h_min {
+            return Err(OdeError::StepUnderflow { t, h });
+        }
+        self.ensure_current(sys, t, y)?;
+        let (n, b) = (self.n, self.b);
+        let w = &self.w0[..b * b];
+        let Some(lu) = Lu::of_shifted(w, b, h * GAMMA) else {
+            self.last_rejected = true;
+            return Ok(Step::Rejected { h_next: h * 0.5 });
+        };
+        let solve = |v: &mut [f64]| v.chunks_exact_mut(b).for_each(|c| lu.solve(c));
+        let [k1, k2, k3, k4] = &mut self.k;
+        let (yt, rhs) = (&mut self.ytmp, &mut self.rhs);
+        // Stage 1: (I − hγW) k₁ = h f(y₀).
+        for i in 0..n {
+            k1[i] = h * self.f0[i];
+        }
+        solve(k1);
+        // Stage 2.
+        for i in 0..n {
+            yt[i] = y[i] + A21 * k1[i];
+        }
+        sys.rhs_w(t + ALPHA2 * h, yt, rhs, None)?;
+        for i in 0..n {
+            rhs[i] *= h;
+            k2[i] = G21 * k1[i];
+        }
+        add_w_times(w, b, h, k2, rhs);
+        k2.copy_from_slice(rhs);
+        solve(k2);
+        // Stage 3.
+        for i in 0..n {
+            yt[i] = y[i] + A31 * k1[i] + A32 * k2[i];
+        }
+        sys.rhs_w(t + ALPHA3 * h, yt, rhs, None)?;
+        for i in 0..n {
+            rhs[i] *= h;
+            k3[i] = G31 * k1[i] + G32 * k2[i];
+        }
+        add_w_times(w, b, h, k3, rhs);
+        k3.copy_from_slice(rhs);
+        solve(k3);
+        // Stage 4 (a₄₁ = a₄₂ = 0, a₄₃ = 1).
+        for i in 0..n {
+            yt[i] = y[i] + k3[i];
+        }
+        sys.rhs_w(t + ALPHA4 * h, yt, rhs, None)?;
+        for i in 0..n {
+            rhs[i] *= h;
+            k4[i] = G41 * k1[i] + G42 * k2[i] + G43 * k3[i];
+        }
+        add_w_times(w, b, h, k4, rhs);
+        k4.copy_from_slice(rhs);
+        solve(k4);
+        self.n_rhs += 3;
+
+        let y1 = &mut self.y1;
+        let mut err = 0.0;
+        for i in 0..n {
+            y1[i] = y[i] + B[0] * k1[i] + B[1] * k2[i] + B[2] * k3[i] + B[3] * k4[i];
+        }
+        for i in 0..self.n_ctrl {
+            let e = (B[0] - B_HAT[0]) * k1[i]
+                + (B[1] - B_HAT[1]) * k2[i]
+                + (B[2] - B_HAT[2]) * k3[i]
+                + (B[3] - B_HAT[3]) * k4[i];
+            let sc = self.tol.atol + self.tol.rtol * y[i].abs().max(y1[i].abs());
+            err += (e / sc).powi(2);
+        }
+        let err = (err / self.n_ctrl as f64).sqrt();
+        if !err.is_finite() {
+            self.last_rejected = true;
+            return Ok(Step::Rejected { h_next: h * 0.1 });
+        }
+        // Order of the embedded estimate 2: exponent 1/3.
+        let fac = if err == 0.0 {
+            5.0
+        } else {
+            (0.9 * err.powf(-1.0 / 3.0)).clamp(0.2, 5.0)
+        };
+        if err > 1.0 {
+            self.last_rejected = true;
+            return Ok(Step::Rejected {
+                h_next: h * fac.min(1.0),
+            });
+        }
+        // f and W at the new point: the dense output's right end and the next first stage.
+        sys.rhs_w(t + h, y1, &mut self.f1, Some(&mut self.w1[..b * b]))?;
+        self.n_rhs += 1;
+        if self.f1.iter().any(|v| !v.is_finite()) {
+            self.last_rejected = true;
+            return Ok(Step::Rejected { h_next: h * 0.5 });
+        }
+        // After a rejection, do not grow at once (Hairer's safeguard).
+        let fac = if self.last_rejected {
+            fac.min(1.0)
+        } else {
+            fac
+        };
+        self.last_rejected = false;
+        let h_next = (h * fac).min(self.tol.h_max);
+        self.y_old.copy_from_slice(y);
+        self.f_old.copy_from_slice(&self.f0);
+        y.copy_from_slice(y1);
+        self.y_end.copy_from_slice(y1);
+        std::mem::swap(&mut self.f0, &mut self.f1);
+        std::mem::swap(&mut self.w0, &mut self.w1);
+        self.f_end.copy_from_slice(&self.f0);
+        self.current = true;
+        self.t_old = t;
+        self.h_old = h;
+        self.n_steps += 1;
+        Ok(Step::Accepted { h, h_next })
+    }
+
+    /// The whole dense state at time `t` (inside the last accepted step) into `out`.
+    pub fn dense_all(&self, t: f64, out: &mut [f64]) {
+        let h = self.h_old;
+        let th = (t - self.t_old) / h;
+        let (a, bb) = (1.0 - th, th * (th - 1.0));
+        for i in 0..self.n {
+            let (y0, y1) = (self.y_old[i], self.y_end[i]);
+            out[i] = a * y0
+                + th * y1
+                + bb * ((1.0 - 2.0 * th) * (y1 - y0)
+                    + (th - 1.0) * h * self.f_old[i]
+                    + th * h * self.f_end[i]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Prothero–Robinson-like stiff test with a forced smooth solution, plus an oscillator:
+    /// y₀′ = λ(y₀ − sin t) + cos t (solution sin t), y₁′ = y₂, y₂′ = −y₁ (cos t).
+    struct Test {
+        lambda: f64,
+        /// W = scale · ∂f/∂y (a W-method keeps its order for any W).
+        w_scale: f64,
+    }
+    impl WSystem for Test {
+        fn dim(&self) -> usize {
+            3
+        }
+        fn block(&self) -> usize {
+            3
+        }
+        fn rhs_w(
+            &self,
+            t: f64,
+            y: &[f64],
+            dy: &mut [f64],
+            w: Option<&mut [f64]>,
+        ) -> Result<(), OdeError> {
+            dy[0] = self.lambda * (y[0] - t.sin()) + t.cos();
+            dy[1] = y[2];
+            dy[2] = -y[1];
+            if let Some(w) = w {
+                w.fill(0.0);
+                w[0] = self.w_scale * self.lambda;
+                w[5] = self.w_scale;
+                w[7] = -self.w_scale;
+            }
+            Ok(())
+        }
+    }
+
+    /// Fixed-step global error at t = 1 with `steps` steps.
+    fn global_error(sys: &Test, steps: usize) -> f64 {
+        let tol = Tolerances {
+            rtol: 1e30,
+            atol: 1e30,
+            ..Default::default()
+        };
+        let mut st = Rosw::new(3, 3, 3, tol);
+        let mut y = [0.0, 1.0, 0.0];
+        let h = 1.0 / steps as f64;
+        for k in 0..steps {
+            match st.step(sys, k as f64 * h, &mut y, h).unwrap() {
+                Step::Accepted { .. } => {}
+                Step::Rejected { .. } => panic!("rejected with infinite tolerance"),
+            }
+        }
+        let exact = [1f64.sin(), 1f64.cos(), -1f64.sin()];
+        y.iter()
+            .zip(exact)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    }
+
+    fn observed_order(sys: &Test) -> f64 {
+        let (e1, e2) = (global_error(sys, 40), global_error(sys, 80));
+        (e1 / e2).log2()
+    }
+
+    #[test]
+    fn order_three_with_the_exact_jacobian_and_with_any_w() {
+        // Non-stiff, so the classical order shows: with the exact Jacobian, a scaled one,
+        // and W = 0 (the method is then explicit), the coefficients must give order 3.
+        for w_scale in [1.0, 0.5, 0.0] {
+            let p = observed_order(&Test {
+                lambda: -1.0,
+                w_scale,
+            });
+            assert!((2.8..3.4).contains(&p), "W scale {w_scale}: order {p}");
+        }
+    }
+
+    #[test]
+    fn l_stable_on_a_very_stiff_component() {
+        // λ = −10⁶ with h = 0.1: an explicit method would explode; this one follows sin t.
+        let sys = Test {
+            lambda: -1e6,
+            w_scale: 1.0,
+        };
+        let e = global_error(&sys, 10);
+        assert!(e < 1e-3, "error {e}");
+    }
+
+    #[test]
+    fn adaptive_run_meets_the_tolerance_and_dense_output_is_accurate() {
+        let sys = Test {
+            lambda: -1e4,
+            w_scale: 1.0,
+        };
+        let tol = Tolerances {
+            rtol: 1e-6,
+            atol: 1e-8,
+            h_max: 0.5,
+            ..Default::default()
+        };
+        let mut st = Rosw::new(3, 3, 3, tol);
+        let mut y = [0.0, 1.0, 0.0];
+        let mut t = 0.0;
+        let mut h = st.initial_step(&sys, t, &y).unwrap();
+        let mut worst_dense: f64 = 0.0;
+        let mut out = [0.0; 3];
+        while t < 5.0 {
+            let h_try = h.min(5.0 - t);
+            match st.step(&sys, t, &mut y, h_try).unwrap() {
+                Step::Accepted { h: hh, h_next } => {
+                    let tm = t + 0.37 * hh;
+                    st.dense_all(tm, &mut out);
+                    worst_dense = worst_dense
+                        .max((out[0] - tm.sin()).abs())
+                        .max((out[1] - tm.cos()).abs());
+                    t += hh;
+                    h = h_next;
+                }
+                Step::Rejected { h_next } => h = h_next,
+            }
+        }
+        let e = (y[0] - 5f64.sin()).abs().max((y[1] - 5f64.cos()).abs());
+        assert!(e < 1e-4, "end error {e}");
+        assert!(worst_dense < 1e-4, "dense error {worst_dense}");
+        // Stiffness does not set the step: far fewer steps than λ·T would need explicitly.
+        assert!(st.n_steps < 2_000, "{} steps", st.n_steps);
+    }
+}
