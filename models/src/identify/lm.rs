@@ -86,19 +86,22 @@ pub struct LmReport {
     pub termination: Termination,
 }
 
-/// Minimise from `x0` (projected into the bounds first).
-pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport {
-    let (n, m) = (p.n_params(), p.n_residuals());
+/// `x0` projected into the problem's bounds.
+pub fn project<P: Problem>(p: &P, x0: &[f64]) -> Vec<f64> {
     let (lb, ub) = (p.lower_bounds(), p.upper_bounds());
-    let mut x: Vec<f64> = x0
-        .iter()
+    x0.iter()
         .zip(&lb)
         .zip(&ub)
         .map(|((x, l), u)| x.clamp(*l, *u))
-        .collect();
+        .collect()
+}
+
+/// Minimise from `x0` (projected into the bounds first).
+pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport {
+    let (n, m) = (p.n_params(), p.n_residuals());
+    let x = project(p, x0);
     let mut r = vec![0.0; m];
     let mut jac = DMatrix::zeros(m, n);
-    let mut evaluations = 1;
     if let Err(e) = p.eval(&x, &mut r, &mut jac) {
         return LmReport {
             x,
@@ -106,10 +109,26 @@ pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport
             residuals: r,
             jacobian: jac,
             iterations: 0,
-            evaluations,
+            evaluations: 1,
             termination: Termination::EvaluationFailed(e),
         };
     }
+    minimize_evaluated(p, x, r, jac, opts)
+}
+
+/// Minimise from a start the caller has already evaluated (`x` inside the bounds, `r` and
+/// `jac` its residuals and Jacobian): for a caller that looked at the start before deciding
+/// how to fit. That evaluation is counted.
+pub fn minimize_evaluated<P: Problem>(
+    p: &mut P,
+    mut x: Vec<f64>,
+    mut r: Vec<f64>,
+    mut jac: DMatrix<f64>,
+    opts: &LmOptions,
+) -> LmReport {
+    let (n, m) = (p.n_params(), p.n_residuals());
+    let (lb, ub) = (p.lower_bounds(), p.upper_bounds());
+    let mut evaluations = 1;
     let mut cost = 0.5 * r.iter().map(|v| v * v).sum::<f64>();
     let mut r_try = vec![0.0; m];
     let mut jac_try = DMatrix::zeros(m, n);
@@ -320,6 +339,23 @@ mod tests {
         for (x, gx) in rep.x.iter().zip(golden) {
             assert!((x - gx).abs() < 1e-6, "{:?} vs {golden:?}", rep.x);
         }
+    }
+
+    #[test]
+    fn a_pre_evaluated_start_continues_exactly_as_minimize() {
+        let t: Vec<f64> = (0..9).map(|i| i as f64 * 0.5).collect();
+        let y = vec![5.1, 3.3, 2.4, 1.62, 1.2, 0.91, 0.72, 0.61, 0.55];
+        let mut p = ExpDecay { t, y };
+        let opts = LmOptions::default();
+        let a = minimize(&mut p, &[1.0, 1.0, 0.0], &opts);
+        let x0 = project(&p, &[1.0, 1.0, 0.0]);
+        let (mut r, mut jac) = (vec![0.0; 9], DMatrix::zeros(9, 3));
+        p.eval(&x0, &mut r, &mut jac).unwrap();
+        let b = minimize_evaluated(&mut p, x0, r, jac, &opts);
+        assert_eq!(a.x, b.x);
+        assert_eq!(a.evaluations, b.evaluations);
+        assert_eq!(a.iterations, b.iterations);
+        assert_eq!(a.termination, b.termination);
     }
 
     /// Rosenbrock as least squares, r = [10(x1 − x0²), 1 − x0]: minimum (1, 1).
