@@ -74,6 +74,8 @@ pub struct Rosw {
     b: usize,
     n_ctrl: usize,
     pub tol: Tolerances,
+    /// Absolute tolerance per controlled component (`tol.atol` unless set).
+    atol: Vec<f64>,
     k: [Vec<f64>; 4],
     /// f and W at the current point (valid after the first evaluation until `reset`).
     f0: Vec<f64>,
@@ -195,6 +197,7 @@ impl Rosw {
             b,
             n_ctrl: n_ctrl.min(n),
             tol,
+            atol: vec![tol.atol; n_ctrl.min(n)],
             k: [z(), z(), z(), z()],
             f0: z(),
             w0: [0.0; MAX_BLOCK * MAX_BLOCK],
@@ -218,6 +221,14 @@ impl Rosw {
 
     pub fn dim(&self) -> usize {
         self.n
+    }
+
+    /// Absolute tolerances of the controlled components, one each (components whose scale
+    /// differs from the others'); the rest keep `tol.atol`.
+    pub fn set_atol(&mut self, atol: &[f64]) {
+        for (a, v) in self.atol.iter_mut().zip(atol) {
+            *a = *v;
+        }
     }
 
     /// Forget f and W at the current point: call after the state or the equations change.
@@ -244,7 +255,7 @@ impl Rosw {
         self.ensure_current(sys, t, y)?;
         let (mut d0, mut d1) = (0.0f64, 0.0f64);
         for i in 0..self.n_ctrl {
-            let sc = self.tol.atol + self.tol.rtol * y[i].abs();
+            let sc = self.atol[i] + self.tol.rtol * y[i].abs();
             d0 += (y[i] / sc).powi(2);
             d1 += (self.f0[i] / sc).powi(2);
         }
@@ -335,7 +346,7 @@ impl Rosw {
                 + (B[1] - B_HAT[1]) * k2[i]
                 + (B[2] - B_HAT[2]) * k3[i]
                 + (B[3] - B_HAT[3]) * k4[i];
-            let sc = self.tol.atol + self.tol.rtol * y[i].abs().max(y1[i].abs());
+            let sc = self.atol[i] + self.tol.rtol * y[i].abs().max(y1[i].abs());
             err += (e / sc).powi(2);
         }
         let err = (err / self.n_ctrl as f64).sqrt();
