@@ -140,6 +140,9 @@ pub struct LiftFit {
     pub posterior_correlation: DMatrix<f64>,
     /// H residual RMS of each trace, m.
     pub rmse_m: Vec<f64>,
+    /// Model H of each trace at the MAP, m: the LM's last accepted evaluation (measured H +
+    /// σ_H·residual), so no further simulation is needed to plot or judge the fit.
+    pub fitted_height_m: Vec<Vec<f64>>,
     /// Noise scale used: max(σ_H, residual RMS), m.
     pub noise_m: f64,
     pub iterations: usize,
@@ -619,11 +622,20 @@ pub fn fit_map(
         });
     }
     let mut rmse_m = Vec::new();
+    let mut fitted_height_m = Vec::new();
     let mut row = 0;
     for t in traces {
         let n = t.strip_height_m.len();
-        let s: f64 = rep.residuals[row..row + n].iter().map(|v| v * v).sum();
+        let r = &rep.residuals[row..row + n];
+        let s: f64 = r.iter().map(|v| v * v).sum();
         rmse_m.push((s / n as f64).sqrt() * opts.h_noise_m);
+        fitted_height_m.push(
+            t.strip_height_m
+                .iter()
+                .zip(r)
+                .map(|(h, r)| h + opts.h_noise_m * r)
+                .collect(),
+        );
         row += n;
     }
     Ok(LiftFit {
@@ -632,6 +644,7 @@ pub fn fit_map(
         joints,
         posterior_correlation: correlation(&cov),
         rmse_m,
+        fitted_height_m,
         noise_m: opts.h_noise_m * kappa2.sqrt(),
         iterations: rep.iterations,
         evaluations: rep.evaluations,
@@ -766,6 +779,21 @@ mod tests {
         let j6 = fit.joints.iter().find(|j| j.joint == "J6").unwrap();
         assert!(!j6.identifiable && j6.viscous.is_none() && j6.dry.is_none());
         assert!(fit.rmse_m[0] < 1.1e-3, "rmse {}", fit.rmse_m[0]);
+        // The fitted H is the model at the MAP: as long as the record, its RMS off the data
+        // the reported RMSE.
+        let h = &fit.fitted_height_m[0];
+        assert_eq!(h.len(), rec.strip_height_m.len());
+        let ss: f64 = h
+            .iter()
+            .zip(&rec.strip_height_m)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum();
+        let rms = (ss / h.len() as f64).sqrt();
+        assert!(
+            (rms - fit.rmse_m[0]).abs() < 1e-12,
+            "{rms} vs {}",
+            fit.rmse_m[0]
+        );
     }
 }
 

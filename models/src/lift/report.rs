@@ -20,7 +20,7 @@
 
 use super::dynamics::LiftModel;
 use super::identify::{JointEstimate, LiftFit, LiftFitError, LiftFitOptions, LiftTrace, fit_map};
-use super::simulate::{LiftInputs, SimOptions, initial_state, simulate};
+use super::simulate::LiftInputs;
 use super::topology::RevJoint;
 use crate::drift::{DriftThresholds, Status};
 use crate::report::{
@@ -43,7 +43,7 @@ pub struct LiftChannels<'a> {
 pub struct LiftReport {
     pub result: FitResult,
     pub fit: LiftFit,
-    /// Model H at the fitted parameters, m; empty if that simulation failed.
+    /// Model H at the fitted parameters, m (the fit's last accepted evaluation).
     pub fitted_height_m: Vec<f64>,
 }
 
@@ -78,33 +78,13 @@ pub fn fit_lift_trace(
         strip_height_m: channels.strip_height_m,
     };
     let fit = fit_map(&model, &[trace], &opts)?;
-    let fitted_height_m = fitted_height(&model, &fit, &inputs, &opts.sim).unwrap_or_default();
+    let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
     let result = fit_result(&model, &fit, &trace, &fitted_height_m, &opts, trace_id);
     Ok(LiftReport {
         result,
         fit,
         fitted_height_m,
     })
-}
-
-/// H simulated at the fit's MAP parameters (every parameter, informed or not, and the offset).
-fn fitted_height(
-    base: &LiftModel,
-    fit: &LiftFit,
-    inputs: &LiftInputs,
-    sim: &SimOptions,
-) -> Result<Vec<f64>, LiftFitError> {
-    let mut m = base.clone();
-    let mut offset = 0.0;
-    for e in &fit.params {
-        e.param.set(&mut m, &mut offset, e.map_value);
-    }
-    let opts = SimOptions {
-        torque_offset_nm: fit.offsets.first().map_or(0.0, |o| o.map_value),
-        ..*sim
-    };
-    let start = initial_state(&m, inputs, &opts)?;
-    Ok(simulate(&m, inputs, start, &opts)?.strip_height_m)
 }
 
 fn unit_of(joint: &str, kind: &str) -> &'static str {
@@ -272,7 +252,12 @@ mod tests {
     fn baseline_lift_maps_to_every_joint_ok_or_unknown() {
         let g = builtin_160ec();
         let m = LiftModel::new(g);
-        let rec = record(&m, &LiftProtocol::reference(g), &SimOptions::default()).unwrap();
+        let rec = record(
+            &m,
+            &LiftProtocol::reference(g),
+            &crate::lift::simulate::SimOptions::default(),
+        )
+        .unwrap();
         let ch = LiftChannels {
             t_s: &rec.t_s,
             strip_height_m: &rec.strip_height_m,
