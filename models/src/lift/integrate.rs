@@ -41,7 +41,7 @@ impl<S: OdeSystem> Stepper<S> for Dopri5 {
     }
 }
 
-impl<S: WSystem> Stepper<S> for Rosw {
+impl<S: WSystem<B>, const B: usize> Stepper<S> for Rosw<B> {
     fn reset(&mut self) {
         Rosw::reset(self);
     }

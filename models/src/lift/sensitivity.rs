@@ -148,13 +148,13 @@ impl Segmented for SensSys<'_> {
 
 impl SensSys<'_> {
     /// Accelerations and the exact ∂acc/∂θ at (t, state), plus ∂acc/∂y by differences; when
-    /// `w` is given, the state's Jacobian (4 × 4, row-major) into it.
+    /// `w` is given, the state's Jacobian into it.
     fn eval(
         &self,
         t: f64,
         y: &[f64],
         dy: &mut [f64],
-        w: Option<&mut [f64]>,
+        w: Option<&mut [[f64; 4]; 4]>,
     ) -> Result<(), DynamicsError> {
         let m = self.model;
         let s = State {
@@ -213,9 +213,7 @@ impl SensSys<'_> {
         dy[3] = acc[1];
         if let Some(w) = w {
             // d(α, h)/dt = (α̇, ḣ); d(α̇, ḣ)/dt = acc.
-            w[..8].copy_from_slice(&[0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
-            w[8..12].copy_from_slice(&jy[0]);
-            w[12..16].copy_from_slice(&jy[1]);
+            *w = [[0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0], jy[0], jy[1]];
         }
         let f = &m.friction;
         let hd = s.h_dot_m_s;
@@ -258,21 +256,16 @@ impl SensSys<'_> {
     }
 }
 
-impl WSystem for SensSys<'_> {
+impl WSystem<4> for SensSys<'_> {
     fn dim(&self) -> usize {
         4 + 4 * self.params.len()
-    }
-    /// The state's 4 × 4 Jacobian, repeated over every sensitivity column (their equations
-    /// S′ = f_y·S + f_θ have the same Jacobian; the coupling ∂(f_y·S)/∂y is left out of W).
-    fn block(&self) -> usize {
-        4
     }
     fn rhs_w(
         &self,
         t: f64,
         y: &[f64],
         dy: &mut [f64],
-        w: Option<&mut [f64]>,
+        w: Option<&mut [[f64; 4]; 4]>,
     ) -> Result<(), OdeError> {
         if self.eval(t, y, dy, w).is_err() {
             // Outside the assembly range in a trial stage: reject the step.
@@ -344,7 +337,9 @@ pub fn simulate_sensitivities(
     };
     // Only the state is error-controlled: an L-stable method keeps the sensitivities bounded,
     // and they come out within 0.2 % of tightly integrated ones at the fit's tolerance.
-    let mut ode = Rosw::new(y.len(), 4, 4, tol);
+    // W: the state's 4 × 4 Jacobian, repeated over every sensitivity column (their equations
+    // S′ = f_y·S + f_θ have the same Jacobian; the coupling ∂(f_y·S)/∂y is left out of W).
+    let mut ode = Rosw::<4>::new(y.len(), 4, tol);
     ode.set_atol(&[
         opts.atol,
         opts.atol,

@@ -5,8 +5,9 @@
 //! method is held at its stability limit; this one steps through rest at the accuracy's step.
 //! It is a *W-method*: order 3 holds for any matrix W in place of ∂f/∂y, so W may be a
 //! difference approximation, omit ∂f/∂t, and ignore the state's coupling into forward
-//! sensitivities. W is block diagonal here: one `b × b` block (the state's Jacobian) repeated
-//! over the state and every sensitivity column appended after it.
+//! sensitivities. W is block diagonal here: one `B × B` block (the state's Jacobian, `B` a
+//! compile-time size so its LU unrolls) repeated over the state and every sensitivity column
+//! appended after it.
 //!
 //! Allocation-free after construction. Dense output: the cubic Hermite interpolant through
 //! both ends of the step (f at the new point is computed on acceptance and is the next step's
@@ -18,28 +19,24 @@
 
 use super::{OdeError, Step, Tolerances};
 
-/// A system y' = f(t, y) that also gives the diagonal block of its W matrix.
-pub trait WSystem {
+/// A system y' = f(t, y) that also gives the `B × B` diagonal block of its W matrix (the
+/// dimension a multiple of `B`).
+pub trait WSystem<const B: usize> {
     fn dim(&self) -> usize;
-    /// Size b of the repeated diagonal block of W (dim must be a multiple of it), at most
-    /// [`MAX_BLOCK`].
-    fn block(&self) -> usize;
-    /// Write f(t, y) into `dy`; when `w` is given, also the b × b block of W (row-major),
-    /// an approximation of ∂f/∂y restricted to the block's components.
+    /// Write f(t, y) into `dy`; when `w` is given, also the block of W, an approximation of
+    /// ∂f/∂y restricted to the block's components.
     fn rhs_w(
         &self,
         t: f64,
         y: &[f64],
         dy: &mut [f64],
-        w: Option<&mut [f64]>,
+        w: Option<&mut [[f64; B]; B]>,
     ) -> Result<(), OdeError>;
 }
 
-/// Largest block of W the stepper handles (its LU lives on the stack).
-pub const MAX_BLOCK: usize = 8;
-
 // The method's coefficients in the form k_i = h f(y₀ + Σ a_ij k_j) + h W Σ_{j≤i} γ_ij k_j
-// (Hairer & Wanner II, IV.7, (7.4) with W), y₁ = y₀ + Σ b_i k_i; Rang & Angermann's Table of
+// (Hairer & Wanner II, IV.7, (7.4) with W), y₁ = y₀ + Σ b_i k_i (b: `WEIGHTS`, the embedded
+// b̂: `WEIGHTS_HAT`); Rang & Angermann's Table of
 // ROS34PW2. Stage times: t₀ + α_i h with α_i = Σ_j a_ij (W has no ∂f/∂t column).
 const GAMMA: f64 = 4.358_665_215_084_59e-1;
 const A21: f64 = 8.717_330_430_169_180_1e-1;
@@ -52,13 +49,13 @@ const G32: f64 = 5.418_067_238_809_532_6e-2;
 const G41: f64 = 2.421_238_070_609_534_6e-1;
 const G42: f64 = -1.223_250_583_904_514_7;
 const G43: f64 = 5.452_602_553_351_021_4e-1;
-const B: [f64; 4] = [
+const WEIGHTS: [f64; 4] = [
     2.421_238_070_609_534_6e-1,
     -1.223_250_583_904_514_7,
     1.545_260_255_335_102,
     GAMMA,
 ];
-const B_HAT: [f64; 4] = [
+const WEIGHTS_HAT: [f64; 4] = [
     3.781_090_314_581_936_9e-1,
     -9.604_229_221_242_317_8e-2,
     0.5,
@@ -69,9 +66,8 @@ const ALPHA3: f64 = A31 + A32;
 const ALPHA4: f64 = 1.0;
 
 /// The stepper with its stage buffers and the ends of the last accepted step.
-pub struct Rosw {
+pub struct Rosw<const B: usize> {
     n: usize,
-    b: usize,
     n_ctrl: usize,
     pub tol: Tolerances,
     /// Absolute tolerance per controlled component (`tol.atol` unless set).
@@ -79,9 +75,9 @@ pub struct Rosw {
     k: [Vec<f64>; 4],
     /// f and W at the current point (valid after the first evaluation until `reset`).
     f0: Vec<f64>,
-    w0: [f64; MAX_BLOCK * MAX_BLOCK],
+    w0: [[f64; B]; B],
     f1: Vec<f64>,
-    w1: [f64; MAX_BLOCK * MAX_BLOCK],
+    w1: [[f64; B]; B],
     current: bool,
     ytmp: Vec<f64>,
     rhs: Vec<f64>,
@@ -99,110 +95,113 @@ pub struct Rosw {
     pub n_steps: usize,
 }
 
-/// LU factors (partial pivoting) of a b × b matrix, row-major, on the stack.
-struct Lu {
-    b: usize,
-    a: [f64; MAX_BLOCK * MAX_BLOCK],
-    piv: [usize; MAX_BLOCK],
+/// LU factors (partial pivoting) of a B × B matrix, on the stack.
+struct Lu<const B: usize> {
+    a: [[f64; B]; B],
+    piv: [usize; B],
 }
 
-impl Lu {
+impl<const B: usize> Lu<B> {
     /// Factor I − hγ·W; `None` if singular.
-    fn of_shifted(w: &[f64], b: usize, hg: f64) -> Option<Lu> {
-        let mut a = [0.0; MAX_BLOCK * MAX_BLOCK];
-        for r in 0..b {
-            for c in 0..b {
-                a[r * b + c] = f64::from(u8::from(r == c)) - hg * w[r * b + c];
+    fn of_shifted(w: &[[f64; B]; B], hg: f64) -> Option<Self> {
+        let mut a = [[0.0; B]; B];
+        for r in 0..B {
+            for c in 0..B {
+                a[r][c] = f64::from(u8::from(r == c)) - hg * w[r][c];
             }
         }
-        let mut piv = [0; MAX_BLOCK];
-        for col in 0..b {
-            let p = (col..b)
-                .max_by(|&i, &j| a[i * b + col].abs().total_cmp(&a[j * b + col].abs()))
-                .unwrap_or(col);
+        let mut piv = [0; B];
+        for col in 0..B {
+            let mut p = col;
+            for r in col + 1..B {
+                if a[r][col].abs() > a[p][col].abs() {
+                    p = r;
+                }
+            }
             piv[col] = p;
-            if a[p * b + col] == 0.0 || !a[p * b + col].is_finite() {
+            if a[p][col] == 0.0 || !a[p][col].is_finite() {
                 return None;
             }
-            if p != col {
-                for c in 0..b {
-                    a.swap(p * b + c, col * b + c);
-                }
-            }
-            let d = a[col * b + col];
-            for r in col + 1..b {
-                let f = a[r * b + col] / d;
-                a[r * b + col] = f;
-                for c in col + 1..b {
-                    a[r * b + c] -= f * a[col * b + c];
+            a.swap(p, col);
+            let d = a[col][col];
+            for r in col + 1..B {
+                let f = a[r][col] / d;
+                a[r][col] = f;
+                for c in col + 1..B {
+                    a[r][c] -= f * a[col][c];
                 }
             }
         }
-        Some(Lu { b, a, piv })
+        Some(Lu { a, piv })
     }
 
-    /// Solve in place for one block `x` (length b).
+    /// Solve in place for one block.
     #[inline]
-    fn solve(&self, x: &mut [f64]) {
-        let (b, a) = (self.b, &self.a);
-        for col in 0..b {
+    fn solve(&self, x: &mut [f64; B]) {
+        let a = &self.a;
+        for col in 0..B {
             x.swap(col, self.piv[col]);
         }
-        for r in 1..b {
+        for r in 1..B {
             let mut s = x[r];
             for c in 0..r {
-                s -= a[r * b + c] * x[c];
+                s -= a[r][c] * x[c];
             }
             x[r] = s;
         }
-        for r in (0..b).rev() {
+        for r in (0..B).rev() {
             let mut s = x[r];
-            for c in r + 1..b {
-                s -= a[r * b + c] * x[c];
+            for c in r + 1..B {
+                s -= a[r][c] * x[c];
             }
-            x[r] = s / a[r * b + r];
+            x[r] = s / a[r][r];
+        }
+    }
+
+    /// Solve in place for every block of `v` (its length a multiple of B).
+    #[inline]
+    fn solve_blocks(&self, v: &mut [f64]) {
+        for c in v.chunks_exact_mut(B) {
+            if let Ok(x) = <&mut [f64; B]>::try_from(c) {
+                self.solve(x);
+            }
         }
     }
 }
 
 /// out += s·(W ⊗ blocks)·v: W applied to every block of v.
 #[inline]
-fn add_w_times(w: &[f64], b: usize, s: f64, v: &[f64], out: &mut [f64]) {
-    for (vb, ob) in v.chunks_exact(b).zip(out.chunks_exact_mut(b)) {
-        for r in 0..b {
-            let row = &w[r * b..r * b + b];
+fn add_w_times<const B: usize>(w: &[[f64; B]; B], s: f64, v: &[f64], out: &mut [f64]) {
+    for (vb, ob) in v.chunks_exact(B).zip(out.chunks_exact_mut(B)) {
+        for r in 0..B {
             let mut acc = 0.0;
-            for c in 0..b {
-                acc += row[c] * vb[c];
+            for c in 0..B {
+                acc += w[r][c] * vb[c];
             }
             ob[r] += s * acc;
         }
     }
 }
 
-impl Rosw {
-    /// A stepper for systems of dimension `n` with W blocks of size `b` (n a multiple of b,
-    /// b ≤ [`MAX_BLOCK`]), controlling the error on the first `n_ctrl` components.
+impl<const B: usize> Rosw<B> {
+    /// A stepper for systems of dimension `n` (a multiple of `B`), controlling the error on
+    /// the first `n_ctrl` components.
     ///
     /// # Panics
-    /// If `b` is 0 or above [`MAX_BLOCK`], or does not divide `n` (a programming error).
-    pub fn new(n: usize, b: usize, n_ctrl: usize, tol: Tolerances) -> Self {
-        assert!(
-            b > 0 && b <= MAX_BLOCK && n.is_multiple_of(b),
-            "block {b} of dimension {n}"
-        );
+    /// If `B` is 0 or does not divide `n` (a programming error).
+    pub fn new(n: usize, n_ctrl: usize, tol: Tolerances) -> Self {
+        assert!(B > 0 && n.is_multiple_of(B), "block {B} of dimension {n}");
         let z = || vec![0.0; n];
         Self {
             n,
-            b,
             n_ctrl: n_ctrl.min(n),
             tol,
             atol: vec![tol.atol; n_ctrl.min(n)],
             k: [z(), z(), z(), z()],
             f0: z(),
-            w0: [0.0; MAX_BLOCK * MAX_BLOCK],
+            w0: [[0.0; B]; B],
             f1: z(),
-            w1: [0.0; MAX_BLOCK * MAX_BLOCK],
+            w1: [[0.0; B]; B],
             current: false,
             ytmp: z(),
             rhs: z(),
@@ -236,9 +235,14 @@ impl Rosw {
         self.current = false;
     }
 
-    fn ensure_current<S: WSystem>(&mut self, sys: &S, t: f64, y: &[f64]) -> Result<(), OdeError> {
+    fn ensure_current<S: WSystem<B>>(
+        &mut self,
+        sys: &S,
+        t: f64,
+        y: &[f64],
+    ) -> Result<(), OdeError> {
         if !self.current {
-            sys.rhs_w(t, y, &mut self.f0, Some(&mut self.w0[..self.b * self.b]))?;
+            sys.rhs_w(t, y, &mut self.f0, Some(&mut self.w0))?;
             self.n_rhs += 1;
             self.current = true;
         }
@@ -246,7 +250,7 @@ impl Rosw {
     }
 
     /// A starting step size (the same heuristic as [`super::Dopri5::initial_step`]).
-    pub fn initial_step<S: WSystem>(
+    pub fn initial_step<S: WSystem<B>>(
         &mut self,
         sys: &S,
         t: f64,
@@ -273,7 +277,7 @@ impl Rosw {
 
     /// Attempt one step of size `h` from (t, y). On acceptance `y` is advanced in place and
     /// the dense output of the step becomes available through [`Rosw::dense_all`].
-    pub fn step<S: WSystem>(
+    pub fn step<S: WSystem<B>>(
         &mut self,
         sys: &S,
         t: f64,
@@ -284,20 +288,19 @@ impl Rosw {
             return Err(OdeError::StepUnderflow { t, h });
         }
         self.ensure_current(sys, t, y)?;
-        let (n, b) = (self.n, self.b);
-        let w = &self.w0[..b * b];
-        let Some(lu) = Lu::of_shifted(w, b, h * GAMMA) else {
+        let n = self.n;
+        let w = &self.w0;
+        let Some(lu) = Lu::of_shifted(w, h * GAMMA) else {
             self.last_rejected = true;
             return Ok(Step::Rejected { h_next: h * 0.5 });
         };
-        let solve = |v: &mut [f64]| v.chunks_exact_mut(b).for_each(|c| lu.solve(c));
         let [k1, k2, k3, k4] = &mut self.k;
         let (yt, rhs) = (&mut self.ytmp, &mut self.rhs);
         // Stage 1: (I − hγW) k₁ = h f(y₀).
         for i in 0..n {
             k1[i] = h * self.f0[i];
         }
-        solve(k1);
+        lu.solve_blocks(k1);
         // Stage 2.
         for i in 0..n {
             yt[i] = y[i] + A21 * k1[i];
@@ -307,9 +310,9 @@ impl Rosw {
             rhs[i] *= h;
             k2[i] = G21 * k1[i];
         }
-        add_w_times(w, b, h, k2, rhs);
+        add_w_times(w, h, k2, rhs);
         k2.copy_from_slice(rhs);
-        solve(k2);
+        lu.solve_blocks(k2);
         // Stage 3.
         for i in 0..n {
             yt[i] = y[i] + A31 * k1[i] + A32 * k2[i];
@@ -319,9 +322,9 @@ impl Rosw {
             rhs[i] *= h;
             k3[i] = G31 * k1[i] + G32 * k2[i];
         }
-        add_w_times(w, b, h, k3, rhs);
+        add_w_times(w, h, k3, rhs);
         k3.copy_from_slice(rhs);
-        solve(k3);
+        lu.solve_blocks(k3);
         // Stage 4 (a₄₁ = a₄₂ = 0, a₄₃ = 1).
         for i in 0..n {
             yt[i] = y[i] + k3[i];
@@ -331,21 +334,25 @@ impl Rosw {
             rhs[i] *= h;
             k4[i] = G41 * k1[i] + G42 * k2[i] + G43 * k3[i];
         }
-        add_w_times(w, b, h, k4, rhs);
+        add_w_times(w, h, k4, rhs);
         k4.copy_from_slice(rhs);
-        solve(k4);
+        lu.solve_blocks(k4);
         self.n_rhs += 3;
 
         let y1 = &mut self.y1;
         let mut err = 0.0;
         for i in 0..n {
-            y1[i] = y[i] + B[0] * k1[i] + B[1] * k2[i] + B[2] * k3[i] + B[3] * k4[i];
+            y1[i] = y[i]
+                + WEIGHTS[0] * k1[i]
+                + WEIGHTS[1] * k2[i]
+                + WEIGHTS[2] * k3[i]
+                + WEIGHTS[3] * k4[i];
         }
         for i in 0..self.n_ctrl {
-            let e = (B[0] - B_HAT[0]) * k1[i]
-                + (B[1] - B_HAT[1]) * k2[i]
-                + (B[2] - B_HAT[2]) * k3[i]
-                + (B[3] - B_HAT[3]) * k4[i];
+            let e = (WEIGHTS[0] - WEIGHTS_HAT[0]) * k1[i]
+                + (WEIGHTS[1] - WEIGHTS_HAT[1]) * k2[i]
+                + (WEIGHTS[2] - WEIGHTS_HAT[2]) * k3[i]
+                + (WEIGHTS[3] - WEIGHTS_HAT[3]) * k4[i];
             let sc = self.atol[i] + self.tol.rtol * y[i].abs().max(y1[i].abs());
             err += (e / sc).powi(2);
         }
@@ -367,7 +374,7 @@ impl Rosw {
             });
         }
         // f and W at the new point: the dense output's right end and the next first stage.
-        sys.rhs_w(t + h, y1, &mut self.f1, Some(&mut self.w1[..b * b]))?;
+        sys.rhs_w(t + h, y1, &mut self.f1, Some(&mut self.w1))?;
         self.n_rhs += 1;
         if self.f1.iter().any(|v| !v.is_finite()) {
             self.last_rejected = true;
@@ -422,11 +429,8 @@ mod tests {
         /// W = scale · ∂f/∂y (a W-method keeps its order for any W).
         w_scale: f64,
     }
-    impl WSystem for Test {
+    impl WSystem<3> for Test {
         fn dim(&self) -> usize {
-            3
-        }
-        fn block(&self) -> usize {
             3
         }
         fn rhs_w(
@@ -434,16 +438,14 @@ mod tests {
             t: f64,
             y: &[f64],
             dy: &mut [f64],
-            w: Option<&mut [f64]>,
+            w: Option<&mut [[f64; 3]; 3]>,
         ) -> Result<(), OdeError> {
             dy[0] = self.lambda * (y[0] - t.sin()) + t.cos();
             dy[1] = y[2];
             dy[2] = -y[1];
             if let Some(w) = w {
-                w.fill(0.0);
-                w[0] = self.w_scale * self.lambda;
-                w[5] = self.w_scale;
-                w[7] = -self.w_scale;
+                let k = self.w_scale;
+                *w = [[k * self.lambda, 0.0, 0.0], [0.0, 0.0, k], [0.0, -k, 0.0]];
             }
             Ok(())
         }
@@ -456,7 +458,7 @@ mod tests {
             atol: 1e30,
             ..Default::default()
         };
-        let mut st = Rosw::new(3, 3, 3, tol);
+        let mut st = Rosw::<3>::new(3, 3, tol);
         let mut y = [0.0, 1.0, 0.0];
         let h = 1.0 / steps as f64;
         for k in 0..steps {
@@ -513,7 +515,7 @@ mod tests {
             h_max: 0.5,
             ..Default::default()
         };
-        let mut st = Rosw::new(3, 3, 3, tol);
+        let mut st = Rosw::<3>::new(3, 3, tol);
         let mut y = [0.0, 1.0, 0.0];
         let mut t = 0.0;
         let mut h = st.initial_step(&sys, t, &y).unwrap();
