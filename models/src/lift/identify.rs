@@ -58,9 +58,15 @@ impl Default for LiftFitOptions {
             // open-loop drift gathers the local errors; ~10 µm through the raise), a tenth of
             // the 1 mm H noise (`sensitivity::tests::at_the_fit_tolerance_…`), at half the
             // steps of 10⁻⁶, which changes no estimate by more than 1 % of its sd.
+            // Steps up to 50 ms (the simulator's default 20 ms): a quarter of the head's
+            // bounce period (≈ 0.2 s on J9) still resolves it, and error control catches any
+            // transient a long step would cross. The fit's integrator (Rosenbrock-W) is
+            // L-stable, so the quiet stretches then take 50 ms steps: −23 % right-hand sides
+            // on a raise and lower, H within 9·10⁻⁵ m of a tight run (docs/PROFILE.md).
             sim: SimOptions {
                 rtol: 1e-5,
                 atol: 1e-7,
+                h_max_s: 0.05,
                 ..Default::default()
             },
             // A relative step of 10⁻⁴ (scaled units: 10⁻⁴ of a baseline) is far inside every
