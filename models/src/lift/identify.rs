@@ -54,10 +54,10 @@ impl Default for LiftFitOptions {
             offset_prior_sd_nm: 10.0,
             informed_factor: 2.0,
             thresholds: DriftThresholds::default(),
-            // 10⁻⁵ relative: H to ≤ 0.12 mm at the end of an 8 s raise and lower (the
-            // open-loop drift gathers the local errors; ~10 µm through the raise), a tenth of
-            // the 1 mm H noise (`sensitivity::tests::at_the_fit_tolerance_…`), at half the
-            // steps of 10⁻⁶, which changes no estimate by more than 1 % of its sd.
+            // 10⁻⁵ relative: H within 0.09 mm of a tight run over an 8 s raise and lower (the
+            // worst at its end, where the open-loop drift has gathered the local errors), a
+            // tenth of the 1 mm H noise (`sensitivity::tests::at_the_fit_tolerance_…`); 10⁻⁶
+            // doubles the steps (under DOPRI5 it moved no estimate by more than 1 % of its sd).
             // Steps up to 50 ms (the simulator's default 20 ms): a quarter of the head's
             // bounce period (≈ 0.2 s on J9) still resolves it, and error control catches any
             // transient a long step would cross. The fit's integrator (Rosenbrock-W) is
