@@ -4,7 +4,7 @@
 //! One small problem trait, an explicit termination reason. Bounds are handled by projection
 //! with an active set: a parameter on its bound whose gradient pushes outward is held for the step.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, DVectorView};
 
 /// A least-squares problem: residuals and their Jacobian at x.
 pub trait Problem {
@@ -139,7 +139,8 @@ pub fn minimize_evaluated<P: Problem>(
     'outer: while iterations < opts.max_iter {
         iterations += 1;
         let a = jac.tr_mul(&jac);
-        let g = jac.tr_mul(&DVector::from_column_slice(&r));
+        // Jᵀr through a view of r: no m-sized copy per iteration.
+        let g = jac.tr_mul(&DVectorView::from_slice(&r, m));
         let diag: Vec<f64> = (0..n).map(|i| a[(i, i)].max(1e-300)).collect();
         // MINPACK-style gradient test: cosine between r and each column of J.
         let rnorm = (2.0 * cost).sqrt();

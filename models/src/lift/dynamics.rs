@@ -6,8 +6,11 @@
 //! so the constraint forces drop out; they are then recovered body by body, loop by loop,
 //! each loop a 2×2 solve (a Lagrange multiplier per constraint, in closed form).
 
+use std::sync::Arc;
+
 use super::geometry::Geometry;
 use super::kinematics::{AssemblyError, HeadKin, Linkage, LinkagePose};
+use super::readout::StripTable;
 use super::topology::{BodyId, N_REV, RevJoint};
 use super::vec2::V2;
 
@@ -200,6 +203,10 @@ pub struct LiftModel {
     pub sign_law: SignLaw,
     /// Lower-arm range searched for static states (`[range]`), rad.
     pub alpha_range_rad: (f64, f64),
+    /// H and its partials tabulated over α (geometry only; shared by the clones a fit makes).
+    /// Made from `linkage` and `alpha_range_rad` by [`LiftModel::new`]: a model whose linkage
+    /// is changed afterwards must be made anew.
+    pub strip_table: Arc<StripTable>,
 }
 
 /// Kane's equations of a state before the revolute joints' friction is added.
@@ -238,8 +245,11 @@ impl LiftModel {
         for j in RevJoint::ALL {
             pin_radius_m[j.index()] = g.revolute[j.index()].pin_radius_m;
         }
+        let linkage = Linkage::new(g);
+        let alpha_range_rad = (g.alpha_min_rad, g.alpha_max_rad);
         Self {
-            linkage: Linkage::new(g),
+            strip_table: Arc::new(StripTable::new(&linkage, alpha_range_rad)),
+            linkage,
             mass_kg,
             inertia_kgm2,
             gravity: V2::new(0.0, -g.gravity_m_s2),
@@ -251,8 +261,26 @@ impl LiftModel {
             preload_n: g.slide.preload_n,
             friction: FrictionParams::baseline(g),
             sign_law: SignLaw::REFERENCE,
-            alpha_range_rad: (g.alpha_min_rad, g.alpha_max_rad),
+            alpha_range_rad,
         }
+    }
+
+    /// The contact-strip height H at (α, h) with its partials ∂H/∂α (m/rad) and ∂H/∂h (1):
+    /// the read-out of a lift record and of its sensitivities. From the geometry's table where
+    /// it has a checked interval (within 10⁻⁹ m of the closed form: [`StripTable`]), else from
+    /// the closed-form pose.
+    #[inline]
+    pub fn strip_height_partials(
+        &self,
+        alpha_rad: f64,
+        h_m: f64,
+    ) -> Result<(f64, f64, f64), AssemblyError> {
+        if let Some(v) = self.strip_table.lookup(alpha_rad, h_m) {
+            return Ok(v);
+        }
+        let pose = self.linkage.pose(alpha_rad)?;
+        let head = self.linkage.head(&pose, h_m, 0.0, 0.0);
+        Ok((head.strip.y, head.strip_d_alpha.y, head.u.y))
     }
 
     /// The sign law's value for a revolute joint at relative rate `w` (0 for exact statics).

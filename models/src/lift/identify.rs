@@ -8,10 +8,14 @@
 //! below its prior sd / 2; an uninformed one is reported at baseline, not identified, and is
 //! never flagged. H noise: stated σ_H (1 mm), inflated to the residual RMS if the fit is worse.
 
+use std::cell::RefCell;
+
 use nalgebra::DMatrix;
 
 use super::dynamics::LiftModel;
-use super::sensitivity::{LiftParam, simulate_sensitivities};
+use super::sensitivity::{
+    LiftParam, SensWorkspace, simulate_sensitivities, simulate_sensitivities_in,
+};
 use super::simulate::{LiftInputs, SimError, SimOptions};
 use super::topology::RevJoint;
 use crate::drift::{DriftThresholds, Status};
@@ -199,7 +203,9 @@ fn baseline_of(model: &LiftModel, params: &[LiftParam]) -> Result<Vec<f64>, Lift
         .collect()
 }
 
-struct MapProblem<'a> {
+struct MapProblem<'a, 'w> {
+    /// The buffers every evaluation's sensitivity run reuses.
+    ws: &'w mut SensWorkspace,
     base: &'a LiftModel,
     traces: &'a [LiftTrace<'a>],
     fric: &'a [LiftParam],
@@ -209,7 +215,7 @@ struct MapProblem<'a> {
     n_data: usize,
 }
 
-impl MapProblem<'_> {
+impl MapProblem<'_, '_> {
     fn model_at(&self, x: &[f64]) -> LiftModel {
         let mut m = self.base.clone();
         let mut dummy = 0.0;
@@ -220,7 +226,7 @@ impl MapProblem<'_> {
     }
 }
 
-impl Problem for MapProblem<'_> {
+impl Problem for MapProblem<'_, '_> {
     fn n_params(&self) -> usize {
         self.fric.len() + self.traces.len()
     }
@@ -234,7 +240,8 @@ impl Problem for MapProblem<'_> {
         jac.fill(0.0);
         let mut row = 0;
         for (ti, tr) in self.traces.iter().enumerate() {
-            let run = simulate_sensitivities(
+            let run = simulate_sensitivities_in(
+                self.ws,
                 &m,
                 &tr.inputs,
                 &self.with_offset,
@@ -425,9 +432,41 @@ pub fn identifiability(
     })
 }
 
+thread_local! {
+    /// This thread's buffers for lift fits ([`fit_map`]): the worker pool's threads, the batch
+    /// threads and the CLI each reuse theirs from one fit to the next (issue 8).
+    static WORKSPACE: RefCell<SensWorkspace> = RefCell::default();
+}
+
+/// The most a thread keeps between fits: a workspace grown past it (a trace far longer than a
+/// lift test's ~8 s at 500 Hz, which needs ~0.6 MB) is given back after its fit.
+const KEEP_BYTES: usize = 64 << 20;
+
 /// MAP fit of one or more lift traces of one pantograph (friction shared, one torque offset
-/// per trace), from the model's current parameters.
+/// per trace), from the model's current parameters. Runs on this thread's reused buffers;
+/// [`fit_map_in`] takes them explicitly and gives the same result bit for bit.
 pub fn fit_map(
+    model: &LiftModel,
+    traces: &[LiftTrace],
+    opts: &LiftFitOptions,
+) -> Result<LiftFit, LiftFitError> {
+    WORKSPACE.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut ws) => {
+            let fit = fit_map_in(&mut ws, model, traces, opts);
+            if ws.capacity_bytes() > KEEP_BYTES {
+                *ws = SensWorkspace::default();
+            }
+            fit
+        }
+        // Only if a fit were started from inside another on this thread: buffers of its own.
+        Err(_) => fit_map_in(&mut SensWorkspace::default(), model, traces, opts),
+    })
+}
+
+/// [`fit_map`] on the buffers of `ws`: its evaluations allocate no simulation buffers once
+/// `ws` has held a trace as long (what allocates per fit is the LM's Jacobian and the result).
+pub fn fit_map_in(
+    ws: &mut SensWorkspace,
     model: &LiftModel,
     traces: &[LiftTrace],
     opts: &LiftFitOptions,
@@ -439,6 +478,7 @@ pub fn fit_map(
     let mut with_offset = fric.clone();
     with_offset.push(LiftParam::TorqueOffset);
     let mut problem = MapProblem {
+        ws,
         base: model,
         traces,
         fric,
@@ -497,10 +537,14 @@ pub fn fit_map(
             })
             .collect();
         let mut stage = MapProblem {
+            ws: &mut *problem.ws,
+            base: problem.base,
             traces: &short,
+            fric: problem.fric,
+            baseline: problem.baseline,
+            opts: problem.opts,
             n_data: ends.iter().sum(),
             with_offset: problem.with_offset.clone(),
-            ..problem
         };
         // A stage only has to bring the next one into its quadratic region: a few iterations,
         // stopping once a step would move the parameters by less than one standard error.

@@ -10,10 +10,11 @@
 //! - [`simulate`] — a lift test driven by its recorded inputs, with dissipated energies.
 //! - [`protocol`] — a lift test as the stand records it (drive damper, spring, cut weight).
 //! - [`sensitivity`] — ∂H/∂θ along a simulated lift (friction of every joint, torque offset).
+//! - [`readout`] — H and its partials tabulated over α (geometry only), read at every sample.
 //! - [`report`] — a lift fit as the contract's fit result (every joint J1…J9).
 //! - [`identify`] — Fisher information per trace, MAP fit with Table 4 as prior, verdicts.
 //! - [`batch`] — many lift fits on all cores, results in input order, progress by callback.
-//! - `integrate` — DOPRI5 over a sampled record, dense output at the samples.
+//! - `integrate` — DOPRI5 or Rosenbrock-W over a sampled record, dense output at the samples.
 
 pub mod batch;
 pub mod dynamics;
@@ -22,6 +23,7 @@ pub mod identify;
 mod integrate;
 pub mod kinematics;
 pub mod protocol;
+pub mod readout;
 pub mod report;
 pub mod sensitivity;
 pub mod simulate;

@@ -107,7 +107,7 @@ impl LiftParam {
 }
 
 /// A simulated lift with its sensitivities.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct SensitivityRun {
     /// H at every sample, m.
     pub strip_height_m: Vec<f64>,
@@ -275,8 +275,41 @@ impl WSystem<4> for SensSys<'_> {
     }
 }
 
+/// The buffers of a sensitivity run, kept from one run to the next so that a fit's evaluations,
+/// and the fits after it on the same thread, allocate nothing once the buffers have grown to
+/// the trace's size (issue 8: reuse buffers across fits). Holds the Rosenbrock-W stepper (its
+/// 13 state-sized vectors), the state, the dense-output buffer and the run's output
+/// ([`SensitivityRun`]: n + n·p values, ~0.5 MB for an 8 s, 500 Hz trace and 16 parameters).
+#[derive(Default)]
+pub struct SensWorkspace {
+    ode: Option<Rosw<4>>,
+    y: Vec<f64>,
+    buf: Vec<f64>,
+    run: SensitivityRun,
+}
+
+impl SensWorkspace {
+    /// The output of the last run of [`simulate_sensitivities_in`] (complete when it returned
+    /// `Ok`; a failed run leaves what it had read out).
+    pub fn run(&self) -> &SensitivityRun {
+        &self.run
+    }
+
+    /// Bytes held (capacity of every buffer), for callers that bound what a thread keeps.
+    pub fn capacity_bytes(&self) -> usize {
+        let f = std::mem::size_of::<f64>();
+        let ode = self.ode.as_ref().map_or(0, |o| 13 * o.dim());
+        f * (ode
+            + self.y.capacity()
+            + self.buf.capacity()
+            + self.run.strip_height_m.capacity()
+            + self.run.d_height.capacity())
+    }
+}
+
 /// Simulate from the static start with sensitivities of H to `params` (the model's current
-/// values and `offset_nm` are the point of linearisation).
+/// values and `offset_nm` are the point of linearisation). Allocates its buffers: for repeated
+/// runs use [`simulate_sensitivities_in`] with one [`SensWorkspace`].
 pub fn simulate_sensitivities(
     model: &LiftModel,
     inputs: &LiftInputs,
@@ -284,9 +317,26 @@ pub fn simulate_sensitivities(
     offset_nm: f64,
     opts: &SimOptions,
 ) -> Result<SensitivityRun, SimError> {
+    let mut ws = SensWorkspace::default();
+    simulate_sensitivities_in(&mut ws, model, inputs, params, offset_nm, opts)?;
+    Ok(ws.run)
+}
+
+/// [`simulate_sensitivities`] into `ws`: the result is `ws.run()`, the same bit for bit as a
+/// run on a new workspace. Allocates only when a buffer must grow (a longer trace or more
+/// parameters than any run on `ws` before).
+pub fn simulate_sensitivities_in<'w>(
+    ws: &'w mut SensWorkspace,
+    model: &LiftModel,
+    inputs: &LiftInputs,
+    params: &[LiftParam],
+    offset_nm: f64,
+    opts: &SimOptions,
+) -> Result<&'w SensitivityRun, SimError> {
     inputs.validate()?;
     let n = inputs.t_s.len();
     let p = params.len();
+    let dim = 4 + 4 * p;
     let sim_opts = SimOptions {
         torque_offset_nm: offset_nm,
         drive: None,
@@ -294,7 +344,9 @@ pub fn simulate_sensitivities(
         ..*opts
     };
     let start = initial_state(model, inputs, &sim_opts)?;
-    let mut y = vec![0.0; 4 + 4 * p];
+    let y = &mut ws.y;
+    y.clear();
+    y.resize(dim, 0.0);
     y[..4].copy_from_slice(&[start.alpha_rad, start.h_m, 0.0, 0.0]);
     // Only the offset moves the static start (friction vanishes at rest).
     if let Some(i) = params.iter().position(|q| *q == LiftParam::TorqueOffset) {
@@ -321,14 +373,16 @@ pub fn simulate_sensitivities(
         fm_n: inputs.fm(0),
         last_torque: Cell::new(None),
     };
-    let mut out = SensitivityRun {
-        strip_height_m: Vec::with_capacity(n),
-        d_height: Vec::with_capacity(n * p),
-        n_params: p,
-        rhs_evaluations: 0,
-        steps: 0,
-    };
-    let mut buf = vec![0.0; y.len()];
+    let out = &mut ws.run;
+    out.strip_height_m.clear();
+    out.strip_height_m.reserve(n);
+    out.d_height.clear();
+    out.d_height.reserve(n * p);
+    out.n_params = p;
+    out.rhs_evaluations = 0;
+    out.steps = 0;
+    ws.buf.clear();
+    ws.buf.resize(dim, 0.0);
     let tol = Tolerances {
         rtol: opts.rtol,
         atol: opts.atol,
@@ -339,7 +393,13 @@ pub fn simulate_sensitivities(
     // and they come out within 0.2 % of tightly integrated ones at the fit's tolerance.
     // W: the state's 4 × 4 Jacobian, repeated over every sensitivity column (their equations
     // S′ = f_y·S + f_θ have the same Jacobian; the coupling ∂(f_y·S)/∂y is left out of W).
-    let mut ode = Rosw::<4>::new(y.len(), 4, tol);
+    let ode = match &mut ws.ode {
+        Some(o) if o.dim() == dim => {
+            o.restart(tol);
+            o
+        }
+        slot => slot.insert(Rosw::<4>::new(dim, 4, tol)),
+    };
     ode.set_atol(&[
         opts.atol,
         opts.atol,
@@ -348,21 +408,19 @@ pub fn simulate_sensitivities(
     ]);
     let work = integrate(
         &mut sys,
-        &mut ode,
+        ode,
         inputs.t_s,
         |k| inputs.is_break(k),
-        &mut y,
+        y,
         opts.max_steps,
-        &mut buf,
+        &mut ws.buf,
         |_, y| -> Result<(), DynamicsError> {
-            let pose = model.linkage.pose(y[0])?;
-            let head = model.linkage.head(&pose, y[1], 0.0, 0.0);
-            out.strip_height_m.push(head.strip.y);
-            // H = y of strip: ∂H/∂α = (∂strip/∂α)_y, ∂H/∂h = u_y.
+            let (height, d_alpha, d_h) = model.strip_height_partials(y[0], y[1])?;
+            out.strip_height_m.push(height);
+            // H = y of strip: ∂H/∂θ = ∂H/∂α·∂α/∂θ + ∂H/∂h·∂h/∂θ.
             for i in 0..p {
                 let sv = &y[4 + 4 * i..6 + 4 * i];
-                out.d_height
-                    .push(head.strip_d_alpha.y * sv[0] + head.u.y * sv[1]);
+                out.d_height.push(d_alpha * sv[0] + d_h * sv[1]);
             }
             Ok(())
         },
@@ -370,7 +428,7 @@ pub fn simulate_sensitivities(
     .map_err(SimError::from_integrate)?;
     out.steps = work.steps;
     out.rhs_evaluations = work.rhs;
-    Ok(out)
+    Ok(&ws.run)
 }
 
 #[cfg(test)]

@@ -408,9 +408,8 @@ pub fn simulate(
         opts.max_steps,
         &mut buf,
         |_, y| -> Result<(), DynamicsError> {
-            let pose = model.linkage.pose(y[0])?;
             run.strip_height_m
-                .push(model.linkage.head(&pose, y[1], 0.0, 0.0).strip.y);
+                .push(model.strip_height_partials(y[0], y[1])?.0);
             run.alpha_rad.push(y[0]);
             run.h_m.push(y[1]);
             run.alpha_dot_rad_s.push(y[2]);

@@ -235,6 +235,21 @@ impl<const B: usize> Rosw<B> {
         self.current = false;
     }
 
+    /// Make this stepper what [`Rosw::new`] with `tol` would make, keeping its buffers (reuse
+    /// across runs of the same dimension: issue 8, no allocation per run once warm). Every
+    /// field a step reads before writing is set here, so a restarted stepper takes bit for bit
+    /// the steps of a new one (`lift::sensitivity::tests`).
+    pub fn restart(&mut self, tol: Tolerances) {
+        self.tol = tol;
+        self.atol.fill(tol.atol);
+        self.current = false;
+        self.t_old = 0.0;
+        self.h_old = 0.0;
+        self.last_rejected = false;
+        self.n_rhs = 0;
+        self.n_steps = 0;
+    }
+
     fn ensure_current<S: WSystem<B>>(
         &mut self,
         sys: &S,

@@ -2,12 +2,12 @@
 //! sixth pantograph's J3 dry friction worn), fitted on every core with a progress bar; fits per
 //! second and the time projected for a year of monthly lift tests of 1,000 pantographs.
 
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::num::NonZeroUsize;
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use pantowatch_models::drift::DriftThresholds;
+use pantowatch_models::lift::batch;
 use serde_json::json;
 
 use super::fits::lift_doc;
@@ -38,39 +38,18 @@ fn fleet_doc(i: usize) -> anyhow::Result<TraceDoc> {
     )
 }
 
-/// Runs `work(i)` for every `i < n` on `threads` scoped threads, ticking `bar` per item; the
-/// results in index order. The fleet fit loop until `pantowatch_models::lift::batch::fit_many`
-/// (parallel, with a progress callback) is on main: then `fit_all` calls that instead.
+/// Runs `work(i)` for every `i < n` on `threads` threads, ticking `bar` per item; the results
+/// in index order. The queue is `pantowatch_models::lift::batch::map` (what `fit_many` runs
+/// on): each thread keeps its lift-fit buffers from one trace to the next.
 fn parallel<T: Send>(
     n: usize,
     threads: usize,
     bar: &ProgressBar,
     work: impl Fn(usize) -> T + Sync,
 ) -> Vec<T> {
-    let next = AtomicUsize::new(0);
-    let out: Mutex<Vec<Option<T>>> = Mutex::new((0..n).map(|_| None).collect());
-    std::thread::scope(|s| {
-        for _ in 0..threads.max(1) {
-            s.spawn(|| {
-                loop {
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= n {
-                        break;
-                    }
-                    let r = work(i);
-                    if let Ok(mut o) = out.lock() {
-                        o[i] = Some(r);
-                    }
-                    bar.inc(1);
-                }
-            });
-        }
-    });
-    out.into_inner()
-        .unwrap_or_default()
-        .into_iter()
-        .flatten()
-        .collect()
+    let idx: Vec<usize> = (0..n).collect();
+    let tick = |_done: usize| bar.inc(1);
+    batch::map(&idx, NonZeroUsize::new(threads), &tick, |&i| work(i))
 }
 
 /// Fits every document on `threads` cores (the same call the worker makes per job).
