@@ -177,3 +177,89 @@ fn an_undeclared_effect_is_found_and_reported() {
         !out.status.success() && String::from_utf8_lossy(&out.stderr).contains("unknown effect")
     );
 }
+
+/// `refit --run`: the queue fitted in this process on its workers, the summary printed, every
+/// fit written once; a second refit by the same model version queues and fits nothing.
+#[test]
+fn refit_run_fits_the_queue_here_and_writes_each_fit_once() {
+    use pantowatch::ingest::{BodyFormat, Intake};
+    use pantowatch::store::Store;
+
+    let db = tmp("refit.db");
+    let _ = std::fs::remove_file(&db);
+    let url = db.to_str().unwrap().to_string();
+    // A pendulum and a lift test, uploaded with no worker running: their fit jobs stay queued.
+    let pend = tmp("refit-j2.json");
+    let lift = tmp("refit-lift.json");
+    for (args, out) in [
+        (
+            vec![
+                "simulate",
+                "--kind",
+                "pendulum",
+                "--joint",
+                "J2",
+                "--duration",
+                "10",
+                "--seed",
+                "3",
+                "--trace-id",
+                "refit-j2",
+            ],
+            &pend,
+        ),
+        (
+            vec!["simulate", "--kind", "lift", "--trace-id", "refit-lift"],
+            &lift,
+        ),
+    ] {
+        let st = bin().args(args).arg("-o").arg(out).status().unwrap();
+        assert!(st.success());
+    }
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let store = Store::connect(&url).await.unwrap();
+        let intake = Intake::new(
+            store.clone(),
+            std::sync::Arc::new(tokio::sync::Notify::new()),
+        );
+        for f in [&pend, &lift] {
+            intake
+                .upload(BodyFormat::Json, std::fs::read(f).unwrap().into())
+                .await
+                .unwrap();
+        }
+        let c = store.job_counts().await.unwrap();
+        assert_eq!((c.queued, c.done), (2, 0));
+        assert_eq!(store.counts().await.unwrap().fits, 0);
+        store.close().await;
+    });
+
+    let refit = || {
+        let out = bin()
+            .args(["refit", "--run", "--workers", "2", "--database", &url])
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+        assert!(
+            out.status.success(),
+            "{stdout}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        stdout
+    };
+    let first = refit();
+    assert!(first.contains("queued 0 fits"), "{first}");
+    assert!(first.contains("fitted 2 traces"), "{first}");
+    assert!(first.contains(", 0 failed"), "{first}");
+    let again = refit();
+    assert!(again.contains("queued 0 fits"), "{again}");
+    assert!(again.contains("fitted 0 traces"), "{again}");
+    rt.block_on(async {
+        let store = Store::connect(&url).await.unwrap();
+        assert_eq!(store.counts().await.unwrap().fits, 2);
+        let c = store.job_counts().await.unwrap();
+        assert_eq!((c.queued, c.running, c.done, c.failed), (0, 0, 2, 0));
+        store.close().await;
+    });
+}

@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use anyhow::Context;
 use serde::Serialize;
 
 use super::machine::Machine;
@@ -23,6 +24,10 @@ pub struct SuiteArgs {
     /// Print the run as JSON (machine, settings, rows) instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Also write the run as JSON to this file (the table still printed): one run gives the
+    /// README's table and the per-file figures behind it.
+    #[arg(long, value_name = "FILE")]
+    pub json_out: Option<PathBuf>,
     /// Sections to run, comma-separated: fits, fleet, ingest (with storage), query.
     #[arg(long, value_delimiter = ',', default_value = "fits,fleet,ingest,query")]
     pub only: Vec<Section>,
@@ -164,15 +169,20 @@ pub fn run(a: SuiteArgs) -> anyhow::Result<()> {
         rows.extend(r);
     }
     let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let report = Report {
+        machine: &machine,
+        command: command.clone(),
+        sizes: &sizes,
+        seconds: t0.elapsed().as_secs_f64(),
+        rows: &rows,
+    };
+    let json = serde_json::to_string_pretty(&report)?;
+    if let Some(path) = &a.json_out {
+        std::fs::write(path, format!("{json}\n"))
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     if a.json {
-        let report = Report {
-            machine: &machine,
-            command,
-            sizes: &sizes,
-            seconds: t0.elapsed().as_secs_f64(),
-            rows: &rows,
-        };
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        println!("{json}");
     } else {
         println!("{}", machine.line());
         println!("Command: {command} ({:.0} s)\n", t0.elapsed().as_secs_f64());
