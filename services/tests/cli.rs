@@ -263,3 +263,84 @@ fn refit_run_fits_the_queue_here_and_writes_each_fit_once() {
         store.close().await;
     });
 }
+
+/// `bench suite` end to end at toy sizes, every section against the real databases (PostgreSQL
+/// on 127.0.0.1:5432, SQLite files): one table with every measure under the machine line, the
+/// same run in the `--json-out` file, no fleet fit failed, every stored trace read back
+/// bit-exact, and no peer → the ratio is not judged (rather than a crash). Nothing here is
+/// timed against a target: the figures are the benchmark's, not the test's.
+#[test]
+fn bench_suite_runs_every_section_and_writes_its_json() {
+    let json = tmp("suite.json");
+    let _ = std::fs::remove_file(&json);
+    let out = bin()
+        .args([
+            "bench",
+            "suite",
+            "--quick",
+            "--repeat",
+            "1",
+            "--fleet-traces",
+            "3",
+            "--ingest-traces",
+            "6",
+            "--concurrency",
+            "2",
+            "--pantographs",
+            "12",
+            "--queries",
+            "10",
+            "--peer",
+            "/nonexistent/scipy_peer.py",
+        ])
+        .arg("--json-out")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.starts_with("Machine: "), "{stdout}");
+    for measure in [
+        "| fit: pendulum",
+        "| fit: slider",
+        "| fit: lift",
+        "| fleet re-processing (3 lift traces, projected to 12,000)",
+        "| ingest: API into PostgreSQL",
+        "| storage",
+        "| query: fleet health, PostgreSQL (12 pantographs, 144 fits)",
+        "| query: fleet health, SQLite (12 pantographs, 144 fits)",
+    ] {
+        assert!(stdout.contains(measure), "no row {measure:?} in\n{stdout}");
+    }
+    assert!(!stdout.contains("not measured"), "{stdout}");
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 8, "{v}");
+    let row = |prefix: &str| {
+        rows.iter()
+            .find(|r| r["measure"].as_str().unwrap().starts_with(prefix))
+            .unwrap_or_else(|| panic!("{prefix}"))
+    };
+    // Without the peer the single-joint ratio is not judged, and says why.
+    assert!(row("fit: pendulum")["pass"].is_null());
+    assert!(
+        row("fit: pendulum")["measured"]
+            .as_str()
+            .unwrap()
+            .contains("peer")
+    );
+    let fleet = &row("fleet re-processing")["detail"];
+    assert_eq!(
+        (fleet["fitted"].as_u64(), fleet["failed"].as_u64()),
+        (Some(3), Some(0))
+    );
+    let storage = &row("storage")["detail"];
+    assert_eq!(storage["bit_exact"], storage["traces"]);
+    assert_eq!(storage["traces"].as_u64(), Some(6));
+    assert_eq!(v["sizes"]["fleet_traces"].as_u64(), Some(3));
+    assert!(v["machine"]["cores"].as_u64().unwrap() >= 1);
+}
