@@ -95,6 +95,19 @@ impl WorkerPool {
     }
 }
 
+/// Waits until no job is queued or running in `store` (jobs other processes hold included),
+/// looking every `poll`: the moment a pool that fits a known backlog can be stopped (the demo,
+/// `refit --run`).
+pub async fn wait_until_drained(store: &Store, poll: Duration) -> Result<(), StoreError> {
+    loop {
+        let c = store.job_counts().await?;
+        if c.queued + c.running == 0 {
+            return Ok(());
+        }
+        tokio::time::sleep(poll).await;
+    }
+}
+
 /// `host-pid-random`: unique per process start, so a restarted service never holds the jobs of
 /// its previous life.
 fn instance_tag() -> String {

@@ -8,6 +8,18 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_pantowatch"))
 }
 
+/// Runs `cmd`, asserts it succeeded (its output in the message if not), returns its stdout.
+fn run_ok(cmd: &mut Command) -> String {
+    let out = cmd.output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
 fn tmp(name: &str) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("pantowatch-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -235,19 +247,7 @@ fn refit_run_fits_the_queue_here_and_writes_each_fit_once() {
         store.close().await;
     });
 
-    let refit = || {
-        let out = bin()
-            .args(["refit", "--run", "--workers", "2", "--database", &url])
-            .output()
-            .unwrap();
-        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-        assert!(
-            out.status.success(),
-            "{stdout}{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        stdout
-    };
+    let refit = || run_ok(bin().args(["refit", "--run", "--workers", "2", "--database", &url]));
     let first = refit();
     assert!(first.contains("queued 0 fits"), "{first}");
     assert!(first.contains("fitted 2 traces"), "{first}");
@@ -273,35 +273,29 @@ fn refit_run_fits_the_queue_here_and_writes_each_fit_once() {
 fn bench_suite_runs_every_section_and_writes_its_json() {
     let json = tmp("suite.json");
     let _ = std::fs::remove_file(&json);
-    let out = bin()
-        .args([
-            "bench",
-            "suite",
-            "--quick",
-            "--repeat",
-            "1",
-            "--fleet-traces",
-            "3",
-            "--ingest-traces",
-            "6",
-            "--concurrency",
-            "2",
-            "--pantographs",
-            "12",
-            "--queries",
-            "10",
-            "--peer",
-            "/nonexistent/scipy_peer.py",
-        ])
-        .arg("--json-out")
-        .arg(&json)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-    assert!(
-        out.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&out.stderr)
+    let stdout = run_ok(
+        bin()
+            .args([
+                "bench",
+                "suite",
+                "--quick",
+                "--repeat",
+                "1",
+                "--fleet-traces",
+                "3",
+                "--ingest-traces",
+                "6",
+                "--concurrency",
+                "2",
+                "--pantographs",
+                "12",
+                "--queries",
+                "10",
+                "--peer",
+                "/nonexistent/scipy_peer.py",
+            ])
+            .arg("--json-out")
+            .arg(&json),
     );
     assert!(stdout.starts_with("Machine: "), "{stdout}");
     for measure in [

@@ -15,7 +15,7 @@ use super::serve::{ConfigArgs, open_store, runtime};
 use crate::ids::VehicleId;
 use crate::server::worker_options;
 use crate::store::Store;
-use crate::worker::{JobEvent, OnJob, WorkerPool};
+use crate::worker::{JobEvent, OnJob, WorkerPool, wait_until_drained};
 
 #[derive(Debug, clap::Args)]
 pub struct RefitArgs {
@@ -122,13 +122,7 @@ async fn drain(store: &Store, opts: crate::worker::WorkerOptions) -> anyhow::Res
         stop_rx,
         Some(on_job),
     );
-    loop {
-        let c = store.job_counts().await?;
-        if c.queued + c.running == 0 {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    wait_until_drained(store, Duration::from_millis(100)).await?;
     let _ = stop_tx.send(true);
     pool.join().await;
     bar.finish_and_clear();

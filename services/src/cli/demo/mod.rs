@@ -174,13 +174,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
     }
     up_bar.finish();
     let t_upload = t_fit.elapsed();
-    loop {
-        let c = store.job_counts().await?;
-        if c.queued + c.running == 0 {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
+    crate::worker::wait_until_drained(&store, Duration::from_millis(50)).await?;
     let _ = stop_tx.send(true);
     pool.join().await;
     fit_bar.finish();
