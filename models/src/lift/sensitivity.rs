@@ -278,7 +278,7 @@ impl WSystem<4> for SensSys<'_> {
 /// The buffers of a sensitivity run, kept from one run to the next so that a fit's evaluations,
 /// and the fits after it on the same thread, allocate nothing once the buffers have grown to
 /// the trace's size (issue 8: reuse buffers across fits). Holds the Rosenbrock-W stepper (its
-/// 13 state-sized vectors), the state, the dense-output buffer and the run's output
+/// stage and dense-output vectors), the state, the dense-output buffer and the run's output
 /// ([`SensitivityRun`]: n + n·p values, ~0.5 MB for an 8 s, 500 Hz trace and 16 parameters).
 #[derive(Default)]
 pub struct SensWorkspace {
@@ -297,13 +297,12 @@ impl SensWorkspace {
 
     /// Bytes held (capacity of every buffer), for callers that bound what a thread keeps.
     pub fn capacity_bytes(&self) -> usize {
-        let f = std::mem::size_of::<f64>();
-        let ode = self.ode.as_ref().map_or(0, |o| 13 * o.dim());
-        f * (ode
-            + self.y.capacity()
-            + self.buf.capacity()
-            + self.run.strip_height_m.capacity()
-            + self.run.d_height.capacity())
+        let ode = self.ode.as_ref().map_or(0, Rosw::capacity_bytes);
+        ode + std::mem::size_of::<f64>()
+            * (self.y.capacity()
+                + self.buf.capacity()
+                + self.run.strip_height_m.capacity()
+                + self.run.d_height.capacity())
     }
 }
 

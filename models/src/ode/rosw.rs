@@ -222,6 +222,27 @@ impl<const B: usize> Rosw<B> {
         self.n
     }
 
+    /// Bytes its buffers hold (for callers that bound what they keep between runs).
+    pub fn capacity_bytes(&self) -> usize {
+        let vecs = [
+            &self.atol,
+            &self.k[0],
+            &self.k[1],
+            &self.k[2],
+            &self.k[3],
+            &self.f0,
+            &self.f1,
+            &self.ytmp,
+            &self.rhs,
+            &self.y1,
+            &self.y_old,
+            &self.f_old,
+            &self.y_end,
+            &self.f_end,
+        ];
+        std::mem::size_of::<f64>() * vecs.iter().map(|v| v.capacity()).sum::<usize>()
+    }
+
     /// Absolute tolerances of the controlled components, one each (components whose scale
     /// differs from the others'); the rest keep `tol.atol`.
     pub fn set_atol(&mut self, atol: &[f64]) {
@@ -436,6 +457,17 @@ impl<const B: usize> Rosw<B> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every buffer counted: 13 state-sized vectors and the controlled components' atol; a
+    /// restart keeps them (no new allocation, the same bytes).
+    #[test]
+    fn capacity_counts_every_buffer_and_restart_keeps_them() {
+        let tol = Tolerances::default();
+        let mut st = Rosw::<4>::new(12, 4, tol);
+        assert_eq!(st.capacity_bytes(), 8 * (13 * 12 + 4));
+        st.restart(tol);
+        assert_eq!(st.capacity_bytes(), 8 * (13 * 12 + 4));
+    }
 
     /// Prothero–Robinson-like stiff test with a forced smooth solution, plus an oscillator:
     /// y₀′ = λ(y₀ − sin t) + cos t (solution sin t), y₁′ = y₂, y₂′ = −y₁ (cos t).
