@@ -137,6 +137,65 @@ pub struct PantographType {
     pub joints: BTreeMap<String, JointData>,
     pub rigs: BTreeMap<String, RigData>,
     pub slider: SliderRigData,
+    /// The plausible span of a test rig's stated values (`[rig_limits]`); a file without the
+    /// table borrows the built-in 160EC's ([`PantographType::rig_limits`]).
+    #[serde(default, rename = "rig_limits")]
+    pub rig_limits_data: Option<RigLimits>,
+}
+
+/// The span a test rig's stated values and recorded channels can physically have (issue 18):
+/// each `[lo, hi]` inclusive, channel bounds on the absolute value. Outside it, a trace is
+/// refused at upload naming the field, before any fit could spend its budget on it.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigLimits {
+    pub source: String,
+    pub pin_radius_m: [f64; 2],
+    pub mass_kg: [f64; 2],
+    pub inertia_kgm2: [f64; 2],
+    pub com_distance_m: [f64; 2],
+    /// A point attachment's distance or a rod's length, m.
+    pub attachment_m: [f64; 2],
+    pub gravity_m_s2: [f64; 2],
+    pub initial_rate_deg_s: [f64; 2],
+    pub moving_mass_kg: [f64; 2],
+    pub springs: [f64; 2],
+    pub spring_stiffness_n_per_mm: [f64; 2],
+    pub normal_force_n: [f64; 2],
+    pub alpha_deg_abs: f64,
+    pub h_mm_abs: f64,
+    pub force_n_abs: f64,
+}
+
+impl RigLimits {
+    /// `Err((field, message))` when `v` lies outside `span` (NaN included).
+    pub fn check(field: &str, v: f64, span: [f64; 2]) -> Result<(), (String, String)> {
+        if v >= span[0] && v <= span[1] {
+            Ok(())
+        } else {
+            Err((
+                field.to_string(),
+                format!(
+                    "{v} is outside the plausible range [{}, {}] of a test rig (models/data, `rig_limits`)",
+                    span[0], span[1]
+                ),
+            ))
+        }
+    }
+
+    /// The first sample of a channel whose magnitude exceeds `abs_max`, as `channels.NAME[i]`.
+    pub fn check_channel(name: &str, values: &[f64], abs_max: f64) -> Result<(), (String, String)> {
+        match values.iter().position(|v| v.is_nan() || v.abs() > abs_max) {
+            None => Ok(()),
+            Some(i) => Err((
+                format!("channels.{name}[{i}]"),
+                format!(
+                    "{} is outside ±{abs_max}, the plausible range of this channel (models/data, `rig_limits`)",
+                    values[i]
+                ),
+            )),
+        }
+    }
 }
 
 fn positive(field: &str, v: f64) -> Result<(), DataError> {
@@ -161,6 +220,17 @@ fn non_negative(field: &str, v: f64) -> Result<(), DataError> {
 }
 
 impl PantographType {
+    /// This type's rig limits, or the built-in 160EC's when its file has none.
+    pub fn rig_limits(&self) -> &RigLimits {
+        match &self.rig_limits_data {
+            Some(l) => l,
+            None => builtin_160ec()
+                .rig_limits_data
+                .as_ref()
+                .expect("models/data/160ec.toml has [rig_limits]"),
+        }
+    }
+
     /// Parse and validate a pantograph data file.
     pub fn from_toml(text: &str) -> Result<Self, DataError> {
         let t: PantographType =

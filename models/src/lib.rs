@@ -90,6 +90,7 @@ pub fn fit_joint_test_with_finding(
         },
         residual: finding.residual.clone(),
         fit: report::details(&reported, test.t_s[reported.start], units, test.unit),
+        pooled: None,
     };
     Ok((result, reported, finding))
 }

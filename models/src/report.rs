@@ -87,6 +87,18 @@ pub struct FitResult {
     pub rmse: Quantity,
     pub residual: ResidualResult,
     pub fit: FitDetails,
+    /// Set on a pooled fit: the tests it fitted together (issue 15).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pooled: Option<PooledTests>,
+}
+
+/// The tests a pooled fit combined: the friction shared, one torque offset per test.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct PooledTests {
+    /// Trace ids, newest first (the fit's `trace_id` is the first).
+    pub trace_ids: Vec<String>,
+    /// The window the tests were taken from, days before the newest.
+    pub window_days: f64,
 }
 
 fn param(

@@ -3,7 +3,7 @@
 //!
 //! The service parses documents into these structs; the mechanics of filling defaults lives here.
 
-use crate::data::{Attachment, JointKind, PantographType};
+use crate::data::{Attachment, JointKind, PantographType, RigLimits, builtin_160ec};
 use crate::dynamics::{Dof, Input, Mechanism};
 use crate::identify::JointTest;
 use crate::rig::{BodySpec, PendulumRig, RigError, SliderRig};
@@ -46,10 +46,58 @@ fn err(field: &str, message: impl Into<String>) -> RigError {
     }
 }
 
+/// The rig limits of `data`'s type, or the built-in 160EC's for a model without data.
+fn limits(data: Option<&PantographType>) -> &RigLimits {
+    data.unwrap_or_else(|| builtin_160ec()).rig_limits()
+}
+
+/// A [`RigLimits`] refusal as the trace field it names.
+fn out_of_range((field, message): (String, String)) -> RigError {
+    RigError { field, message }
+}
+
 impl PendulumSpec {
+    /// Every value the trace states lies in the type's plausible rig span (issue 18): checked
+    /// before the rig is composed, so the refusal names the field as the trace spells it.
+    fn check_limits(&self, l: &RigLimits) -> Result<(), RigError> {
+        let c = |f: &str, v: f64, span| RigLimits::check(f, v, span).map_err(out_of_range);
+        if let Some(b) = &self.body {
+            c("test.rig.body.mass_kg", b.mass_kg, l.mass_kg)?;
+            c("test.rig.body.inertia_kgm2", b.inertia_kgm2, l.inertia_kgm2)?;
+            c(
+                "test.rig.body.com_distance_m",
+                b.com_distance_m,
+                l.com_distance_m,
+            )?;
+        }
+        for (i, a) in self.attachments.iter().flatten().enumerate() {
+            let f = format!("test.rig.attachments[{i}]");
+            let (mass_kg, (key, length)) = match *a {
+                Attachment::Point {
+                    mass_kg,
+                    distance_m,
+                } => (mass_kg, ("distance_m", distance_m)),
+                Attachment::Rod { mass_kg, length_m } => (mass_kg, ("length_m", length_m)),
+            };
+            c(&format!("{f}.mass_kg"), mass_kg, l.mass_kg)?;
+            c(&format!("{f}.{key}"), length, l.attachment_m)?;
+        }
+        if let Some(r) = self.pin_radius_m {
+            c("test.rig.pin_radius_m", r, l.pin_radius_m)?;
+        }
+        if let Some(g) = self.gravity_m_s2 {
+            c("test.rig.gravity_m_s2", g, l.gravity_m_s2)?;
+        }
+        if let Some(w) = self.initial_rate_deg_s {
+            c("test.rig.initial_rate_deg_s", w, l.initial_rate_deg_s)?;
+        }
+        Ok(())
+    }
+
     /// The rig: defaults from `data` (None for a `custom` joint or a non-160EC model, where
     /// `body` and `pin_radius_m` are required).
     pub fn rig(&self, data: Option<&PantographType>) -> Result<(PendulumRig, Baseline), RigError> {
+        self.check_limits(limits(data))?;
         let known = data.and_then(|d| d.rigs.get(&self.joint).map(|r| (d, r)));
         if self.joint != "custom" && known.is_none() && data.is_some() {
             return Err(err(
@@ -122,6 +170,8 @@ impl PendulumSpec {
         alpha_deg: Vec<f64>,
     ) -> Result<(JointTest, Baseline), RigError> {
         let (rig, baseline) = self.rig(data)?;
+        RigLimits::check_channel("alpha_deg", &alpha_deg, limits(data).alpha_deg_abs)
+            .map_err(out_of_range)?;
         let test = JointTest {
             dof: Dof {
                 mech: Mechanism::Pendulum(rig),
@@ -139,7 +189,32 @@ impl PendulumSpec {
 }
 
 impl SliderSpec {
+    /// Every value the trace states lies in the type's plausible rig span (issue 18).
+    fn check_limits(&self, l: &RigLimits) -> Result<(), RigError> {
+        let c = |f: &str, v: Option<f64>, span| match v {
+            Some(v) => RigLimits::check(f, v, span).map_err(out_of_range),
+            None => Ok(()),
+        };
+        c(
+            "test.rig.moving_mass_kg",
+            self.moving_mass_kg,
+            l.moving_mass_kg,
+        )?;
+        c("test.rig.springs", self.springs.map(f64::from), l.springs)?;
+        c(
+            "test.rig.spring_stiffness_n_per_mm",
+            self.spring_stiffness_n_per_mm,
+            l.spring_stiffness_n_per_mm,
+        )?;
+        c(
+            "test.rig.normal_force_n",
+            self.normal_force_n,
+            l.normal_force_n,
+        )
+    }
+
     pub fn rig(&self, data: Option<&PantographType>) -> Result<(SliderRig, Baseline), RigError> {
+        self.check_limits(limits(data))?;
         let sd = data.map(|d| &d.slider);
         let jd = data
             .and_then(|d| d.joints.get(&d.slider.joint))
@@ -182,6 +257,11 @@ impl SliderSpec {
         force_n: Option<Vec<f64>>,
     ) -> Result<(JointTest, Baseline), RigError> {
         let (rig, baseline) = self.rig(data)?;
+        let l = limits(data);
+        RigLimits::check_channel("h_mm", &h_mm, l.h_mm_abs).map_err(out_of_range)?;
+        if let Some(f) = &force_n {
+            RigLimits::check_channel("F_N", f, l.force_n_abs).map_err(out_of_range)?;
+        }
         let input = force_n.map(|f| Input {
             t_s: t_s.clone(),
             value: f,
@@ -199,5 +279,91 @@ impl SliderSpec {
             initial_rate: None,
         };
         Ok((test, baseline))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pendulum(joint: &str) -> PendulumSpec {
+        PendulumSpec {
+            joint: joint.into(),
+            ..Default::default()
+        }
+    }
+
+    /// Issue 18: every paper rig lies inside the plausible span, and a stated value or a channel
+    /// sample outside it is refused naming the field as the trace spells it.
+    #[test]
+    fn absurd_rigs_and_channels_are_refused_naming_the_field() {
+        let data = Some(builtin_160ec());
+        for j in ["J1", "J2", "J2'", "J3", "J4", "J5", "J6", "J7"] {
+            pendulum(j).rig(data).unwrap_or_else(|e| panic!("{j}: {e}"));
+        }
+        SliderSpec::default()
+            .rig(data)
+            .expect("the paper's slider rig");
+        let refuse = |spec: PendulumSpec, field: &str| {
+            let e = spec.rig(data).expect_err(field);
+            assert_eq!(e.field, field, "{e}");
+        };
+        refuse(
+            PendulumSpec {
+                pin_radius_m: Some(1e308),
+                ..pendulum("J1")
+            },
+            "test.rig.pin_radius_m",
+        );
+        refuse(
+            PendulumSpec {
+                pin_radius_m: Some(f64::NAN),
+                ..pendulum("J1")
+            },
+            "test.rig.pin_radius_m",
+        );
+        refuse(
+            PendulumSpec {
+                attachments: Some(vec![Attachment::Rod {
+                    mass_kg: 1.0,
+                    length_m: 1e6,
+                }]),
+                ..pendulum("J5")
+            },
+            "test.rig.attachments[0].length_m",
+        );
+        refuse(
+            PendulumSpec {
+                initial_rate_deg_s: Some(-1e9),
+                ..pendulum("J3")
+            },
+            "test.rig.initial_rate_deg_s",
+        );
+        let e = SliderSpec {
+            springs: Some(1000),
+            ..Default::default()
+        }
+        .rig(data)
+        .unwrap_err();
+        assert_eq!(e.field, "test.rig.springs");
+        let t = vec![0.0, 0.002, 0.004];
+        let e = pendulum("J1")
+            .joint_test(data, t.clone(), vec![70.0, 1e308, 69.0])
+            .unwrap_err();
+        assert_eq!(e.field, "channels.alpha_deg[1]");
+        let e = SliderSpec::default()
+            .joint_test(
+                data,
+                t.clone(),
+                vec![1.0, 1.0, 1.0],
+                Some(vec![0.0, -1e7, 0.0]),
+            )
+            .unwrap_err();
+        assert_eq!(e.field, "channels.F_N[1]");
+        // At the limits: accepted.
+        let l = builtin_160ec().rig_limits();
+        pendulum("J1")
+            .joint_test(data, t, vec![l.alpha_deg_abs, 0.0, -l.alpha_deg_abs])
+            .expect("±alpha_deg_abs is inside");
     }
 }

@@ -1,8 +1,10 @@
 //! Alerts raised after each fit: a joint at `watch`/`alarm`, or forecast to reach its alarm band
 //! within the horizon, opens or escalates its one live alert; a later test back in band resolves it.
 //!
-//! Only the latest test of a joint decides (a late fit of an older test changes nothing); the
-//! horizon is counted from that test's date. The store writes alert, event and webhook outbox rows
+//! A joint's state is the one fleet health shows (`Store::joint_states`: each parameter from the
+//! latest test that informed it, the joint at the worst of them); only the test that decides it
+//! acts, so a test that cannot inform a joint, or an older test fitted late, changes nothing.
+//! The horizon is counted from the deciding test's date. The store writes alert, event and webhook outbox rows
 //! in one transaction.
 
 use chrono::{DateTime, Utc};
@@ -68,19 +70,27 @@ pub async fn after_fit(
         .and_then(serde_json::Value::as_array)
         .cloned()
         .unwrap_or_default();
+    // The joints' health as fleet health shows it (`joint_latest`, written in the fit's
+    // transaction): the rules act on the same state, so alerts and fleet health agree.
+    let states = store.joint_states(serial).await?;
     let mut actions = Vec::new();
     for j in &joints {
         let Some(joint) = j.get("joint").and_then(serde_json::Value::as_str) else {
             continue;
         };
-        let history = store.joint_history(serial, joint).await?;
-        let Some(last) = history.last() else {
+        let Some(state) = states.iter().find(|s| s.joint == joint) else {
             continue;
         };
-        if last.trace_id != trace_id {
-            // An older test fitted late: the latest one has decided already.
+        if state.trace_id != trace_id {
+            // This test does not decide the joint: it did not inform the parameter that sets
+            // its status (a lift for J5's viscous damping), or it is an older test fitted late.
+            // It changes nothing — no raise, no resolve (issue 15).
             continue;
         }
+        let history = store.joint_history(serial, joint).await?;
+        let Some(last) = history.iter().find(|p| p.trace_id == trace_id) else {
+            continue;
+        };
         let (bv, bd) = health::baselines(result, joint);
         let trends: Vec<ParamTrend> = Param::BOTH
             .iter()
@@ -89,7 +99,7 @@ pub async fn after_fit(
                 health::param_trend(&history, p, b, opts.alarm)
             })
             .collect();
-        let status = last.fit.status;
+        let status = state.status;
         let crossing = crossing_within(&trends, last.recorded_at, opts.horizon_days);
         let (severity, reason) = match (status, crossing) {
             (Status::Alarm, _) => (Some(Severity::Alarm), "status alarm".to_owned()),

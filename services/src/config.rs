@@ -142,6 +142,13 @@ pub struct WorkerSettings {
     /// On shutdown a running fit may finish within this many milliseconds; then its job is
     /// released to the queue (not counted as an attempt) and the process stops.
     pub shutdown_grace_ms: u64,
+    /// Longest one fit may run, seconds: past it the job fails with that reason and the worker
+    /// takes the next (issue 18). The fit's own thread ends by the models' step and iteration
+    /// caps; the queue does not wait for it.
+    pub fit_budget_secs: u64,
+    /// `pantowatch worker` serves `/metrics` and `/healthz` here (none by default: several
+    /// workers may share a host; deploy sets `0.0.0.0:9464`).
+    pub metrics_listen: Option<std::net::SocketAddr>,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -222,6 +229,10 @@ impl Default for WorkerSettings {
             lease_secs: 60,
             poll_ms: 500,
             shutdown_grace_ms: 8_000,
+            // A lift fit takes ~0.3 s, a pooled or quadrangle fit a few seconds: 60 s is far
+            // beyond any fit that will ever finish well.
+            fit_budget_secs: 60,
+            metrics_listen: None,
         }
     }
 }
@@ -359,6 +370,9 @@ impl Settings {
         if self.database.url.expose_secret().trim().is_empty() {
             return Err("database.url is empty".into());
         }
+        if self.worker.fit_budget_secs == 0 {
+            return Err("worker.fit_budget_secs must be > 0".into());
+        }
         if self.database.acquire_timeout_ms == 0 {
             return Err("database.acquire_timeout_ms must be > 0".into());
         }
@@ -440,6 +454,11 @@ impl Settings {
 
     pub fn poll(&self) -> Duration {
         Duration::from_millis(self.worker.poll_ms)
+    }
+
+    /// Longest one fit may run before its job fails.
+    pub fn fit_budget(&self) -> Duration {
+        Duration::from_secs(self.worker.fit_budget_secs)
     }
 
     /// How long a shutdown waits for a running fit before releasing its job.

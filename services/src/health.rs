@@ -29,9 +29,14 @@ impl Param {
         }
     }
 
-    /// (value, lo, hi) of this parameter in a history point.
+    /// (value, lo, hi) of this parameter in a history point — only when that test informed it
+    /// ([`JointFit::informs`]): a lift reports the joints it cannot see at baseline with the
+    /// prior's interval, which is no measurement of them (issue 15).
     pub fn of(self, p: &JointPoint) -> Option<(f64, f64, f64)> {
         let f = &p.fit;
+        if !f.informs(self.as_str()) {
+            return None;
+        }
         let (v, lo, hi) = match self {
             Param::Viscous => (f.viscous, f.viscous_lo, f.viscous_hi),
             Param::Dry => (f.dry, f.dry_lo, f.dry_hi),
@@ -78,8 +83,12 @@ pub struct ParamTrend {
     pub trend: Option<TrendView>,
     /// True when the data support no trend (too few points, or the slope's interval holds 0).
     pub no_trend: bool,
-    /// Only with a significant trend heading to a band edge.
+    /// Only with a significant trend heading to a band edge that it has not reached by the
+    /// latest informing test.
     pub forecast: Option<ForecastView>,
+    /// The date the trend line reached the alarm band, when that lies before the latest test
+    /// that informed this parameter: a crossing already reached, never a forecast in the past.
+    pub crossed_on: Option<DateTime<Utc>>,
 }
 
 fn at_days(t0: DateTime<Utc>, days: f64) -> Option<DateTime<Utc>> {
@@ -112,6 +121,7 @@ pub fn param_trend(
             trend: None,
             no_trend: true,
             forecast: None,
+            crossed_on: None,
         };
     };
     let points: Vec<Point> = history
@@ -146,6 +156,16 @@ pub fn param_trend(
             significant: t.significant,
         })
     });
+    // A crossing at or before the latest informing test has happened: say so, don't forecast.
+    let last_informed = history
+        .iter()
+        .filter(|p| param.of(p).is_some())
+        .map(|p| p.recorded_at)
+        .max();
+    let (forecast, crossed_on) = match (forecast, last_informed) {
+        (Some(f), Some(last)) if f.date <= last => (None, Some(f.date)),
+        (f, _) => (f, None),
+    };
     ParamTrend {
         param,
         baseline,
@@ -153,6 +173,7 @@ pub fn param_trend(
         no_trend: !trend.as_ref().is_some_and(|t| t.significant),
         trend,
         forecast,
+        crossed_on,
     }
 }
 
@@ -203,6 +224,10 @@ mod tests {
                 dry_hi: Some(0.0235),
                 identifiable: true,
                 status: Status::Ok,
+                viscous_informed: None,
+                viscous_status: None,
+                dry_informed: None,
+                dry_status: None,
             },
         }
     }

@@ -92,6 +92,13 @@ pub fn parse_body_blocking(format: BodyFormat, body: &[u8]) -> Result<Parsed, In
                     message: format!("not valid JSON: {e}"),
                 })
             })?;
+            // Valid JSON whose objects repeat a key: refused naming it, not last-wins.
+            if let Ok(Some(key)) = crate::json_keys::first_duplicate_key(body) {
+                return Err(IngestError::Invalid(TraceError {
+                    message: format!("`{key}` appears twice in its object"),
+                    field: key,
+                }));
+            }
             TraceDoc::from_value(&v).map_err(IngestError::Invalid)?
         }
         BodyFormat::Csv => trace_csv::parse(body).map_err(|e| match e {

@@ -24,6 +24,7 @@ pub fn worker_options(settings: &Settings, workers: usize) -> WorkerOptions {
         lease: settings.lease(),
         poll: settings.poll(),
         shutdown_grace: settings.shutdown_grace(),
+        fit_budget: settings.fit_budget(),
         thresholds: settings.thresholds(),
         alerts: AlertOptions {
             horizon_days: settings.alerts.horizon_days,
@@ -140,6 +141,23 @@ pub async fn run_workers(
     pool.join().await;
     let _ = deliverer.await;
     tracing::info!("workers stopped");
+}
+
+/// What a worker process serves for its operators (issue 18): `/metrics` — its fits (duration
+/// by test kind, outcomes, failures by reason) and the queue gauges read from the store — and
+/// `/healthz`. No keys: bind it where only the scraper reaches (deploy's NetworkPolicy).
+pub fn worker_metrics_router(store: Store) -> axum::Router {
+    use axum::routing::get;
+    let handle = crate::api::telemetry::prometheus();
+    axum::Router::new()
+        .route(
+            "/metrics",
+            get(move || {
+                let (store, handle) = (store.clone(), handle.clone());
+                async move { crate::api::ops::prometheus_answer(&store, &handle).await }
+            }),
+        )
+        .route("/healthz", get(|| async { "ok" }))
 }
 
 /// Resolves on Ctrl-C (SIGINT) or SIGTERM.

@@ -140,85 +140,58 @@ fn only_keys(m: &Map<String, Value>, allowed: &[&str], field: &str) -> Result<()
     Ok(())
 }
 
-/// RFC 3339 date-time: `YYYY-MM-DDTHH:MM:SS[.frac](Z|±HH:MM)`, with calendar-valid fields.
+/// Why a `recorded_at` is refused: not RFC 3339, or outside the years every backend stores.
+///
+/// RFC 3339 (`YYYY-MM-DDTHH:MM:SS[.frac](Z|±HH:MM)`, calendar-valid fields) as chrono parses
+/// it, and then — after the offset is applied, in UTC — a year in 1…9999: SQLite keeps dates as
+/// RFC 3339 text, whose four-digit year a `9999-12-31T23:59:59-23:59` would push to 10000, and
+/// such a row made every later read of its vehicle fail (issue 18). Year 0 is refused too.
+pub fn rfc3339_problem(s: &str) -> Option<String> {
+    // chrono accepts a space or `t` for `T` and a lowercase `z`, as RFC 3339 § 5.6 allows.
+    let parsed = chrono::DateTime::parse_from_rfc3339(s).ok();
+    match parsed.map(|d| d.with_timezone(&chrono::Utc)) {
+        None => Some(format!(
+            "`{s}` is not an RFC 3339 date-time (e.g. 2026-03-02T07:15:00Z)"
+        )),
+        Some(utc) if !(1..=9999).contains(&chrono::Datelike::year(&utc)) => Some(format!(
+            "`{s}` is year {} in UTC: dates must lie in the years 1 to 9999",
+            chrono::Datelike::year(&utc)
+        )),
+        Some(_) => None,
+    }
+}
+
+/// RFC 3339 date-time within the stored years ([`rfc3339_problem`] finds nothing).
 pub fn check_rfc3339(s: &str) -> bool {
-    let b = s.as_bytes();
-    if b.len() < 20 {
-        return false;
+    rfc3339_problem(s).is_none()
+}
+
+/// The longest gap a lift record may have, in median sampling intervals: a logger that drops
+/// samples leaves the model's inputs undefined across the gap (they would be interpolated
+/// through it), so a lift with a gap over 5 intervals is refused naming the first sample after
+/// it. 5 intervals: 10 ms at 500 Hz, a fraction of the head's ≈ 0.2 s bounce period.
+pub const LIFT_MAX_GAP_INTERVALS: f64 = 5.0;
+
+/// A lift's `t_s` has no gap longer than [`LIFT_MAX_GAP_INTERVALS`] median intervals.
+fn lift_gaps(t_s: &[f64]) -> Result<(), TraceError> {
+    if t_s.len() < 3 {
+        return Ok(());
     }
-    let digits = |r: std::ops::Range<usize>| {
-        b.get(r.clone())
-            .is_some_and(|x| x.iter().all(u8::is_ascii_digit))
-    };
-    let num = |r: std::ops::Range<usize>| s[r].parse::<u32>().unwrap_or(u32::MAX);
-    if !(digits(0..4)
-        && b[4] == b'-'
-        && digits(5..7)
-        && b[7] == b'-'
-        && digits(8..10)
-        && matches!(b[10], b'T' | b't' | b' ')
-        && digits(11..13)
-        && b[13] == b':'
-        && digits(14..16)
-        && b[16] == b':'
-        && digits(17..19))
+    let mut dt: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
+    let (_, median, _) = dt.select_nth_unstable_by(t_s.len() / 2 - 1, f64::total_cmp);
+    let median = *median;
+    match t_s
+        .windows(2)
+        .position(|w| w[1] - w[0] > LIFT_MAX_GAP_INTERVALS * median)
     {
-        return false;
-    }
-    let (y, mo, d, h, mi, se) = (
-        num(0..4),
-        num(5..7),
-        num(8..10),
-        num(11..13),
-        num(14..16),
-        num(17..19),
-    );
-    let leap = (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
-    let mdays = [
-        31,
-        if leap { 29 } else { 28 },
-        31,
-        30,
-        31,
-        30,
-        31,
-        31,
-        30,
-        31,
-        30,
-        31,
-    ];
-    if !(1..=12).contains(&mo)
-        || d == 0
-        || d > mdays[(mo - 1) as usize]
-        || h > 23
-        || mi > 59
-        || se > 60
-    {
-        return false;
-    }
-    let mut i = 19;
-    if b.get(i) == Some(&b'.') {
-        i += 1;
-        let st = i;
-        while b.get(i).is_some_and(u8::is_ascii_digit) {
-            i += 1;
-        }
-        if i == st {
-            return false;
-        }
-    }
-    match b.get(i) {
-        Some(b'Z' | b'z') => i + 1 == b.len(),
-        Some(b'+' | b'-') => {
-            i + 6 == b.len()
-                && digits(i + 1..i + 3)
-                && b[i + 3] == b':'
-                && digits(i + 4..i + 6)
-                && num(i + 1..i + 3) <= 23
-                && num(i + 4..i + 6) <= 59
-        }
-        _ => false,
+        None => Ok(()),
+        Some(i) => Err(bad(
+            format!("channels.t_s[{}]", i + 1),
+            format!(
+                "a gap of {:.6} s before this sample, more than {LIFT_MAX_GAP_INTERVALS} × the median interval {median:.6} s: samples are missing",
+                t_s[i + 1] - t_s[i]
+            ),
+        )),
     }
 }
 
@@ -247,6 +220,12 @@ impl TraceDoc {
     pub fn from_json(bytes: &[u8]) -> Result<Self, TraceError> {
         let v: Value = serde_json::from_slice(bytes)
             .map_err(|e| bad("body", format!("not valid JSON: {e}")))?;
+        if let Ok(Some(key)) = crate::json_keys::first_duplicate_key(bytes) {
+            return Err(bad(
+                key.clone(),
+                format!("`{key}` appears twice in its object"),
+            ));
+        }
         Self::from_value(&v)
     }
 
@@ -273,18 +252,13 @@ impl TraceDoc {
             }
             None => unreachable!("required"),
         }
-        let trace_id = string(root, "trace_id", "trace_id", false)?;
-        if let Some(id) = &trace_id
-            && !id
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || "-_.:".contains(c))
-        {
-            return Err(bad(
-                "trace_id",
-                "may contain only letters, digits and - _ . :",
-            ));
-        }
+        // Ids by the rules of `ids` (issue 18): stored in NFC, no invisible characters.
+        let id_rule = |e: crate::ids::IdError| bad(e.field, e.message);
+        let trace_id = string(root, "trace_id", "trace_id", false)?
+            .map(|id| crate::ids::check_trace_id("trace_id", &id).map_err(id_rule))
+            .transpose()?;
         let vehicle_id = string(root, "vehicle_id", "vehicle_id", true)?.unwrap_or_default();
+        let vehicle_id = crate::ids::normalise_text("vehicle_id", &vehicle_id).map_err(id_rule)?;
         let panto = obj(
             root.get("pantograph")
                 .ok_or_else(|| bad("pantograph", "is required"))?,
@@ -293,13 +267,12 @@ impl TraceDoc {
         only_keys(panto, &["model", "serial"], "pantograph")?;
         let pantograph_model =
             string(panto, "model", "pantograph.model", true)?.unwrap_or_default();
-        let pantograph_serial = string(panto, "serial", "pantograph.serial", false)?;
+        let pantograph_serial = string(panto, "serial", "pantograph.serial", false)?
+            .map(|v| crate::ids::normalise_text("pantograph.serial", &v).map_err(id_rule))
+            .transpose()?;
         let recorded_at = string(root, "recorded_at", "recorded_at", true)?.unwrap_or_default();
-        if !check_rfc3339(&recorded_at) {
-            return Err(bad(
-                "recorded_at",
-                format!("`{recorded_at}` is not an RFC 3339 date-time (e.g. 2026-03-02T07:15:00Z)"),
-            ));
+        if let Some(why) = rfc3339_problem(&recorded_at) {
+            return Err(bad("recorded_at", why));
         }
         let test_v = root.get("test").ok_or_else(|| bad("test", "is required"))?;
         let test = obj(test_v, "test")?;
@@ -463,6 +436,19 @@ impl TraceDoc {
             ));
         }
         let get = |name: &str| self.channel(name).unwrap_or_default();
+        lift_gaps(get("t_s"))?;
+        if let Some([lo, hi]) =
+            pantowatch_models::lift::geometry::builtin_160ec().drive_torque_range_nm
+            && let Some(i) = get("T_Nm").iter().position(|t| !(lo..=hi).contains(t))
+        {
+            return Err(bad(
+                format!("channels.T_Nm[{i}]"),
+                format!(
+                    "{} N·m is outside the drive's range [{lo}, {hi}] N·m (models/data/160ec-geometry.toml, `[drive] torque_range_Nm`)",
+                    get("T_Nm")[i]
+                ),
+            ));
+        }
         Ok(LiftChannels {
             t_s: get("t_s"),
             strip_height_m: get("H_m"),
@@ -852,7 +838,7 @@ mod tests {
         let mut d = doc();
         d["test"]["rig"] =
             json!({"body": {"mass_kg": -1.0, "inertia_kgm2": 1.0, "com_distance_m": 0.1}});
-        cases.push((d, "test.rig.mass_kg"));
+        cases.push((d, "test.rig.body.mass_kg"));
         let mut d = doc();
         d["test"]["rig"] = json!({"pin_radius": 0.01});
         cases.push((d, "test.rig.pin_radius"));
@@ -908,8 +894,21 @@ mod tests {
             "2026-13-01T00:00:00Z",
             "2026-03-02T07:15:00+0100",
             "2026-03-02T07:15:00.Z",
+            // Issue 18: outside the years 1…9999 once the offset is applied.
+            "9999-12-31T23:59:59-23:59",
+            "0000-06-01T00:00:00Z",
+            "0001-01-01T00:30:00+01:00",
         ] {
             assert!(!check_rfc3339(no), "{no}");
         }
+        for edge in [
+            "9999-12-31T23:59:59Z",
+            "0001-01-01T00:00:00Z",
+            "0001-01-01T00:30:00-01:00",
+        ] {
+            assert!(check_rfc3339(edge), "{edge}");
+        }
+        let why = rfc3339_problem("9999-12-31T23:59:59-23:59").unwrap();
+        assert!(why.contains("year 10000"), "{why}");
     }
 }

@@ -16,10 +16,13 @@
 //! 0.002,74.19
 //! ```
 //!
-//! Metadata keys are the contract's field paths; `test.rig` is a JSON object. Values are
-//! comma-separated decimal numbers (`.` as the decimal point; `nan`/`inf` are rejected like any
-//! non-finite value). Blank lines are ignored; `\r\n` line ends are accepted. The document built
-//! from the file is validated by [`TraceDoc::from_value`], exactly like a JSON upload.
+//! Metadata keys are the contract's field paths; `test.rig` is a JSON object. Rows are read by
+//! the `csv` crate: separated by `,` (decimal point `.`) or, when the header row holds a `;`,
+//! by `;` with a decimal comma or point (`0,002;74,19` — what European spreadsheet tools write);
+//! fields may be quoted; `nan`/`inf` are rejected like any non-finite value. Blank lines are
+//! ignored; `\r\n` line ends are accepted. A refusal names the channel and sample
+//! (`channels.alpha_deg[2]`) or the line, and says the row, the column and why. The document
+//! built from the file is validated by [`TraceDoc::from_value`], exactly like a JSON upload.
 
 use std::fmt::Write as _;
 
@@ -62,6 +65,29 @@ pub fn parse(bytes: &[u8]) -> Result<TraceDoc, CsvError> {
     TraceDoc::from_value(&v).map_err(CsvError::Invalid)
 }
 
+/// The separator of the data rows, read from the header row: `;` when the header holds one
+/// (European tools, which then write decimal commas: `0,002;74,19`), else `,`.
+fn separator(header_line: &str) -> u8 {
+    if header_line.contains(';') {
+        b';'
+    } else {
+        b','
+    }
+}
+
+/// A value as a number: `.` as the decimal point, or — with `;` separators — a decimal comma
+/// (`74,19`). Thousands separators are not read (`1.234,5` is refused).
+fn number(field: &str, sep: u8) -> Option<f64> {
+    let owned;
+    let text = if sep == b';' && field.contains(',') && !field.contains('.') {
+        owned = field.replacen(',', ".", 1);
+        owned.as_str()
+    } else {
+        field
+    };
+    text.parse::<f64>().ok().filter(|x| x.is_finite())
+}
+
 /// The CSV as the contract's JSON document (not yet validated).
 pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
     let text = std::str::from_utf8(bytes)
@@ -70,117 +96,161 @@ pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
     let mut root = Map::new();
     let mut panto = Map::new();
     let mut test = Map::new();
-    let mut header: Option<Vec<String>> = None;
-    let mut columns: Vec<Vec<Value>> = Vec::new();
-    for (i, raw) in text.split('\n').enumerate() {
+    // The `# key: value` head, up to the header row; the rest is the csv crate's.
+    let mut offset = 0;
+    let mut header_line_no = 0;
+    for (i, raw) in text.split_inclusive('\n').enumerate() {
         let line_no = i + 1;
-        let line = raw.strip_suffix('\r').unwrap_or(raw);
+        let line = raw.trim_end_matches(['\n', '\r']);
         if line.trim().is_empty() {
+            offset += raw.len();
             continue;
         }
-        if let Some(meta) = line.strip_prefix('#') {
-            if header.is_some() {
-                return Err(malformed(
-                    format!("csv.line[{line_no}]"),
-                    "metadata (`# key: value`) must come before the header row",
-                ));
-            }
-            let (key, value) = meta.split_once(':').ok_or_else(|| {
-                malformed(
-                    format!("csv.line[{line_no}]"),
-                    "a metadata line is `# key: value`",
-                )
-            })?;
-            let (key, value) = (key.trim(), value.trim());
-            if !META_KEYS.contains(&key) {
-                return Err(malformed(
-                    key.chars().take(64).collect::<String>(),
-                    format!("unknown metadata key (allowed: {})", META_KEYS.join(", ")),
-                ));
-            }
-            let value = if key == "test.rig" {
-                serde_json::from_str::<Value>(value)
-                    .map_err(|e| malformed("test.rig", format!("not valid JSON: {e}")))?
-            } else {
-                Value::String(value.to_owned())
-            };
-            let slot = match key.split_once('.') {
-                Some(("pantograph", k)) => panto.insert(k.to_owned(), value),
-                Some(("test", k)) => test.insert(k.to_owned(), value),
-                _ => root.insert(key.to_owned(), value),
-            };
-            if slot.is_some() {
-                return Err(malformed(key, "given twice"));
-            }
-            continue;
+        let Some(meta) = line.strip_prefix('#') else {
+            header_line_no = line_no;
+            break;
+        };
+        offset += raw.len();
+        let (key, value) = meta.split_once(':').ok_or_else(|| {
+            malformed(
+                format!("csv.line[{line_no}]"),
+                "a metadata line is `# key: value`",
+            )
+        })?;
+        let (key, value) = (key.trim(), value.trim());
+        if !META_KEYS.contains(&key) {
+            return Err(malformed(
+                key.chars().take(64).collect::<String>(),
+                format!("unknown metadata key (allowed: {})", META_KEYS.join(", ")),
+            ));
         }
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        match &header {
-            None => {
-                if fields.len() > MAX_CHANNELS {
-                    return Err(malformed(
-                        "channels",
-                        format!("{} channels, more than {MAX_CHANNELS}", fields.len()),
-                    ));
-                }
-                if fields.first() != Some(&"t_s") {
-                    return Err(malformed(
-                        format!("csv.line[{line_no}]"),
-                        "the header row must start with the channel `t_s`",
-                    ));
-                }
-                let mut seen = std::collections::HashSet::new();
-                for f in &fields {
-                    if !seen.insert(*f) {
-                        return Err(malformed(
-                            format!("channels.{f}"),
-                            "channel named twice in the header row",
-                        ));
-                    }
-                }
-                columns = vec![Vec::new(); fields.len()];
-                header = Some(fields.iter().map(|s| (*s).to_owned()).collect());
-            }
-            Some(names) => {
-                if fields.len() != names.len() {
-                    return Err(malformed(
-                        format!("csv.line[{line_no}]"),
-                        format!(
-                            "{} values, but the header has {} channels",
-                            fields.len(),
-                            names.len()
-                        ),
-                    ));
-                }
-                let row = columns.first().map_or(0, Vec::len);
-                if row >= MAX_SAMPLES {
-                    return Err(malformed(
-                        "channels.t_s",
-                        format!("more than the limit of {MAX_SAMPLES} samples"),
-                    ));
-                }
-                for ((col, name), f) in columns.iter_mut().zip(names).zip(&fields) {
-                    let x = f.parse::<f64>().ok().filter(|x| x.is_finite());
-                    let n = x.and_then(serde_json::Number::from_f64).ok_or_else(|| {
-                        CsvError::Invalid(TraceError {
-                            field: format!("channels.{name}[{row}]"),
-                            message: format!(
-                                "`{}` is not a finite number (line {line_no})",
-                                f.chars().take(32).collect::<String>()
-                            ),
-                        })
-                    })?;
-                    col.push(Value::Number(n));
-                }
-            }
+        let value = if key == "test.rig" {
+            serde_json::from_str::<Value>(value)
+                .map_err(|e| malformed("test.rig", format!("not valid JSON: {e}")))?
+        } else {
+            Value::String(value.to_owned())
+        };
+        let slot = match key.split_once('.') {
+            Some(("pantograph", k)) => panto.insert(k.to_owned(), value),
+            Some(("test", k)) => test.insert(k.to_owned(), value),
+            _ => root.insert(key.to_owned(), value),
+        };
+        if slot.is_some() {
+            return Err(malformed(key, "given twice"));
         }
     }
-    let Some(names) = header else {
+    if header_line_no == 0 {
         return Err(malformed(
             "channels",
             "no header row (channel names, `t_s` first) after the metadata",
         ));
+    }
+    let data = &text[offset..];
+    let sep = separator(data.lines().next().unwrap_or(""));
+    // The file's line of a record: the header's line plus the line ends before its first byte.
+    let line_of = |p: Option<&csv::Position>| {
+        p.map_or(header_line_no, |p| {
+            // A `\r\n` ends a record at its `\r`: the next one's position is on the `\n`.
+            let mut at = (p.byte() as usize).min(data.len());
+            while data
+                .as_bytes()
+                .get(at)
+                .is_some_and(|b| matches!(b, b'\r' | b'\n'))
+            {
+                at += 1;
+            }
+            header_line_no
+                + data.as_bytes()[..at]
+                    .iter()
+                    .filter(|b| **b == b'\n')
+                    .count()
+        })
     };
+    let mut reader = csv::ReaderBuilder::new()
+        .delimiter(sep)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(data.as_bytes());
+    let names: Vec<String> = reader
+        .headers()
+        .map_err(|e| {
+            malformed(
+                format!("csv.line[{header_line_no}]"),
+                format!("header row: {e}"),
+            )
+        })?
+        .iter()
+        .map(str::to_owned)
+        .collect();
+    if names.len() > MAX_CHANNELS {
+        return Err(malformed(
+            "channels",
+            format!("{} channels, more than {MAX_CHANNELS}", names.len()),
+        ));
+    }
+    if names.first().map(String::as_str) != Some("t_s") {
+        let hint = if sep == b',' && names.len() == 1 && names[0].contains('\t') {
+            " (tab-separated? use `,` or `;`)"
+        } else {
+            ""
+        };
+        return Err(malformed(
+            format!("csv.line[{header_line_no}]"),
+            format!("the header row must start with the channel `t_s`{hint}"),
+        ));
+    }
+    let mut seen = std::collections::HashSet::new();
+    for f in &names {
+        if !seen.insert(f.as_str()) {
+            return Err(malformed(
+                format!("channels.{f}"),
+                "channel named twice in the header row",
+            ));
+        }
+    }
+    let sep_name = if sep == b';' { "`;`" } else { "`,`" };
+    let mut columns: Vec<Vec<Value>> = vec![Vec::new(); names.len()];
+    for (row, record) in reader.records().enumerate() {
+        let record = record.map_err(|e| {
+            let line = line_of(e.position());
+            let why = match e.kind() {
+                csv::ErrorKind::UnequalLengths { len, expected_len, .. } => format!(
+                    "row {} has {len} values, but the header has {expected_len} channels ({sep_name}-separated)",
+                    row + 1
+                ),
+                _ => format!("row {}: {e}", row + 1),
+            };
+            malformed(format!("csv.line[{line}]"), why)
+        })?;
+        if row >= MAX_SAMPLES {
+            return Err(malformed(
+                "channels.t_s",
+                format!("more than the limit of {MAX_SAMPLES} samples"),
+            ));
+        }
+        for ((col, name), f) in columns.iter_mut().zip(&names).zip(record.iter()) {
+            let n = number(f, sep).and_then(serde_json::Number::from_f64).ok_or_else(|| {
+                let why = if sep == b',' && f.contains(';') {
+                    " — the header row is `,`-separated but this row uses `;`"
+                } else if sep == b',' && f.is_empty() {
+                    " — empty (a decimal comma in a `,`-separated file splits a value in two: use `;` as the separator)"
+                } else {
+                    ""
+                };
+                // Only a refusal needs its line (counting them for every row is quadratic).
+                let line = line_of(record.position());
+                CsvError::Invalid(TraceError {
+                    field: format!("channels.{name}[{row}]"),
+                    message: format!(
+                        "`{}` is not a finite number (line {line}, row {}, column `{name}`){why}",
+                        f.chars().take(32).collect::<String>(),
+                        row + 1
+                    ),
+                })
+            })?;
+            col.push(Value::Number(n));
+        }
+    }
     if !panto.is_empty() {
         root.insert("pantograph".into(), panto.into());
     }
@@ -294,5 +364,45 @@ mod tests {
             "csv.line[11]"
         );
         assert_eq!(field("# format: pantograph-trace/1\n"), "channels");
+    }
+
+    /// Issue 18: what European tools write — `;` separators and decimal commas — reads as the
+    /// same document; a mixed file is refused saying where and why.
+    #[test]
+    fn semicolons_and_decimal_commas_read_as_the_same_document() {
+        let eu = CSV
+            .replace("t_s,alpha_deg", "t_s;alpha_deg")
+            .replace("0,74.2", "0;74,2")
+            .replace("0.002,74.19", "0,002;74,19")
+            .replace("0.004, 74.17", "0,004; 74.17");
+        assert_eq!(
+            parse(eu.as_bytes()).expect("`;` CSV"),
+            parse(CSV.as_bytes()).unwrap()
+        );
+        let quoted = CSV.replace("0.002,74.19", "\"0.002\",\"74.19\"");
+        assert_eq!(
+            parse(quoted.as_bytes()).unwrap(),
+            parse(CSV.as_bytes()).unwrap()
+        );
+        // A decimal comma in a `,`-separated file: a row with one value too many.
+        match parse(CSV.replace("0.002,74.19", "0,002,74,19").as_bytes()) {
+            Err(CsvError::Malformed(e)) => {
+                assert_eq!(e.field, "csv.line[13]");
+                assert!(e.message.contains("row 2 has 4 values"), "{}", e.message);
+            }
+            other => panic!("{other:?}"),
+        }
+        // Thousands separators are not guessed at.
+        match parse(eu.replace("0,002;74,19", "0,002;1.074,19").as_bytes()) {
+            Err(CsvError::Invalid(e)) => {
+                assert_eq!(e.field, "channels.alpha_deg[1]");
+                assert!(
+                    e.message.contains("row 2, column `alpha_deg`"),
+                    "{}",
+                    e.message
+                );
+            }
+            other => panic!("{other:?}"),
+        }
     }
 }

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use chrono::Utc;
-use sha2::{Digest, Sha256};
+use sha2::Sha256;
 use tokio::sync::{Notify, watch};
 use tokio::task::JoinSet;
 
@@ -34,25 +34,16 @@ impl Default for DeliveryOptions {
     }
 }
 
-/// HMAC-SHA256 (RFC 2104) of `msg` under `key`, as lowercase hex.
+/// HMAC-SHA256 (RFC 2104, the `hmac` crate) of `msg` under `key`, as lowercase hex.
 pub fn hmac_sha256_hex(key: &[u8], msg: &[u8]) -> String {
-    const BLOCK: usize = 64;
-    let mut k = [0u8; BLOCK];
-    if key.len() > BLOCK {
-        k[..32].copy_from_slice(&Sha256::digest(key));
-    } else {
-        k[..key.len()].copy_from_slice(key);
-    }
-    let pad = |b: u8| k.map(|x| x ^ b);
-    let inner = Sha256::new()
-        .chain_update(pad(0x36))
-        .chain_update(msg)
-        .finalize();
-    let outer = Sha256::new()
-        .chain_update(pad(0x5c))
-        .chain_update(inner)
-        .finalize();
-    hex::encode(outer)
+    use hmac::Mac;
+    hex::encode(hmac_sha256(key).chain_update(msg).finalize().into_bytes())
+}
+
+/// An HMAC-SHA256 keyed with `key` (any length is a valid HMAC key).
+pub fn hmac_sha256(key: &[u8]) -> hmac::Hmac<Sha256> {
+    use hmac::Mac;
+    <hmac::Hmac<Sha256> as Mac>::new_from_slice(key).expect("HMAC takes a key of any length")
 }
 
 /// The `X-Pantowatch-Signature` value for a body sent at `timestamp` (Unix seconds, as text).

@@ -28,6 +28,8 @@ pub struct WorkerOptions {
     pub poll: Duration,
     /// After shutdown starts, how long a running fit may take before its job is released.
     pub shutdown_grace: Duration,
+    /// Longest one fit may run; then its job fails with that reason (`worker.fit_budget_secs`).
+    pub fit_budget: Duration,
     pub thresholds: DriftThresholds,
     /// The alert rules run after each fit written.
     pub alerts: AlertOptions,
@@ -48,7 +50,8 @@ pub enum JobEvent {
     Failed { trace_id: String, error: String },
     /// Another worker took the job over after this one's lease ran out: nothing written.
     LeaseLost { trace_id: String },
-    /// Shutdown: the job went back to the queue unfinished (attempt not counted).
+    /// Shutdown: the job went back to the queue unfinished (its attempt counted only if its fit
+    /// had started).
     Released { trace_id: String },
 }
 
@@ -180,9 +183,16 @@ pub async fn process_next(
     let trace_id = job.trace_id.clone();
     // Shutdown between the claim and the start of the work: give the job back untouched.
     if *shutdown.borrow() {
-        return release(store, worker, job.id, trace_id, "before its fit started")
-            .await
-            .map(Some);
+        return release(
+            store,
+            worker,
+            job.id,
+            trace_id,
+            "before its fit started",
+            false,
+        )
+        .await
+        .map(Some);
     }
     let doc = match (
         store.get_trace(&trace_id).await?,
@@ -197,6 +207,7 @@ pub async fn process_next(
         Err(msg) => return fail(store, worker, job.id, trace_id, msg).await.map(Some),
     };
     let thresholds = opts.thresholds;
+    let kind = doc.kind.as_str();
     let t0 = Instant::now();
     let mut fit_task =
         tokio::task::spawn_blocking(move || fitting::fit_document(&doc, &thresholds));
@@ -204,14 +215,23 @@ pub async fn process_next(
         r = &mut fit_task => r,
         () = grace_over(shutdown.clone(), opts.shutdown_grace) => {
             // The blocking fit cannot be interrupted: it keeps its thread until it returns and
-            // its result is dropped; the process exit ends it.
-            return release(store, worker, job.id, trace_id, "its fit outlasted the shutdown grace period")
+            // its result is dropped; the process exit ends it. Its attempt stays counted.
+            return release(store, worker, job.id, trace_id, "its fit outlasted the shutdown grace period", true)
                 .await
                 .map(Some);
         }
+        () = tokio::time::sleep(opts.fit_budget) => {
+            // Past its budget: the job fails with the reason and this worker takes the next;
+            // the fit's thread ends on its own (the models cap steps and iterations).
+            let msg = format!(
+                "the fit ran past its budget of {} s (worker.fit_budget_secs)",
+                opts.fit_budget.as_secs_f64()
+            );
+            return fail_because(store, worker, job.id, trace_id, msg, "budget").await.map(Some);
+        }
     };
     let fit_seconds = t0.elapsed().as_secs_f64();
-    metrics::histogram!("pantowatch_fit_duration_seconds").record(fit_seconds);
+    metrics::histogram!("pantowatch_fit_duration_seconds", "kind" => kind).record(fit_seconds);
     let result = match fitted {
         Ok(Ok(r)) => r,
         Ok(Err(f)) => {
@@ -263,6 +283,14 @@ pub async fn process_next(
                     }
                 }
             }
+            // A lift also gets the pooled fit of its pantograph's recent lifts (`pooled`); its
+            // own fit is durable already, so a failure here is logged, not the job's.
+            if kind == "lift"
+                && let Err(e) =
+                    crate::pooled::after_lift(store, &trace_id, opts.thresholds, &opts.alerts).await
+            {
+                tracing::error!(trace = %trace_id, error = %e, "pooled lift fit failed");
+            }
             Ok(Some(JobEvent::Done {
                 trace_id,
                 status,
@@ -294,8 +322,14 @@ async fn release(
     job_id: i64,
     trace_id: String,
     why: &str,
+    fit_started: bool,
 ) -> Result<JobEvent, StoreError> {
-    match store.release(job_id, worker).await {
+    let released = if fit_started {
+        store.release_counted(job_id, worker).await
+    } else {
+        store.release(job_id, worker).await
+    };
+    match released {
         Ok(true) => {
             metrics::counter!("pantowatch_jobs_processed_total", "outcome" => "released")
                 .increment(1);
@@ -330,10 +364,23 @@ async fn fail(
     trace_id: String,
     error: String,
 ) -> Result<JobEvent, StoreError> {
+    fail_because(store, worker, job_id, trace_id, error, "fit").await
+}
+
+/// [`fail`], counted in `pantowatch_jobs_failed_total{reason}` under `reason`.
+async fn fail_because(
+    store: &Store,
+    worker: &str,
+    job_id: i64,
+    trace_id: String,
+    error: String,
+    reason: &'static str,
+) -> Result<JobEvent, StoreError> {
     match store.fail(job_id, worker, &error, false).await? {
         FailOutcome::Failed | FailOutcome::Requeued => {
             metrics::counter!("pantowatch_jobs_processed_total", "outcome" => "failed")
                 .increment(1);
+            metrics::counter!("pantowatch_jobs_failed_total", "reason" => reason).increment(1);
             tracing::warn!(job = job_id, trace = %trace_id, %error, "fit job failed");
             Ok(JobEvent::Failed { trace_id, error })
         }

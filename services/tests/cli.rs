@@ -301,7 +301,9 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
     for measure in [
         "| fit: pendulum",
         "| fit: slider",
-        "| fit: lift",
+        "| fit: lift, clean inputs (3 raise-and-lower lifts, one core)",
+        "| fit: lift, realistic sensor noise (3 raise-and-lower lifts, one core)",
+        "| fit: lift, 2× sensor noise (3 raise-and-lower lifts, one core)",
         "| fleet re-processing (3 lift traces, projected to 12,000)",
         "| ingest: API into PostgreSQL",
         "| storage",
@@ -313,7 +315,7 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
     assert!(!stdout.contains("not measured"), "{stdout}");
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let rows = v["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 8, "{v}");
+    assert_eq!(rows.len(), 10, "{v}");
     let row = |prefix: &str| {
         rows.iter()
             .find(|r| r["measure"].as_str().unwrap().starts_with(prefix))
@@ -337,4 +339,66 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
     assert_eq!(storage["traces"].as_u64(), Some(6));
     assert_eq!(v["sizes"]["fleet_traces"].as_u64(), Some(3));
     assert!(v["machine"]["cores"].as_u64().unwrap() >= 1);
+    // The lift rows' noisy lifts carry input noise the fit estimated; the clean ones none.
+    for (prefix, noisy) in [
+        ("fit: lift, clean", false),
+        ("fit: lift, realistic", true),
+        ("fit: lift, 2×", true),
+    ] {
+        let lifts = row(prefix)["detail"]["lifts"].as_array().unwrap();
+        assert_eq!(lifts.len(), 3, "{prefix}");
+        for l in lifts {
+            let sd = l["input_noise_sd"]["T_Nm"].as_f64().unwrap();
+            assert_eq!(sd > 0.5, noisy, "{prefix}: T noise sd {sd}");
+        }
+    }
+}
+
+/// `simulate --kind lift --sensor-noise K` puts K × the stand's noise (H 0.5 mm, T 1 N·m,
+/// Fs/Fm 0.2 N) on every channel; K < 0 is refused naming the flag.
+#[test]
+fn simulate_lift_sensor_noise_scales_every_channel() {
+    let channels = |k: &str| -> serde_json::Value {
+        let out = run_ok(bin().args([
+            "simulate",
+            "--kind",
+            "lift",
+            "--h-noise-mm",
+            "0",
+            "--seed",
+            "5",
+            "--sensor-noise",
+            k,
+        ]));
+        serde_json::from_str::<serde_json::Value>(&out).unwrap()["channels"].clone()
+    };
+    let clean = channels("0");
+    for k in [1.0, 2.0] {
+        let noisy = channels(&k.to_string());
+        for (name, sd) in [("H_m", 0.5e-3), ("T_Nm", 1.0), ("Fs_N", 0.2), ("Fm_N", 0.2)] {
+            let (a, b) = (
+                clean[name].as_array().unwrap(),
+                noisy[name].as_array().unwrap(),
+            );
+            let n = a.len() as f64;
+            let rms = (a
+                .iter()
+                .zip(b)
+                .map(|(x, y)| (x.as_f64().unwrap() - y.as_f64().unwrap()).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt();
+            assert!(
+                (rms / (k * sd) - 1.0).abs() < 0.1,
+                "K {k}, {name}: noise {rms} vs {}",
+                k * sd
+            );
+        }
+    }
+    let out = bin()
+        .args(["simulate", "--kind", "lift", "--sensor-noise=-1"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--sensor-noise"));
 }

@@ -63,7 +63,7 @@ doc("joint-sql", "test.joint", lambda d: d["test"].update(joint="J1'; DROP TABLE
 doc("joint-missing", "test.joint", lambda d: d["test"].pop("joint"))
 doc("rig-array", "test.rig", lambda d: d["test"].update(rig=[1]))
 doc("rig-unknown-key", "test.rig.colour", lambda d: d["test"].update(rig={"colour": "red"}))
-doc("rig-negative-mass", "test.rig.mass_kg", lambda d: d["test"].update(rig={"body": {"mass_kg": -1, "inertia_kgm2": 1, "com_distance_m": 0.1}}))
+doc("rig-negative-mass", "test.rig.body.mass_kg", lambda d: d["test"].update(rig={"body": {"mass_kg": -1, "inertia_kgm2": 1, "com_distance_m": 0.1}}))  # the stated field itself (was the lumped `test.rig.mass_kg`; issue 17)
 doc("rig-inertia-too-small", "test.rig.inertia_kgm2", lambda d: d["test"].update(rig={"body": {"mass_kg": 10, "inertia_kgm2": 0.1, "com_distance_m": 1}}))
 doc("rig-body-string-mass", "test.rig.body.mass_kg", lambda d: d["test"].update(rig={"body": {"mass_kg": "ten", "inertia_kgm2": 1, "com_distance_m": 0.1}}))
 doc("rig-attachment-kind", "test.rig.attachments[0].kind", lambda d: d["test"].update(rig={"attachments": [{"kind": "blob", "mass_kg": 1}]}))
@@ -116,6 +116,16 @@ raw("csv-bad-rig", "test.rig", CSV.replace("# test.rig: {}", "# test.rig: {"), "
 raw("csv-t-not-first", "*", CSV.replace("t_s,alpha_deg", "alpha_deg,t_s"), "text/csv")
 raw("csv-time-back", "channels.t_s[2]", CSV.replace("0.004,74.17", "0.001,74.17"), "text/csv")
 raw("csv-binary", "*", b"\x00\x01\x02\xff\xfe", "text/csv")
+# Issue 18: dates that leave the years 1-9999 once their offset is applied (SQLite stored the
+# first as year 10000 and every later read of the vehicle answered 500).
+doc("recorded-year-10000", "recorded_at", lambda d: d.update(recorded_at="9999-12-31T23:59:59-23:59"))
+doc("recorded-year-0", "recorded_at", lambda d: d.update(recorded_at="0000-06-01T00:00:00Z"))
+# Issue 18: physically absurd rigs and channels (a 1e308 pin radius or angle held a worker for good).
+doc("rig-pin-1e308", "test.rig.pin_radius_m", lambda d: d["test"]["rig"].update(pin_radius_m=1e308))
+doc("rig-body-mass-1e9", "test.rig.body.mass_kg", lambda d: d["test"]["rig"].update(
+    body={"mass_kg": 1e9, "inertia_kgm2": 1e9, "com_distance_m": 0.5}))
+doc("rig-gravity-moon", "test.rig.gravity_m_s2", lambda d: d["test"]["rig"].update(gravity_m_s2=1.62))
+doc("alpha-1e308", "channels.alpha_deg[2]", lambda d: d["channels"]["alpha_deg"].__setitem__(2, 1e308))
 
 manifest = []
 for i, (name, ct, body, field) in enumerate(cases, 1):

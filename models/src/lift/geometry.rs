@@ -145,6 +145,8 @@ struct RangeFile {
 #[serde(deny_unknown_fields)]
 struct DriveFile {
     torque_on: String,
+    #[serde(default, rename = "torque_range_Nm")]
+    torque_range_nm: Option<[f64; 2]>,
 }
 
 /// A steady state of the lift test (paper, Section 5.3).
@@ -330,6 +332,9 @@ pub struct Geometry {
     pub alpha_min_rad: f64,
     pub alpha_max_rad: f64,
     pub operating_h_m: Option<[f64; 2]>,
+    /// The drive torque the pantograph's drive can make, N·m (`[drive] torque_range_Nm`);
+    /// `None`: the file states no range.
+    pub drive_torque_range_nm: Option<[f64; 2]>,
     pub lift_test: LiftTestData,
     pub checks: Checks,
     pub reference_poses: Vec<ReferencePose>,
@@ -774,6 +779,16 @@ impl Geometry {
             alpha_min_rad: a0,
             alpha_max_rad: a1,
             operating_h_m: f.range.operating_h_m,
+            drive_torque_range_nm: match f.drive.torque_range_nm {
+                Some([lo, hi]) if lo.is_finite() && hi.is_finite() && lo < hi => Some([lo, hi]),
+                Some(r) => {
+                    return Err(invalid(
+                        "drive.torque_range_Nm",
+                        format!("must be [low, high] with low < high, got {r:?}"),
+                    ));
+                }
+                None => None,
+            },
             lift_test: LiftTestData {
                 external_spring_n_per_m: lt.external_spring_n_per_m,
                 initial: lt.initial,

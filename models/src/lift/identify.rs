@@ -13,6 +13,7 @@ use std::cell::RefCell;
 use nalgebra::DMatrix;
 
 use super::dynamics::LiftModel;
+use super::inputs::{InputOptions, InputReconstruction, reconstruct};
 use super::sensitivity::{
     LiftParam, SensWorkspace, simulate_sensitivities, simulate_sensitivities_in,
 };
@@ -42,8 +43,16 @@ pub struct LiftFitOptions {
     /// Informed when posterior sd < prior sd / this.
     pub informed_factor: f64,
     pub thresholds: DriftThresholds,
+    /// Intervals from the data's information corrected for correlated residuals (input noise,
+    /// model error) by a sandwich (see [`fit_map_in`]); false: the classical JᵀJ/σ².
+    pub robust_covariance: bool,
+    /// Draws of the inputs' sensor noise propagated through the model into the intervals
+    /// ([`super::input_noise::covariance`]); 0: H noise only.
+    pub input_noise_draws: usize,
     pub sim: SimOptions,
     pub lm: LmOptions,
+    /// How the measured inputs (T, Fs, Fm) are reconstructed before the fit (`lift::inputs`).
+    pub inputs: InputOptions,
 }
 
 impl Default for LiftFitOptions {
@@ -58,6 +67,8 @@ impl Default for LiftFitOptions {
             offset_prior_sd_nm: 10.0,
             informed_factor: 2.0,
             thresholds: DriftThresholds::default(),
+            robust_covariance: false,
+            input_noise_draws: 12,
             // 10⁻⁵ relative: H within 0.09 mm of a tight run over an 8 s raise and lower (the
             // worst at its end, where the open-loop drift has gathered the local errors), a
             // tenth of the 1 mm H noise (`sensitivity::tests::at_the_fit_tolerance_…`); 10⁻⁶
@@ -87,6 +98,7 @@ impl Default for LiftFitOptions {
                 // and cost a quarter of the evaluations (0.1 before: 115 → 83 on 8 traces).
                 dtol: 0.5,
             },
+            inputs: InputOptions::default(),
         }
     }
 }
@@ -158,6 +170,9 @@ pub struct LiftFit {
     pub iterations: usize,
     pub evaluations: usize,
     pub termination: Termination,
+    /// Each trace's input reconstruction (noise sd per channel, cutoff, steps kept), in trace
+    /// order: the inputs the fit was run on (`lift::inputs`).
+    pub inputs: Vec<InputReconstruction>,
 }
 
 /// What one trace can tell: its Fisher information at the model's parameters.
@@ -176,6 +191,9 @@ pub struct Identifiability {
     pub posterior_sd: Vec<f64>,
     pub informed: Vec<bool>,
 }
+
+/// Most integrator steps per second of trace an evaluation may take (`fit_map_in`).
+const MAX_STEPS_PER_S: f64 = 1000.0;
 
 /// Upper bound of a friction coefficient as a multiple of its baseline.
 const MAX_MULTIPLE: f64 = 10.0;
@@ -472,6 +490,40 @@ pub fn fit_map_in(
     opts: &LiftFitOptions,
 ) -> Result<LiftFit, LiftFitError> {
     let n_data = check(traces)?;
+    // Every fit runs on reconstructed inputs: sensor noise on T/Fs/Fm would otherwise drive the
+    // integrator's step control (issue 15; `lift::inputs` states the assumptions).
+    let rebuilt = traces
+        .iter()
+        .map(|t| reconstruct(&t.inputs, &opts.inputs))
+        .collect::<Result<Vec<_>, _>>()?;
+    let traces: Vec<LiftTrace> = traces
+        .iter()
+        .zip(&rebuilt)
+        .map(|(t, r)| LiftTrace {
+            inputs: r.inputs(),
+            strip_height_m: t.strip_height_m,
+        })
+        .collect();
+    let traces = &traces[..];
+    // A trial whose run needs over 1000 integrator steps per second of trace is in a stiff
+    // corner of the parameters (a raise and lower takes ~90/s, noisy inputs reconstructed or
+    // not): it fails and the LM rejects it, instead of one trial costing ~500 evaluations
+    // (measured: 58 s → 1.4 s on a 2×-noise trace, same estimates; `examples/lift_inputs_probe`).
+    let longest_s = traces
+        .iter()
+        .map(|t| t.inputs.t_s[t.inputs.t_s.len() - 1] - t.inputs.t_s[0])
+        .fold(0.0, f64::max);
+    let capped = LiftFitOptions {
+        sim: SimOptions {
+            max_steps: opts
+                .sim
+                .max_steps
+                .min((MAX_STEPS_PER_S * longest_s) as usize + 1000),
+            ..opts.sim
+        },
+        ..opts.clone()
+    };
+    let opts = &capped;
     let fric = &opts.friction_params;
     let baseline = baseline_of(model, fric)?;
     let pf = fric.len();
@@ -578,7 +630,20 @@ pub fn fit_map_in(
     let ssr: f64 = rep.residuals[..n_data].iter().map(|v| v * v).sum();
     let kappa2 = (ssr / n_data as f64).max(1.0);
     let jd = rep.jacobian.rows(0, n_data);
-    let mut post = jd.tr_mul(&jd) / kappa2;
+    // The data's information, corrected for what the H residual carries besides white H noise
+    // (issue 15): the sensors' noise on the inputs (T, Fs, Fm), smoothed but not removed by
+    // `lift::inputs`, drives the model open-loop, so its effect on H is slow and correlated and
+    // JᵀJ/σ² overstates what the trace tells. The sandwich Cov_d = A⁺ S A⁺ (A = JᵀJ, S the
+    // long-run covariance of the scores by overlapping batch means: `identify::covariance`)
+    // is the data-only estimate's covariance under that residual; its pseudo-inverse is the
+    // information the data actually hold, to which the prior's is added. White residuals give
+    // back JᵀJ/s² (up to sampling noise).
+    let mut post = if opts.robust_covariance {
+        let c = crate::identify::covariance::sandwich(&jd.into_owned(), &rep.residuals[..n_data]);
+        pinv(&c.cov)
+    } else {
+        jd.tr_mul(&jd) / kappa2
+    };
     let prior_sd = |i: usize| {
         if i < pf {
             opts.prior_relative_sd
@@ -589,16 +654,36 @@ pub fn fit_map_in(
     for i in 0..p {
         post[(i, i)] += 1.0 / prior_sd(i).powi(2);
     }
-    let cov = inverse_spd(&post);
+    let mut cov = inverse_spd(&post);
+    if opts.input_noise_draws > 0 {
+        let at = problem.model_at(&rep.x);
+        let jd = rep.jacobian.rows(0, n_data).into_owned();
+        let offsets = &rep.x[pf..];
+        let infos: Vec<InputReconstruction> = rebuilt.iter().map(|r| r.info).collect();
+        cov +=
+            super::input_noise::covariance(&at, traces, &infos, offsets, &jd, &cov, kappa2, opts)?;
+    }
+    let cov = cov;
     let estimate = |i: usize, param: LiftParam, base: f64| -> ParamEstimate {
         let sd_x = cov[(i, i)].max(0.0).sqrt();
         let informed = sd_x < prior_sd(i) / opts.informed_factor;
         let (map_value, posterior_sd, prior) = (rep.x[i] * base, sd_x * base, prior_sd(i) * base);
         let (value, ci95, status) = if informed {
-            let ci = [
-                map_value - 1.96 * posterior_sd,
-                map_value + 1.96 * posterior_sd,
-            ];
+            // A friction coefficient is positive: its interval is the log-normal one with the
+            // same median and relative sd (delta method on ln θ), so it never reaches below 0
+            // (issue 15); the offset, a signed quantity, keeps the symmetric one.
+            let ci = if param == LiftParam::TorqueOffset || map_value <= 0.0 {
+                [
+                    map_value - 1.96 * posterior_sd,
+                    map_value + 1.96 * posterior_sd,
+                ]
+            } else {
+                let rel = posterior_sd / map_value;
+                [
+                    map_value * (-1.96 * rel).exp(),
+                    map_value * (1.96 * rel).exp(),
+                ]
+            };
             let status = if param == LiftParam::TorqueOffset {
                 Status::Unknown
             } else {
@@ -611,17 +696,19 @@ pub fn fit_map_in(
             };
             (map_value, ci, status)
         } else {
-            let lo = if param == LiftParam::TorqueOffset {
-                -1.96 * prior
+            // The prior's interval, log-normal for a coefficient likewise.
+            let (lo, hi) = if param == LiftParam::TorqueOffset {
+                (-1.96 * prior, 1.96 * prior)
             } else {
-                (base - 1.96 * prior).max(0.0)
+                let rel = prior / base;
+                (base * (-1.96 * rel).exp(), base * (1.96 * rel).exp())
             };
             let b = if param == LiftParam::TorqueOffset {
                 0.0
             } else {
                 base
             };
-            (b, [lo, b + 1.96 * prior], Status::Unknown)
+            (b, [lo, hi], Status::Unknown)
         };
         ParamEstimate {
             param,
@@ -699,6 +786,7 @@ pub fn fit_map_in(
         iterations: rep.iterations,
         evaluations: rep.evaluations,
         termination: rep.termination,
+        inputs: rebuilt.iter().map(|r| r.info).collect(),
     })
 }
 

@@ -9,9 +9,12 @@
 //! - [`statics`] — static drive torque (frictionless or at impending motion), equilibria.
 //! - [`simulate`] — a lift test driven by its recorded inputs, with dissipated energies.
 //! - [`protocol`] — a lift test as the stand records it (drive damper, spring, cut weight).
+//! - [`sensors`] — the stand's sensor noise and logger steps on every channel, inputs too.
 //! - [`sensitivity`] — ∂H/∂θ along a simulated lift (friction of every joint, torque offset).
 //! - [`readout`] — H and its partials tabulated over α (geometry only), read at every sample.
 //! - [`report`] — a lift fit as the contract's fit result (every joint J1…J9).
+//! - [`inputs`] — measured inputs reconstructed before a fit: noise per channel, smoothing, steps.
+//! - [`input_noise`] — the inputs' sensor noise propagated into a lift fit's intervals.
 //! - [`identify`] — Fisher information per trace, MAP fit with Table 4 as prior, verdicts.
 //! - [`batch`] — many lift fits on all cores, results in input order, progress by callback.
 //! - `integrate` — DOPRI5 or Rosenbrock-W over a sampled record, dense output at the samples.
@@ -20,12 +23,15 @@ pub mod batch;
 pub mod dynamics;
 pub mod geometry;
 pub mod identify;
+pub mod input_noise;
+pub mod inputs;
 mod integrate;
 pub mod kinematics;
 pub mod protocol;
 pub mod readout;
 pub mod report;
 pub mod sensitivity;
+pub mod sensors;
 pub mod simulate;
 pub mod statics;
 pub mod topology;

@@ -96,6 +96,61 @@ pub fn fit_lift_trace(
     })
 }
 
+/// Fit several lift traces of one pantograph together (friction shared, one torque offset per
+/// trace; `fit_map` pools them) and report the result on the first, the newest test (issue 15):
+/// a lift hardly informs J2/J2'/J5 alone, a few together can. `trace_ids` name `channels` in
+/// the same order, newest first; `window_days` is recorded in the result's `pooled` block.
+pub fn fit_pooled_lift_traces(
+    channels: &[LiftChannels],
+    trace_ids: &[String],
+    window_days: f64,
+    thresholds: &DriftThresholds,
+) -> Result<LiftReport, LiftFitError> {
+    if channels.len() < 2 || channels.len() != trace_ids.len() {
+        return Err(LiftFitError::Invalid(format!(
+            "a pooled fit needs 2 or more traces with an id each, got {} traces and {} ids",
+            channels.len(),
+            trace_ids.len()
+        )));
+    }
+    let model = builtin_model();
+    let opts = LiftFitOptions {
+        thresholds: *thresholds,
+        ..LiftFitOptions::default()
+    };
+    let traces: Vec<LiftTrace> = channels
+        .iter()
+        .map(|c| LiftTrace {
+            inputs: LiftInputs {
+                t_s: c.t_s,
+                torque_nm: c.torque_nm,
+                fs_n: c.fs_n,
+                fm_n: c.fm_n,
+            },
+            strip_height_m: c.strip_height_m,
+        })
+        .collect();
+    let fit = fit_map(model, &traces, &opts)?;
+    let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
+    let mut result = fit_result(
+        model,
+        &fit,
+        &traces[0],
+        &fitted_height_m,
+        &opts,
+        &trace_ids[0],
+    );
+    result.pooled = Some(crate::report::PooledTests {
+        trace_ids: trace_ids.to_vec(),
+        window_days,
+    });
+    Ok(LiftReport {
+        result,
+        fit,
+        fitted_height_m,
+    })
+}
+
 fn unit_of(joint: &str, kind: &str) -> &'static str {
     match (joint, kind) {
         (_, "dry") => "1",
@@ -246,6 +301,7 @@ pub fn fit_result(
             // in `LiftFit::posterior_correlation`.
             viscous_dry_correlation: f64::NAN,
         },
+        pooled: None,
     }
 }
 

@@ -92,10 +92,10 @@ fn done(t: Transition, id: i64, what: &str) -> Result<Alert, AppError> {
     match t {
         Transition::Done(a) => Ok(a),
         Transition::NotFound => Err(AppError::NotFound(format!("no alert {id}"))),
-        Transition::Refused(a) => Err(AppError::Conflict(format!(
-            "alert {id} is {}: it cannot be {what}",
-            a.state
-        ))),
+        Transition::Refused(a) => Err(AppError::Conflict {
+            field: "state".into(),
+            detail: format!("alert {id} is {}: it cannot be {what}", a.state),
+        }),
     }
 }
 

@@ -30,8 +30,13 @@ pub struct Problem {
     pub status: u16,
     /// What went wrong with this request.
     pub detail: String,
-    /// The offending field (`channels.t_s[17]`, `test.joint`, `Authorization`, …), if any.
+    /// The offending field (`channels.t_s[17]`, `test.joint`, `Authorization`, …). Every 4xx
+    /// names one, or a `parameter` instead.
     pub field: Option<String>,
+    /// The offending path or query parameter (`path` for a resource the path names that does
+    /// not exist, `limit`, …), on answers about the request's address rather than its body.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub parameter: Option<String>,
     /// For `GET /v1/traces/{id}/fit` before the fit exists: the trace's fit job.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub job: Option<super::traces::JobView>,
@@ -66,8 +71,9 @@ pub enum AppError {
         detail: String,
         job: Option<super::traces::JobView>,
     },
-    #[error("{0}")]
-    Conflict(String),
+    /// The request contradicts what is stored; `field` names the part that does.
+    #[error("{detail}")]
+    Conflict { field: String, detail: String },
     #[error("{0}")]
     UnsupportedMediaType(String),
     #[error("request body larger than {0} bytes")]
@@ -111,7 +117,7 @@ impl AppError {
             Forbidden(_) => (StatusCode::FORBIDDEN, "forbidden", "Forbidden"),
             NotFound(_) => (StatusCode::NOT_FOUND, "not-found", "Not found"),
             FitNotReady { .. } => (StatusCode::NOT_FOUND, "fit-not-ready", "No fit yet"),
-            Conflict(_) => (StatusCode::CONFLICT, "conflict", "Conflict"),
+            Conflict { .. } => (StatusCode::CONFLICT, "conflict", "Conflict"),
             UnsupportedMediaType(_) => (
                 StatusCode::UNSUPPORTED_MEDIA_TYPE,
                 "unsupported-media-type",
@@ -184,14 +190,22 @@ impl AppError {
             AppError::UnsupportedMediaType(_) => {
                 (self.to_string(), Some("Content-Type".into()), None)
             }
+            // The key is valid but its role is too low: the credential is what to change.
+            AppError::Forbidden(_) => (self.to_string(), Some("Authorization".into()), None),
+            AppError::Conflict { field, detail } => (detail.clone(), Some(field.clone()), None),
+            AppError::MethodNotAllowed(_) => (self.to_string(), Some("method".into()), None),
             _ => (self.to_string(), None, None),
         };
+        // A 404 is about the address: the resource the path names does not exist.
+        let parameter = matches!(self, AppError::NotFound(_) | AppError::FitNotReady { .. })
+            .then(|| "path".to_owned());
         Problem {
             kind: format!("/problems/{slug}"),
             title: title.to_owned(),
             status: status.as_u16(),
             detail,
             field,
+            parameter,
             job,
         }
     }
@@ -281,9 +295,12 @@ impl From<IngestError> for AppError {
         match e {
             IngestError::Malformed(t) => trace_error(t, true),
             IngestError::Invalid(t) => trace_error(t, false),
-            IngestError::Conflict(id) => AppError::Conflict(format!(
-                "trace `{id}` is already stored with other content; choose another trace_id"
-            )),
+            IngestError::Conflict(id) => AppError::Conflict {
+                field: "trace_id".into(),
+                detail: format!(
+                    "trace `{id}` is already stored with other content; choose another trace_id"
+                ),
+            },
             IngestError::Store(s) => s.into(),
         }
     }

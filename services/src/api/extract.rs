@@ -71,6 +71,12 @@ impl<T: DeserializeOwned + Send> FromRequest<AppState> for ApiJson<T> {
         let body = Bytes::from_request(req, state)
             .await
             .map_err(|e| read_error(e, state.body_limit))?;
+        if let Ok(Some(key)) = crate::json_keys::first_duplicate_key(&body) {
+            return Err(AppError::Invalid {
+                detail: format!("`{key}` appears twice in its object"),
+                field: Some(key),
+            });
+        }
         let de = &mut serde_json::Deserializer::from_slice(&body);
         serde_path_to_error::deserialize(de)
             .map(ApiJson)

@@ -22,13 +22,17 @@ use std::time::Duration;
 
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
-use axum::http::{HeaderValue, Method, Uri, header};
+use axum::http::{HeaderName, HeaderValue, Method, Uri, header};
 use axum::middleware::from_fn_with_state;
 use axum::routing::get;
 use metrics_exporter_prometheus::PrometheusHandle;
 use tokio::sync::Notify;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::cors::{AllowOrigin, CorsLayer};
+use tower_http::decompression::RequestDecompressionLayer;
+use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::set_header::SetResponseHeaderLayer;
+use tower_http::trace::TraceLayer;
 use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
 use utoipa::openapi::{ContentBuilder, Ref, RefOr, ResponseBuilder};
 use utoipa::{Modify, OpenApi};
@@ -200,8 +204,24 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
     api_routes().split_for_parts().1
 }
 
-async fn not_found(method: Method, uri: Uri) -> AppError {
-    AppError::NotFound(format!("no route {method} {}", uri.path()))
+/// No route: a problem answer, or — for a browser asking for a page outside `/v1` — the site's
+/// HTML 404 page.
+async fn not_found(
+    method: Method,
+    uri: Uri,
+    headers: axum::http::HeaderMap,
+) -> axum::response::Response {
+    use axum::response::IntoResponse;
+    let e = AppError::NotFound(format!("no route {method} {}", uri.path()));
+    let wants_html = headers
+        .get(header::ACCEPT)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|a| a.contains("text/html"));
+    if wants_html && !uri.path().starts_with("/v1") {
+        crate::web::WebError::from(e).into_response()
+    } else {
+        e.into_response()
+    }
 }
 
 /// CORS for the configured origins only: their requests (and preflights) get the headers a
@@ -231,6 +251,20 @@ fn cors(origins: &[HeaderValue]) -> Option<CorsLayer> {
     )
 }
 
+/// Headers every answer carries: a content security policy for pages with no script (inline
+/// styles and SVG only, forms post to this origin, never framed), no MIME sniffing, no referrer
+/// to other sites.
+pub const SECURITY_HEADERS: [(&str, &str); 4] = [
+    (
+        "content-security-policy",
+        "default-src 'none'; style-src 'unsafe-inline'; img-src 'self' data:; \
+         form-action 'self'; frame-ancestors 'none'; base-uri 'none'",
+    ),
+    ("x-content-type-options", "nosniff"),
+    ("x-frame-options", "DENY"),
+    ("referrer-policy", "same-origin"),
+];
+
 /// The whole HTTP application. Layers, outermost first: panic guard, CORS, telemetry and
 /// timeout, key identification + rate limit (when configured), body limit.
 pub fn router(state: AppState) -> Router {
@@ -252,15 +286,38 @@ pub fn router(state: AppState) -> Router {
         .merge(crate::web::router())
         .fallback(not_found)
         .with_state(state)
-        .layer(DefaultBodyLimit::max(limit));
+        .layer(DefaultBodyLimit::max(limit))
+        // `Content-Encoding: gzip` bodies are inflated as they are read, so the body limit
+        // above bounds the decompressed size; another encoding is refused with 415.
+        .layer(RequestDecompressionLayer::new());
     if let Some(rl) = rate_limit {
         app = app
             .layer(from_fn_with_state(rl, ratelimit::limit))
             .layer(from_fn_with_state(identify_state, ratelimit::identify));
     }
     app = app.layer(from_fn_with_state(timeout, telemetry::track));
+    // Security headers on every answer (issue 18): the pages run no script and embed nothing,
+    // so the policy allows only their own inline styles, images and form posts, and no framing.
+    for (name, value) in SECURITY_HEADERS {
+        app = app.layer(SetResponseHeaderLayer::if_not_present(
+            HeaderName::from_static(name),
+            HeaderValue::from_static(value),
+        ));
+    }
     if let Some(cors) = cors {
         app = app.layer(cors);
     }
+    // Request ids (issue 18): a caller's `x-request-id` is kept (else a UUID is made), echoed in
+    // the answer, and every log line of the request carries it through the TraceLayer's span.
+    let x_request_id = HeaderName::from_static("x-request-id");
     app.layer(CatchPanicLayer::custom(telemetry::panic_response))
+        .layer(PropagateRequestIdLayer::new(x_request_id.clone()))
+        .layer(
+            TraceLayer::new_for_http()
+                .make_span_with(telemetry::request_span)
+                .on_request(())
+                .on_response(())
+                .on_failure(()),
+        )
+        .layer(SetRequestIdLayer::new(x_request_id, MakeRequestUuid))
 }

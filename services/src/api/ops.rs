@@ -4,7 +4,8 @@
 use axum::Json;
 use axum::extract::State;
 use axum::http::header;
-use axum::response::IntoResponse;
+use axum::response::{IntoResponse, Response};
+use metrics_exporter_prometheus::PrometheusHandle;
 use serde::Serialize;
 use utoipa::ToSchema;
 use utoipa_axum::router::OpenApiRouter;
@@ -12,7 +13,7 @@ use utoipa_axum::routes;
 
 use super::AppState;
 use super::error::{AppError, Problem};
-use crate::store::BackendKind;
+use crate::store::{BackendKind, Store};
 
 pub fn router() -> OpenApiRouter<AppState> {
     OpenApiRouter::new()
@@ -82,7 +83,16 @@ pub async fn readyz(State(st): State<AppState>) -> Result<Json<Health>, AppError
 #[utoipa::path(get, path = "/metrics", tag = "ops",
     responses((status = 200, description = "Prometheus text format", body = String, content_type = "text/plain")))]
 pub async fn metrics(State(st): State<AppState>) -> impl IntoResponse {
-    match st.store.job_counts().await {
+    prometheus_answer(&st.store, &st.metrics).await
+}
+
+/// The Prometheus answer of an API or a worker process: this process's counters and
+/// histograms, and the queue gauges read from the store at scrape time — jobs per state
+/// (`pantowatch_jobs{state}`), the oldest queued job's age
+/// (`pantowatch_queue_oldest_job_age_seconds`, 0 when none waits) and the webhook outbox
+/// backlog (`pantowatch_webhook_outbox_backlog`).
+pub async fn prometheus_answer(store: &Store, handle: &PrometheusHandle) -> Response {
+    match store.job_counts().await {
         Ok(c) => {
             for (state, n) in [
                 ("queued", c.queued),
@@ -95,12 +105,21 @@ pub async fn metrics(State(st): State<AppState>) -> impl IntoResponse {
         }
         Err(e) => tracing::warn!(error = %e, "metrics: job counts unavailable"),
     }
-    st.metrics.run_upkeep();
+    match store.queue_stats().await {
+        Ok(q) => {
+            metrics::gauge!("pantowatch_queue_oldest_job_age_seconds")
+                .set(q.oldest_queued_age_s.unwrap_or(0.0).max(0.0));
+            metrics::gauge!("pantowatch_webhook_outbox_backlog").set(q.outbox_backlog as f64);
+        }
+        Err(e) => tracing::warn!(error = %e, "metrics: queue stats unavailable"),
+    }
+    handle.run_upkeep();
     (
         [(
             header::CONTENT_TYPE,
             "text/plain; version=0.0.4; charset=utf-8",
         )],
-        st.metrics.render(),
+        handle.render(),
     )
+        .into_response()
 }

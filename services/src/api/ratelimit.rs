@@ -195,7 +195,9 @@ pub fn too_many_requests(wait: Duration, rl: &RateLimit) -> Response {
             "over the rate limit of {} requests/s (bursts of {}) for this key; retry in {secs} s",
             rl.per_s, rl.burst
         ),
-        field: None,
+        // The key (or, keyless, the address) whose budget is spent.
+        field: Some("Authorization".into()),
+        parameter: None,
         job: None,
     });
     resp.headers_mut()

@@ -12,6 +12,10 @@ use metrics_exporter_prometheus::{Matcher, PrometheusBuilder, PrometheusHandle};
 
 use super::error::{AppError, PROBLEM_JSON, Problem, problem_response};
 
+/// The longest request target answered (path and query): 8 KiB, what common proxies and
+/// browsers allow; longer ones get 414 in problem form (hyper refuses far longer heads itself).
+pub const MAX_URI_BYTES: usize = 8 * 1024;
+
 /// The process-wide Prometheus recorder (installed on first use).
 pub fn prometheus() -> PrometheusHandle {
     static HANDLE: OnceLock<PrometheusHandle> = OnceLock::new();
@@ -42,6 +46,12 @@ pub async fn track(State(timeout): State<Duration>, req: Request, next: Next) ->
         .get::<MatchedPath>()
         .map_or_else(|| "unmatched".to_owned(), |p| p.as_str().to_owned());
     let start = Instant::now();
+    if req.uri().to_string().len() > MAX_URI_BYTES {
+        let resp = problemize(StatusCode::URI_TOO_LONG.into_response()).await;
+        metrics::counter!("http_requests_total", "method" => method.to_string(), "route" => route, "status" => "414")
+            .increment(1);
+        return resp;
+    }
     let resp = match tokio::time::timeout(timeout, next.run(req)).await {
         Ok(r) => r,
         Err(_) => AppError::Timeout(timeout.as_secs()).into_response(),
@@ -62,12 +72,14 @@ async fn problemize(resp: Response) -> Response {
     if !(status.is_client_error() || status.is_server_error()) {
         return resp;
     }
-    let is_json = resp
+    let ct = resp
         .headers()
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
-        .is_some_and(|ct| ct.starts_with(PROBLEM_JSON));
-    if is_json {
+        .unwrap_or("");
+    // Problem answers pass, and so do the web pages' own HTML error pages (a failed sign-in,
+    // 403, 404 in the site's style): only bare framework answers are rewritten (issue 18).
+    if ct.starts_with(PROBLEM_JSON) || ct.starts_with("text/html") {
         return resp;
     }
     let allow = resp.headers().get(header::ALLOW).cloned();
@@ -82,19 +94,25 @@ async fn problemize(resp: Response) -> Response {
     } else {
         text
     };
-    let slug = match status {
-        StatusCode::METHOD_NOT_ALLOWED => "method-not-allowed",
-        StatusCode::NOT_FOUND => "not-found",
-        StatusCode::PAYLOAD_TOO_LARGE => "payload-too-large",
-        s if s.is_server_error() => "internal",
-        _ => "bad-request",
+    // Every 4xx names what to change: a field of the request or a parameter of its address.
+    let (slug, field, parameter) = match status {
+        StatusCode::METHOD_NOT_ALLOWED => ("method-not-allowed", Some("method"), None),
+        StatusCode::NOT_FOUND => ("not-found", None, Some("path")),
+        StatusCode::PAYLOAD_TOO_LARGE => ("payload-too-large", Some("body"), None),
+        StatusCode::URI_TOO_LONG => ("uri-too-long", None, Some("path")),
+        StatusCode::UNSUPPORTED_MEDIA_TYPE => {
+            ("unsupported-media-type", Some("Content-Encoding"), None)
+        }
+        s if s.is_server_error() => ("internal", None, None),
+        _ => ("bad-request", Some("body"), None),
     };
     let mut out = problem_response(&Problem {
         kind: format!("/problems/{slug}"),
         title: status.canonical_reason().unwrap_or("Error").to_owned(),
         status: status.as_u16(),
         detail,
-        field: None,
+        field: field.map(str::to_owned),
+        parameter: parameter.map(str::to_owned),
         job: None,
     });
     if let Some(a) = allow {
@@ -111,4 +129,15 @@ pub fn panic_response(err: Box<dyn std::any::Any + Send + 'static>) -> Response 
         .or_else(|| err.downcast_ref::<&str>().map(|s| (*s).to_owned()))
         .unwrap_or_else(|| "unknown panic".into());
     AppError::Internal(format!("handler panicked: {msg}")).into_response()
+}
+
+/// The span of one request: its id (`x-request-id`, kept from the caller or made here), method
+/// and path. The request log line and everything logged while answering are inside it.
+pub fn request_span<B>(req: &axum::http::Request<B>) -> tracing::Span {
+    let id = req
+        .headers()
+        .get("x-request-id")
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("-");
+    tracing::info_span!("http", request_id = %id, method = %req.method(), path = %req.uri().path())
 }

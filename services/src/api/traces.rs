@@ -166,6 +166,10 @@ pub struct FitView {
     /// Identification details (release, sensor zero, iterations, …).
     #[schema(value_type = Object)]
     pub fit: Value,
+    /// A pooled lift fit's tests: `{ trace_ids (newest first), window_days }`; absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Object>)]
+    pub pooled: Option<Value>,
 }
 
 /// The trace document (`pantograph-trace/1`) as uploaded; see the trace format.
@@ -352,6 +356,7 @@ pub async fn get_fit(
             rmse: part("rmse"),
             residual: part("residual"),
             fit: part("fit"),
+            pooled: f.result.get("pooled").cloned(),
             trace_id: f.trace_id,
             fit_id: f.id,
             model_version: f.model_version,

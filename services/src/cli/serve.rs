@@ -100,6 +100,9 @@ pub struct WorkerArgs {
     /// Fitting workers (overrides `workers`; at least 1).
     #[arg(long)]
     pub workers: Option<usize>,
+    /// Serve `/metrics` and `/healthz` on this address (overrides `worker.metrics_listen`).
+    #[arg(long, value_name = "ADDR")]
+    pub metrics_listen: Option<SocketAddr>,
 }
 
 pub fn worker(a: WorkerArgs) -> anyhow::Result<()> {
@@ -108,10 +111,36 @@ pub fn worker(a: WorkerArgs) -> anyhow::Result<()> {
     if n == 0 {
         anyhow::bail!("`pantowatch worker` with 0 workers has nothing to do (--workers N)");
     }
+    let metrics_listen = a.metrics_listen.or(s.worker.metrics_listen);
     let rt = runtime()?;
     rt.block_on(async {
         let store = open_store(&s).await?;
+        let (stop_tx, mut stop_rx) = tokio::sync::watch::channel(false);
+        let metrics = match metrics_listen {
+            Some(addr) => {
+                let listener = tokio::net::TcpListener::bind(addr)
+                    .await
+                    .with_context(|| format!("binding {addr} for the worker's metrics"))?;
+                eprintln!(
+                    "pantowatch worker metrics on http://{}",
+                    listener.local_addr()?
+                );
+                let app = server::worker_metrics_router(store.clone());
+                Some(tokio::spawn(async move {
+                    axum::serve(listener, app)
+                        .with_graceful_shutdown(async move {
+                            let _ = stop_rx.wait_for(|stop| *stop).await;
+                        })
+                        .await
+                }))
+            }
+            None => None,
+        };
         server::run_workers(store.clone(), &s, n, server::shutdown_signal()).await;
+        let _ = stop_tx.send(true);
+        if let Some(m) = metrics {
+            let _ = m.await;
+        }
         store.close().await;
         anyhow::Ok(())
     })?;

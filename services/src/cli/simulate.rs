@@ -84,6 +84,12 @@ pub struct SimulateArgs {
     /// Lift only: noise of the H channel, standard deviation in mm.
     #[arg(long, default_value_t = 1.0)]
     pub h_noise_mm: f64,
+    /// Lift only: sensor noise on every channel, inputs included, as K × the assumed stand:
+    /// K = 1 is H 0.5 mm, T 1 N·m, Fs and Fm 0.2 N (white, one sd per sample) plus the 16-bit
+    /// logger's steps (`lift::sensors`); 2 doubles every sd; 0 (default) adds none. Applied
+    /// before `--h-noise-mm`, which still adds its own H noise.
+    #[arg(long, default_value_t = 0.0, value_name = "K")]
+    pub sensor_noise: f64,
     /// Quadrangle_swing only: the frame plane's incline to the horizontal, deg (paper: 70).
     #[arg(long, default_value_t = 70.0)]
     pub incline: f64,
@@ -193,6 +199,10 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
         a.fs > 0.0 && a.fs <= 10_000.0 && a.h_noise_mm >= 0.0 && a.h_noise_mm.is_finite(),
         "--fs must be in (0, 10000] Hz and --h-noise-mm >= 0"
     );
+    anyhow::ensure!(
+        a.sensor_noise >= 0.0 && a.sensor_noise.is_finite(),
+        "--sensor-noise must be finite and >= 0 (K × the stand's realistic noise)"
+    );
     let g = pantowatch_models::lift::geometry::builtin_160ec();
     let base = LiftModel::new(g);
     let mut model = base.clone();
@@ -228,6 +238,13 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     };
     protocol.sample_hz = a.fs;
     let mut rec = record(&model, &protocol, &SimOptions::default()).context("lift simulation")?;
+    if a.sensor_noise > 0.0 {
+        // Its own stream (seed offset), so `--h-noise-mm`'s draws stay those of the same seed.
+        let stand = pantowatch_models::lift::sensors::LiftSensorNoise::realistic();
+        rec = stand
+            .scaled(a.sensor_noise)
+            .apply(&rec, a.seed ^ 0x5e75_0a15_e000_0001);
+    }
     let mut rng = pantowatch_models::noise::Noise::new(a.seed);
     for h in &mut rec.strip_height_m {
         *h += a.h_noise_mm * 1e-3 * rng.normal();

@@ -14,6 +14,53 @@
 //! - A worker *holds* a job while the job is `running` under its worker id: once another worker
 //!   has reclaimed an expired lease, the first worker's `complete`/`fail` are no-ops.
 
+/// Each joint's health as `joint_latest` keeps it (issue 15): for each parameter (viscous,
+/// dry), the latest fit that *informed* it ([`JointFit::informs`]: a value, identified, a
+/// verdict other than `unknown`); the joint's status is the worst of those, its row the fit that
+/// decides it; a joint no fit has informed is its latest fit's (`unknown`). A test that cannot
+/// inform a parameter — a lift for J5's viscous damping — never changes that parameter's status.
+/// `$where` narrows the traces (`t.serial = $1` for the per-fit refresh,
+/// [`JOINT_LATEST_REFRESH_SQL`]; `t.serial IS NOT NULL` for the tests' window over every
+/// pantograph); migration 0005 holds the same rule as text.
+macro_rules! joint_state_select {
+    ($where:literal) => {
+        concat!("SELECT serial, joint, trace_id, fit_id, recorded_at, (informs = 1) AS identifiable, status FROM (
+        SELECT p.*, ROW_NUMBER() OVER (PARTITION BY serial, joint
+                        ORDER BY informs DESC,
+                                 CASE status WHEN 'alarm' THEN 3 WHEN 'watch' THEN 2
+                                             WHEN 'ok' THEN 1 ELSE 0 END DESC,
+                                 recorded_at DESC, trace_id DESC) AS rn2
+        FROM (
+            SELECT o.*, ROW_NUMBER() OVER (PARTITION BY serial, joint, param
+                            ORDER BY informs DESC, recorded_at DESC, trace_id DESC) AS rn
+            FROM (
+            SELECT t.serial, j.joint, 'viscous' AS param, t.trace_id, f.id AS fit_id, t.recorded_at,
+                   CASE WHEN j.viscous IS NOT NULL AND COALESCE(j.viscous_informed, j.identifiable)
+                             AND COALESCE(j.viscous_status, j.status) <> 'unknown' THEN 1 ELSE 0 END AS informs,
+                   CASE WHEN j.viscous IS NOT NULL THEN COALESCE(j.viscous_status, j.status)
+                        ELSE 'unknown' END AS status
+            FROM traces t
+            JOIN fits f ON f.trace_id = t.trace_id
+                       AND f.id = (SELECT max(f2.id) FROM fits f2 WHERE f2.trace_id = t.trace_id)
+            JOIN fit_joints j ON j.fit_id = f.id
+            WHERE ", $where, "
+            UNION ALL
+            SELECT t.serial, j.joint, 'dry' AS param, t.trace_id, f.id AS fit_id, t.recorded_at,
+                   CASE WHEN j.dry IS NOT NULL AND COALESCE(j.dry_informed, j.identifiable)
+                             AND COALESCE(j.dry_status, j.status) <> 'unknown' THEN 1 ELSE 0 END AS informs,
+                   CASE WHEN j.dry IS NOT NULL THEN COALESCE(j.dry_status, j.status)
+                        ELSE 'unknown' END AS status
+            FROM traces t
+            JOIN fits f ON f.trace_id = t.trace_id
+                       AND f.id = (SELECT max(f2.id) FROM fits f2 WHERE f2.trace_id = t.trace_id)
+            JOIN fit_joints j ON j.fit_id = f.id
+            WHERE ", $where, "
+            ) o
+        ) p WHERE rn = 1
+    ) x WHERE rn2 = 1")
+    };
+}
+
 mod fault;
 pub mod keys;
 mod postgres;
@@ -293,6 +340,31 @@ pub struct JointFit {
     pub dry_hi: Option<f64>,
     pub identifiable: bool,
     pub status: Status,
+    /// Whether the fit informed each parameter (its `identifiable`) and the parameter's own
+    /// status; `None` for a result without them (read as the joint's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub viscous_informed: Option<bool>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub viscous_status: Option<Status>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dry_informed: Option<bool>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dry_status: Option<Status>,
+}
+
+impl JointFit {
+    /// Whether this fit informed `param` ("viscous" or "dry"): it has a value, the fit says it
+    /// identified it, and its status is a verdict (not `unknown`). A fit that did not inform a
+    /// parameter never changes that parameter's status (issue 15).
+    pub fn informs(&self, param: &str) -> bool {
+        let (value, informed, status) = match param {
+            "viscous" => (self.viscous, self.viscous_informed, self.viscous_status),
+            _ => (self.dry, self.dry_informed, self.dry_status),
+        };
+        value.is_some()
+            && informed.unwrap_or(self.identifiable)
+            && status.unwrap_or(self.status) != Status::Unknown
+    }
 }
 
 /// A fit result to store: the contract JSON plus the columns extracted from it.
@@ -340,6 +412,20 @@ impl NewFit {
                     .and_then(serde_json::Value::as_bool)
                     .unwrap_or(true),
                 status,
+                viscous_informed: j
+                    .pointer("/viscous/identifiable")
+                    .and_then(serde_json::Value::as_bool),
+                viscous_status: j
+                    .pointer("/viscous/status")
+                    .and_then(serde_json::Value::as_str)
+                    .and_then(|s| s.parse().ok()),
+                dry_informed: j
+                    .pointer("/dry/identifiable")
+                    .and_then(serde_json::Value::as_bool),
+                dry_status: j
+                    .pointer("/dry/status")
+                    .and_then(serde_json::Value::as_str)
+                    .and_then(|s| s.parse().ok()),
             });
         }
         Ok(NewFit {
@@ -420,6 +506,16 @@ pub struct JobCounts {
     pub failed: i64,
 }
 
+/// What an operator watches on the queues (issue 18): the age of the oldest queued fit job and
+/// the webhook deliveries still pending.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct QueueStats {
+    /// Seconds since the oldest queued job was queued; `None` when none is queued.
+    pub oldest_queued_age_s: Option<f64>,
+    /// Webhook deliveries not yet delivered or given up.
+    pub outbox_backlog: i64,
+}
+
 /// Rows per table (readiness detail, metrics, and the tests' "nothing was stored" checks).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, utoipa::ToSchema)]
 pub struct Counts {
@@ -470,7 +566,10 @@ pub struct PantographState {
     pub since: DateTime<Utc>,
     pub worst_status: Option<Status>,
     pub last_test: Option<DateTime<Utc>>,
+    /// Each joint's point from the fit that decides its health.
     pub joints: Vec<JointPoint>,
+    /// Each joint's health with the test that decides it: its date and test kind (issue 15).
+    pub joint_states: Vec<JointState>,
 }
 
 /// One joint's fit from one trace (a history point, or the latest state).
@@ -484,6 +583,22 @@ pub struct JointPoint {
     pub fitted_at: DateTime<Utc>,
     #[serde(flatten)]
     pub fit: JointFit,
+}
+
+/// A joint's health now (`joint_latest`, [`joint_state_select`]): the fit that decides its
+/// status, and that status. Fleet health and the alert rules both read it.
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct JointState {
+    pub joint: String,
+    /// The test whose fit decides the joint's status (the latest that informed its worst
+    /// parameter), its date and kind.
+    pub trace_id: String,
+    pub fit_id: i64,
+    pub recorded_at: DateTime<Utc>,
+    pub kind: String,
+    /// False when no test has informed the joint yet (status `unknown`).
+    pub informed: bool,
+    pub status: Status,
 }
 
 /// Filter of [`Store::fleet_health`].
@@ -609,6 +724,11 @@ pub(crate) trait Backend {
         retry: bool,
     ) -> impl Future<Output = Result<FailOutcome>> + Send;
     fn release(&self, job_id: i64, worker: &str) -> impl Future<Output = Result<bool>> + Send;
+    fn release_counted(
+        &self,
+        job_id: i64,
+        worker: &str,
+    ) -> impl Future<Output = Result<bool>> + Send;
     fn requeue(
         &self,
         vehicle_id: Option<&str>,
@@ -617,6 +737,7 @@ pub(crate) trait Backend {
     fn get_job(&self, id: i64) -> impl Future<Output = Result<Option<Job>>> + Send;
     fn latest_job(&self, trace_id: &str) -> impl Future<Output = Result<Option<Job>>> + Send;
     fn job_counts(&self) -> impl Future<Output = Result<JobCounts>> + Send;
+    fn queue_stats(&self) -> impl Future<Output = Result<QueueStats>> + Send;
     fn counts(&self) -> impl Future<Output = Result<Counts>> + Send;
     fn pantograph_exists(&self, serial: &str) -> impl Future<Output = Result<bool>> + Send;
     fn insert_api_key(
@@ -635,6 +756,7 @@ pub(crate) trait Backend {
     fn list_api_keys(&self) -> impl Future<Output = Result<Vec<ApiKey>>> + Send;
     /// Every joint point of one pantograph (each trace's current fit), by test time.
     fn serial_history(&self, serial: &str) -> impl Future<Output = Result<Vec<JointPoint>>> + Send;
+    fn joint_states(&self, serial: &str) -> impl Future<Output = Result<Vec<JointState>>> + Send;
     fn raise_alert(&self, a: &NewAlert) -> impl Future<Output = Result<RaiseOutcome>> + Send;
     fn acknowledge_alert(
         &self,
@@ -824,11 +946,17 @@ impl Store {
         dispatch!(self, s => s.fail(job_id, worker, error, retry).await)
     }
 
-    /// Gives a job this worker holds back to the queue without counting the attempt (shutdown:
-    /// claimed but not started, or the grace period ran out mid-fit). False when `worker` no
-    /// longer holds it (nothing written).
+    /// Gives a job this worker holds back to the queue without counting the attempt (shutdown
+    /// before its fit started). False when `worker` no longer holds it (nothing written).
     pub async fn release(&self, job_id: i64, worker: &str) -> Result<bool> {
         dispatch!(self, s => s.release(job_id, worker).await)
+    }
+
+    /// Gives back a job whose fit had started (the grace period ran out mid-fit): the attempt
+    /// stays counted, and at `MAX_ATTEMPTS` the job fails with the reason, so no job can be
+    /// released at every shutdown for ever. False when `worker` no longer holds it.
+    pub async fn release_counted(&self, job_id: i64, worker: &str) -> Result<bool> {
+        dispatch!(self, s => s.release_counted(job_id, worker).await)
     }
 
     /// Queues a fit at `model_version` for every trace without one; returns jobs created.
@@ -854,6 +982,11 @@ impl Store {
     /// Jobs per state (metrics, progress).
     pub async fn job_counts(&self) -> Result<JobCounts> {
         dispatch!(self, s => s.job_counts().await)
+    }
+
+    /// The oldest queued job's age and the webhook outbox backlog (metrics).
+    pub async fn queue_stats(&self) -> Result<QueueStats> {
+        dispatch!(self, s => s.queue_stats().await)
     }
 
     /// True when a pantograph with this serial is stored.
@@ -905,6 +1038,11 @@ impl Store {
     /// Every joint point of one pantograph (each trace's current fit), by test time then joint.
     pub async fn serial_history(&self, serial: &str) -> Result<Vec<JointPoint>> {
         dispatch!(self, s => s.serial_history(serial).await)
+    }
+
+    /// Each joint's health now, by joint: what fleet health shows and the alert rules act on.
+    pub async fn joint_states(&self, serial: &str) -> Result<Vec<JointState>> {
+        dispatch!(self, s => s.joint_states(serial).await)
     }
 
     /// Opens, escalates or updates the live alert of (serial, joint), with its event and, when
@@ -1098,6 +1236,7 @@ pub(crate) trait RowExt {
     fn opt_int(&self, c: &str) -> Result<Option<i64>>;
     fn opt_real(&self, c: &str) -> Result<Option<f64>>;
     fn flag(&self, c: &str) -> Result<bool>;
+    fn opt_flag(&self, c: &str) -> Result<Option<bool>>;
     fn ts(&self, c: &str) -> Result<DateTime<Utc>>;
     fn opt_ts(&self, c: &str) -> Result<Option<DateTime<Utc>>>;
 }
@@ -1137,6 +1276,34 @@ pub(crate) fn joint_fit_from<R: RowExt>(r: &R) -> Result<JointFit> {
         dry_lo: r.opt_real("dry_lo")?,
         dry_hi: r.opt_real("dry_hi")?,
         identifiable: r.flag("identifiable")?,
+        status: parse_enum(&r.text("status")?)?,
+        viscous_informed: r.opt_flag("viscous_informed")?,
+        viscous_status: r
+            .opt_text("viscous_status")?
+            .map(|s| parse_enum(&s))
+            .transpose()?,
+        dry_informed: r.opt_flag("dry_informed")?,
+        dry_status: r
+            .opt_text("dry_status")?
+            .map(|s| parse_enum(&s))
+            .transpose()?,
+    })
+}
+
+/// The SQL of [`Store::joint_states`] (both backends).
+pub(crate) const JOINT_STATES_SQL: &str = "SELECT l.joint, l.trace_id, l.fit_id, l.recorded_at,
+        l.identifiable, l.status, t.kind
+    FROM joint_latest l JOIN traces t ON t.trace_id = l.trace_id
+    WHERE l.serial = $1 ORDER BY l.joint";
+
+pub(crate) fn joint_state_from<R: RowExt>(r: &R) -> Result<JointState> {
+    Ok(JointState {
+        joint: r.text("joint")?,
+        trace_id: r.text("trace_id")?,
+        fit_id: r.int("fit_id")?,
+        recorded_at: r.ts("recorded_at")?,
+        kind: r.text("kind")?,
+        informed: r.flag("identifiable")?,
         status: parse_enum(&r.text("status")?)?,
     })
 }
@@ -1256,34 +1423,27 @@ pub(crate) fn pantograph_state(
     since: DateTime<Utc>,
     last_test: Option<DateTime<Utc>>,
     joints: Vec<JointPoint>,
+    joint_states: Vec<JointState>,
 ) -> PantographState {
     PantographState {
-        worst_status: joints.iter().map(|j| j.fit.status).max(),
+        worst_status: joint_states.iter().map(|j| j.status).max(),
         serial,
         model,
         since,
         last_test,
         joints,
+        joint_states,
     }
 }
 
-/// Rewrites `joint_latest` for the serial `$1` (both dialects): per joint, the point of its
-/// traces' current fits (a trace's most recent fit) that is identifiable first, then latest
-/// recorded, then highest trace id — the rule of the fleet's window query, on one pantograph.
-pub(crate) const JOINT_LATEST_REFRESH_SQL: &str = "INSERT INTO joint_latest
-        (serial, joint, trace_id, fit_id, recorded_at, identifiable, status)
-    SELECT serial, joint, trace_id, fit_id, recorded_at, identifiable, status FROM (
-        SELECT t.serial, j.joint, t.trace_id, f.id AS fit_id, t.recorded_at, j.identifiable,
-               j.status,
-               ROW_NUMBER() OVER (PARTITION BY j.joint
-                                  ORDER BY j.identifiable DESC, t.recorded_at DESC,
-                                           t.trace_id DESC) AS rn
-        FROM traces t
-        JOIN fits f ON f.trace_id = t.trace_id
-                   AND f.id = (SELECT max(f2.id) FROM fits f2 WHERE f2.trace_id = t.trace_id)
-        JOIN fit_joints j ON j.fit_id = f.id
-        WHERE t.serial = $1
-    ) x WHERE rn = 1";
+/// Rewrites `joint_latest` for the serial `$1` (both dialects) by [`joint_state_select`]: each
+/// parameter from the latest current fit that informed it, the joint at the worst of them.
+pub(crate) const JOINT_LATEST_REFRESH_SQL: &str = concat!(
+    "INSERT INTO joint_latest (serial, joint, trace_id, fit_id, recorded_at, identifiable, status)
+     SELECT serial, joint, trace_id, fit_id, recorded_at, identifiable, status FROM (",
+    joint_state_select!("t.serial = $1"),
+    ") s"
+);
 
 /// A joint's latest state as `joint_latest` holds it: (serial, joint, trace, fit, status).
 #[cfg(test)]

@@ -34,7 +34,8 @@ macro_rules! points_cte {
                 SELECT t.serial, t.vehicle_id, t.trace_id, t.recorded_at, cur.model_version,
                        cur.id AS fit_id, cur.created_at AS fitted_at,
                        j.joint, j.viscous, j.viscous_lo, j.viscous_hi, j.dry, j.dry_lo, j.dry_hi,
-                       j.identifiable, j.status,
+                       j.identifiable, j.status, j.viscous_informed, j.viscous_status,
+                       j.dry_informed, j.dry_status,
                        ROW_NUMBER() OVER (PARTITION BY t.serial, j.joint
                                           ORDER BY j.identifiable DESC, t.recorded_at DESC, t.trace_id DESC) AS rn
                 FROM cur
@@ -61,7 +62,9 @@ macro_rules! fleet_cte {
     () => {
         concat!(
             points_cte!(""),
-            ", latest AS (SELECT serial, joint, status FROM pts WHERE rn = 1),
+            ", latest AS (SELECT serial, joint, status FROM (",
+            joint_state_select!("t.serial IS NOT NULL"),
+            ") s),
             agg AS (
                 SELECT serial,
                        max(CASE status WHEN 'alarm' THEN 3 WHEN 'watch' THEN 2 WHEN 'ok' THEN 1 ELSE 0 END)::bigint
@@ -162,6 +165,9 @@ impl RowExt for PgRow {
         Ok(self.try_get(c)?)
     }
     fn flag(&self, c: &str) -> Result<bool> {
+        Ok(self.try_get(c)?)
+    }
+    fn opt_flag(&self, c: &str) -> Result<Option<bool>> {
         Ok(self.try_get(c)?)
     }
     fn ts(&self, c: &str) -> Result<DateTime<Utc>> {
@@ -276,9 +282,9 @@ impl PgStore {
     /// Each joint's latest state by the window (left) and from `joint_latest` (right), sorted.
     pub(crate) async fn latest_both_ways(&self) -> Result<(Vec<LatestRow>, Vec<LatestRow>)> {
         let window = query(concat!(
-            points_cte!(""),
-            "SELECT serial, joint, trace_id, fit_id, status FROM pts WHERE rn = 1
-             ORDER BY serial, joint"
+            "SELECT serial, joint, trace_id, fit_id, status FROM (",
+            joint_state_select!("t.serial IS NOT NULL"),
+            ") s ORDER BY serial, joint"
         ))
         .fetch_all(&self.pool)
         .await?;
@@ -341,8 +347,9 @@ async fn insert_fit_tx(
     for j in &fit.joints {
         query(
             "INSERT INTO fit_joints (fit_id, joint, viscous, viscous_lo, viscous_hi,
-                                     dry, dry_lo, dry_hi, identifiable, status)
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
+                                     dry, dry_lo, dry_hi, identifiable, status,
+                                     viscous_informed, viscous_status, dry_informed, dry_status)
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)",
         )
         .bind(fit_id)
         .bind(&j.joint)
@@ -354,6 +361,10 @@ async fn insert_fit_tx(
         .bind(j.dry_hi)
         .bind(j.identifiable)
         .bind(j.status.as_str())
+        .bind(j.viscous_informed)
+        .bind(j.viscous_status.map(Status::as_str))
+        .bind(j.dry_informed)
+        .bind(j.dry_status.map(Status::as_str))
         .execute(&mut *conn)
         .await?;
     }
@@ -573,7 +584,8 @@ impl Backend for PgStore {
             return Ok(None);
         };
         let joints = query(
-            "SELECT joint, viscous, viscous_lo, viscous_hi, dry, dry_lo, dry_hi, identifiable, status
+            "SELECT joint, viscous, viscous_lo, viscous_hi, dry, dry_lo, dry_hi, identifiable, status,
+                    viscous_informed, viscous_status, dry_informed, dry_status
              FROM fit_joints WHERE fit_id = $1 ORDER BY joint",
         )
         .bind(row.int("id")?)
@@ -629,7 +641,15 @@ impl Backend for PgStore {
                                   m.since = (SELECT max(m2.since) FROM pantograph_mounts m2
                                              WHERE m2.serial = m.serial))"
             ),
-            "SELECT * FROM pts WHERE rn = 1 ORDER BY serial, joint"
+            // Each joint's point is the fit that decides its health (`joint_latest`), with the
+            // joint's state as fleet health and the alerts see it.
+            "SELECT pts.serial, pts.vehicle_id, pts.trace_id, pts.recorded_at, pts.model_version,
+                    pts.fit_id, pts.fitted_at, pts.joint, pts.viscous, pts.viscous_lo,
+                    pts.viscous_hi, pts.dry, pts.dry_lo, pts.dry_hi, l.identifiable, l.status,
+                    pts.viscous_informed, pts.viscous_status, pts.dry_informed, pts.dry_status
+             FROM pts JOIN joint_latest l
+               ON l.serial = pts.serial AND l.joint = pts.joint AND l.trace_id = pts.trace_id
+             ORDER BY pts.serial, pts.joint"
         ))
         .bind(id)
         .fetch_all(&self.pool)
@@ -644,12 +664,14 @@ impl Backend for PgStore {
                 .extract_if(.., |(s, _)| *s == serial)
                 .map(|(_, p)| p)
                 .collect();
+            let states = self.joint_states(&serial).await?;
             pantographs.push(pantograph_state(
                 serial,
                 m.text("model")?,
                 m.ts("since")?,
                 m.opt_ts("last_test")?,
                 joints,
+                states,
             ));
         }
         Ok(Some(VehicleDetail {
@@ -856,6 +878,28 @@ impl Backend for PgStore {
         Ok(n == 1)
     }
 
+    async fn release_counted(&self, job_id: i64, worker: &str) -> Result<bool> {
+        // Its fit had started: the attempt the claim counted stays counted, so a fit that
+        // outlasts every shutdown cannot loop for ever; at the limit the job fails (issue 18).
+        let n = query(concat!(
+            "UPDATE jobs SET state = CASE WHEN attempts >= $3 THEN 'failed' ELSE 'queued' END,
+                             last_error = CASE WHEN attempts >= $3
+                                 THEN 'stopped by a shutdown during each of its ' || attempts
+                                      || ' attempts: its fit outlasts worker.shutdown_grace_ms'
+                                 ELSE last_error END,
+                             worker = NULL, lease_until = NULL, updated_at = ",
+            now!(),
+            " WHERE id = $1 AND state = 'running' AND worker = $2"
+        ))
+        .bind(job_id)
+        .bind(worker)
+        .bind(MAX_ATTEMPTS)
+        .execute(&self.pool)
+        .await?
+        .rows_affected();
+        Ok(n == 1)
+    }
+
     async fn requeue(&self, vehicle_id: Option<&str>, model_version: &str) -> Result<u64> {
         let mut tx = self.begin().await?;
         let n = query(
@@ -913,6 +957,19 @@ impl Backend for PgStore {
             }
         }
         Ok(c)
+    }
+
+    async fn queue_stats(&self) -> Result<QueueStats> {
+        let r = query(
+            "SELECT (SELECT EXTRACT(EPOCH FROM now() - min(created_at))::float8 FROM jobs WHERE state = 'queued') AS age,
+                    (SELECT count(*) FROM webhook_deliveries WHERE state = 'pending') AS backlog",
+        )
+        .fetch_one(&self.pool)
+        .await?;
+        Ok(QueueStats {
+            oldest_queued_age_s: r.try_get::<Option<f64>, _>("age")?,
+            outbox_backlog: r.try_get::<i64, _>("backlog")?,
+        })
     }
 
     async fn counts(&self) -> Result<Counts> {
@@ -980,6 +1037,16 @@ impl Backend for PgStore {
             .await?
             .iter()
             .map(api_key_from)
+            .collect()
+    }
+
+    async fn joint_states(&self, serial: &str) -> Result<Vec<JointState>> {
+        query(JOINT_STATES_SQL)
+            .bind(serial)
+            .fetch_all(&self.pool)
+            .await?
+            .iter()
+            .map(joint_state_from)
             .collect()
     }
 

@@ -103,7 +103,8 @@ impl SqliteStore {
             SELECT t.trace_id, t.vehicle_id, t.recorded_at, cur.model_version,
                    cur.id AS fit_id, cur.created_at AS fitted_at,
                    j.joint, j.viscous, j.viscous_lo, j.viscous_hi, j.dry, j.dry_lo, j.dry_hi,
-                   j.identifiable, j.status
+                   j.identifiable, j.status, j.viscous_informed, j.viscous_status,
+                   j.dry_informed, j.dry_status
             FROM cur
             JOIN traces t ON t.trace_id = cur.trace_id
             JOIN fit_joints j ON j.fit_id = cur.id

@@ -386,8 +386,21 @@ fn param_chart(
     {
         f.vline(x, "#c62828", &format!("alarm {}", day(fc.date)));
     }
+    if let Some(d) = tr.crossed_on {
+        let x = days(d);
+        if x >= 0.0 && x <= x1 {
+            f.vline(x, "#c62828", &format!("crossed on {}", day(d)));
+        }
+    }
     for (x, v, lo, hi, p) in &pts {
-        let fill = match p.fit.status {
+        // The point's colour is its parameter's verdict in that test (the joint's when the
+        // result has none per parameter): the same status the badge and the alerts use.
+        let param_status = match tr.param {
+            Param::Viscous => p.fit.viscous_status,
+            Param::Dry => p.fit.dry_status,
+        }
+        .unwrap_or(p.fit.status);
+        let fill = match param_status {
             Status::Alarm => "#c62828",
             Status::Watch => "#f9a825",
             Status::Ok => "#2e7d32",
@@ -400,7 +413,7 @@ fn param_chart(
             fmt_num(*v),
             fmt_num(*lo),
             fmt_num(*hi),
-            p.fit.status
+            param_status
         );
         f.point_with_interval(*x, *v, *lo, *hi, fill, &label);
     }
@@ -485,6 +498,8 @@ async fn pantograph_page(
         return Err(AppError::NotFound(format!("no pantograph `{serial}`")).into());
     }
     let points = st.store.serial_history(serial.as_str()).await?;
+    // Each joint's health as fleet health and the alerts see it (issue 15).
+    let states = st.store.joint_states(serial.as_str()).await?;
     let mut by_joint: BTreeMap<String, Vec<JointPoint>> = BTreeMap::new();
     for p in points {
         by_joint.entry(p.fit.joint.clone()).or_default().push(p);
@@ -522,21 +537,36 @@ async fn pantograph_page(
             },
             None => (None, None),
         };
+        let state = states.iter().find(|s| &s.joint == joint);
         let _ = write!(
             body,
             r#"<section id="joint-{}"><h2>{} {}</h2>"#,
             esc(joint),
             esc(joint),
-            badge(last.map(|p| p.fit.status))
+            badge(state.map(|s| s.status).or(last.map(|p| p.fit.status)))
         );
-        if let Some(p) = last {
-            let _ = write!(
-                body,
-                r#"<p>Latest test {} (<a href="/traces/{}">{}</a>).</p>"#,
-                day(p.recorded_at),
-                seg(&p.trace_id),
-                esc(&p.trace_id)
-            );
+        match state {
+            Some(s) if s.informed => {
+                let _ = write!(
+                    body,
+                    r#"<p>Status from the {} test of {} (<a href="/traces/{}">{}</a>); tests that could not inform this joint change nothing.</p>"#,
+                    esc(&s.kind),
+                    day(s.recorded_at),
+                    seg(&s.trace_id),
+                    esc(&s.trace_id)
+                );
+            }
+            _ => {
+                if let Some(p) = last {
+                    let _ = write!(
+                        body,
+                        r#"<p>No test has informed this joint yet; latest test {} (<a href="/traces/{}">{}</a>).</p>"#,
+                        day(p.recorded_at),
+                        seg(&p.trace_id),
+                        esc(&p.trace_id)
+                    );
+                }
+            }
         }
         for (param, b) in [(Param::Viscous, bv), (Param::Dry, bd)] {
             let tr = health::param_trend(history, param, b, st.alerts.alarm);
@@ -579,7 +609,13 @@ async fn trace_page(
         body,
         r#"<p>{} test of {} on pantograph {} (vehicle {}), recorded {}.</p>"#,
         esc(&meta.kind),
-        esc(meta.joint.as_deref().unwrap_or("—")),
+        // A lift or a quadrangle swing tests the assembly, not one joint (issue 18).
+        match (meta.joint.as_deref(), meta.kind.as_str()) {
+            (Some(j), _) => format!("joint {}", esc(j)),
+            (None, "lift") => "the whole pantograph".to_owned(),
+            (None, "quadrangle_swing") => "the lower quadrangle (J1, J2, J2′, J3)".to_owned(),
+            (None, _) => "the pantograph".to_owned(),
+        },
         meta.serial.as_deref().map_or("—".to_owned(), |s| format!(
             r#"<a href="/pantographs/{}">{}</a>"#,
             seg(s),
@@ -666,6 +702,12 @@ fn residual_finding(result: &serde_json::Value) -> String {
 /// Measured vs model and the residual. The model curve comes from re-running the fit on the
 /// stored samples off the runtime (5–30 ms; the same code and data give the stored fit).
 async fn trace_charts(st: &AppState, meta: &crate::store::TraceMeta) -> String {
+    if !matches!(meta.kind.as_str(), "pendulum" | "slider") {
+        return format!(
+            "<p>The measured and model curves of a {} test are drawn by <code>pantowatch fit TRACE --plot</code>; this page lists its parameters.</p>",
+            esc(&meta.kind)
+        );
+    }
     let channels = match st.store.get_samples(&meta.trace_id).await {
         Ok(Some(c)) => c,
         Ok(None) => return "<p>The samples are missing.</p>".into(),

@@ -1,4 +1,6 @@
-//! Web sign-in: an API key exchanged for a signed session cookie (`key id . expiry . HMAC`), and
+//! Web sign-in: an API key exchanged for a signed session cookie (`key id . expiry . HMAC`;
+//! `HttpOnly; Secure; SameSite=Strict` — browsers keep `Secure` cookies on http://localhost and
+//! 127.0.0.1, so the demo signs in without TLS), and
 //! the [`WebUser`] extractor that checks it — and that the key is still unrevoked — on every page.
 
 use axum::extract::FromRequestParts;
@@ -6,11 +8,10 @@ use axum::http::header::COOKIE;
 use axum::http::request::Parts;
 use axum::response::{IntoResponse, Redirect, Response};
 use chrono::Utc;
-use subtle::ConstantTimeEq;
 
 use crate::api::AppState;
 use crate::store::ApiKey;
-use crate::webhooks::hmac_sha256_hex;
+use crate::webhooks::{hmac_sha256, hmac_sha256_hex};
 
 /// Name of the session cookie.
 pub const COOKIE_NAME: &str = "pw_session";
@@ -52,7 +53,7 @@ impl SessionKey {
             .saturating_add(i64::try_from(secs).unwrap_or(i64::MAX));
         let msg = format!("{key_id}.{exp}");
         format!(
-            "{COOKIE_NAME}={msg}.{}; Path=/; HttpOnly; SameSite=Strict; Max-Age={secs}",
+            "{COOKIE_NAME}={msg}.{}; Path=/; HttpOnly; Secure; SameSite=Strict; Max-Age={secs}",
             self.sign(&msg)
         )
     }
@@ -63,10 +64,13 @@ impl SessionKey {
             return None;
         }
         let (msg, sig) = value.rsplit_once('.')?;
-        let good = self.sign(msg);
-        if !bool::from(good.as_bytes().ct_eq(sig.as_bytes())) {
-            return None;
-        }
+        let sig = hex::decode(sig).ok()?;
+        // The `hmac` crate's verify compares in constant time.
+        hmac::Mac::verify_slice(
+            hmac::Mac::chain_update(hmac_sha256(&self.key), msg.as_bytes()),
+            &sig,
+        )
+        .ok()?;
         let (id, exp) = msg.split_once('.')?;
         let exp: i64 = exp.parse().ok()?;
         (exp > Utc::now().timestamp()).then_some(())?;
@@ -76,7 +80,7 @@ impl SessionKey {
 
 /// The `Set-Cookie` value that ends a session.
 pub fn clear_cookie() -> String {
-    format!("{COOKIE_NAME}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0")
+    format!("{COOKIE_NAME}=; Path=/; HttpOnly; Secure; SameSite=Strict; Max-Age=0")
 }
 
 /// The session cookie's value in a request.

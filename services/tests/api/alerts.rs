@@ -421,3 +421,140 @@ pub async fn webhooks_signed_retried_and_logged(b: Backend) {
     assert_problem(r, StatusCode::NOT_FOUND, None, "deleted twice").await;
     app.stop().await;
 }
+
+/// Issue 15, point 5: a workshop pendulum of J5 measures viscous ×2.5 → alarm and an open
+/// alert; a month later a lift of the same pantograph with realistic sensor noise on every
+/// channel (it cannot inform J5's viscous damping) changes nothing: J5 stays `alarm` in fleet
+/// health, the vehicle, the web page and the alert list, decided by the pendulum test, and
+/// alerts and fleet health agree.
+pub async fn an_uninformative_lift_leaves_a_workshop_alarm_standing(b: Backend) {
+    let app = spawn_app(b).await;
+    let (serial, vehicle) = ("160EC-WEAR-5", "EN57-9005");
+    let mut pendulum: Value =
+        serde_json::from_slice(&example("J5_viscous_x2.5.json")).expect("example");
+    pendulum["trace_id"] = "wear-j5-pendulum".into();
+    pendulum["vehicle_id"] = vehicle.into();
+    pendulum["pantograph"]["serial"] = serial.into();
+    pendulum["recorded_at"] = "2026-03-02T07:00:00Z".into();
+    assert_eq!(
+        app.upload_json(&serde_json::to_vec(&pendulum).unwrap())
+            .await
+            .status(),
+        202
+    );
+    let fit = app.wait_for_fit("wear-j5-pendulum").await;
+    let j5 = |f: &Value| {
+        f["joints"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|j| j["joint"] == "J5")
+            .cloned()
+            .unwrap()
+    };
+    assert_eq!(j5(&fit)["status"], "alarm", "{fit}");
+    let defaults = pantowatch::cli::bench::fits::simulate_defaults().expect("defaults");
+    let lift = pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
+        kind: "lift".into(),
+        protocol: "raise-and-lower".into(),
+        sensor_noise: 1.0,
+        h_noise_mm: 0.0,
+        seed: 11,
+        vehicle: vehicle.into(),
+        serial: serial.into(),
+        trace_id: Some("wear-lift-april".into()),
+        recorded_at: "2026-04-02T07:00:00Z".into(),
+        ..defaults
+    })
+    .expect("lift");
+    let r = app
+        .upload_json(&serde_json::to_vec(&lift.to_value()).unwrap())
+        .await;
+    assert_eq!(r.status(), 202, "{}", r.text().await.unwrap_or_default());
+    let lift_fit = app.wait_for_fit("wear-lift-april").await;
+    // The lift does not inform J5's viscous damping (its J5 may carry a dry estimate, but
+    // never a verdict on viscous).
+    let lj5 = j5(&lift_fit);
+    assert_ne!(lj5["viscous"]["identifiable"], true, "{lj5}");
+    // Fleet health: the pantograph is at alarm with J5 alarm.
+    let (s, h) = app
+        .get_json(&format!("/v1/fleet/health?vehicle={vehicle}"))
+        .await;
+    assert_eq!(s, 200, "{h}");
+    let row = h["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["serial"] == serial)
+        .cloned()
+        .expect("row");
+    assert_eq!(row["worst_status"], "alarm", "{row}");
+    assert!(
+        row["not_ok"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|j| j["joint"] == "J5" && j["status"] == "alarm"),
+        "{row}"
+    );
+    // The vehicle: J5's state is decided by the pendulum, with its date and kind.
+    let (s, v) = app.get_json(&format!("/v1/vehicles/{vehicle}")).await;
+    assert_eq!(s, 200, "{v}");
+    let p = &v["pantographs"][0];
+    assert_eq!(p["worst_status"], "alarm", "{p}");
+    let st = p["joint_states"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|j| j["joint"] == "J5")
+        .cloned()
+        .expect("J5 state");
+    assert_eq!(
+        (
+            st["status"].as_str(),
+            st["kind"].as_str(),
+            st["trace_id"].as_str()
+        ),
+        (Some("alarm"), Some("pendulum"), Some("wear-j5-pendulum")),
+        "{st}"
+    );
+    // The alert list: J5's alarm still open, and every live alert's pantograph is not ok in
+    // fleet health at that alert's severity (one state for both).
+    let (s, alerts) = app.get_json("/v1/alerts?state=live").await;
+    assert_eq!(s, 200, "{alerts}");
+    let list = alerts
+        .as_array()
+        .or_else(|| alerts["alerts"].as_array())
+        .cloned()
+        .expect("alerts");
+    let mine: Vec<&Value> = list.iter().filter(|a| a["serial"] == serial).collect();
+    assert!(
+        mine.iter()
+            .any(|a| a["joint"] == "J5" && a["severity"] == "alarm" && a["state"] == "open"),
+        "{alerts}"
+    );
+    for a in &mine {
+        let joint = a["joint"].as_str().unwrap();
+        let s = p["joint_states"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|j| j["joint"] == joint)
+            .expect("state");
+        assert_eq!(s["status"], a["severity"], "alert {a} vs state {s}");
+    }
+    // The web page shows J5 at alarm, decided by the pendulum test.
+    let html = app.web_page(&format!("/pantographs/{serial}")).await;
+    let section = html.split("id=\"joint-J5\"").nth(1).expect("J5 section");
+    let section = section.split("</section>").next().unwrap_or("");
+    assert!(section.contains("alarm"), "{section}");
+    assert!(section.contains("pendulum test"), "{section}");
+    // The lift's own page names the test and shows no internal error (issue 18).
+    let page = app.web_page("/traces/wear-lift-april").await;
+    assert!(page.contains("lift test of the whole pantograph"), "{page}");
+    assert!(
+        !page.contains("No model curve") && !page.contains("not a single-joint"),
+        "{page}"
+    );
+    app.stop().await;
+}

@@ -223,7 +223,12 @@ pub async fn web_pages_in_headless_chromium() {
         .and_then(|v| v.to_str().ok())
         .expect("set-cookie")
         .to_owned();
-    assert!(set_cookie.contains("HttpOnly") && set_cookie.contains("SameSite=Strict"));
+    assert!(
+        set_cookie.contains("HttpOnly")
+            && set_cookie.contains("Secure")
+            && set_cookie.contains("SameSite=Strict"),
+        "{set_cookie}"
+    );
     let cookie = set_cookie.split(';').next().expect("cookie").to_owned();
 
     let proxy = Arc::new(Proxy {
@@ -273,6 +278,43 @@ pub async fn web_pages_in_headless_chromium() {
         "worst first: {first} {health}"
     );
     screenshot(profile.path(), &format!("{base}/fleet"), "02-fleet.png").await;
+    // Issue 15: alerts and fleet health come from one state and agree on every pantograph —
+    // each joint at watch or alarm has a live alert of that severity, and each live alert
+    // raised on a status names a joint at that status.
+    let (s, live) = app.get_json("/v1/alerts?state=live").await;
+    assert_eq!(s, StatusCode::OK);
+    let live = live["alerts"].as_array().cloned().unwrap_or_default();
+    for r in rows {
+        for j in r["not_ok"].as_array().into_iter().flatten() {
+            if matches!(j["status"].as_str(), Some("watch" | "alarm")) {
+                assert!(
+                    live.iter().any(|a| a["serial"] == r["serial"]
+                        && a["joint"] == j["joint"]
+                        && a["severity"] == j["status"]),
+                    "fleet health {r} has no live alert for {j}"
+                );
+            }
+        }
+    }
+    for a in &live {
+        if a["reason"]
+            .as_str()
+            .is_some_and(|r| r.starts_with("status"))
+        {
+            let row = rows
+                .iter()
+                .find(|r| r["serial"] == a["serial"])
+                .expect("alert's row");
+            assert!(
+                row["not_ok"]
+                    .as_array()
+                    .into_iter()
+                    .flatten()
+                    .any(|j| j["joint"] == a["joint"] && j["status"] == a["severity"]),
+                "live alert {a} disagrees with fleet health {row}"
+            );
+        }
+    }
 
     // The worst pantograph's page: charts with text alternatives, a link to a trace.
     let pdom = dom(profile.path(), &format!("{base}/pantographs/{first}")).await;

@@ -8,10 +8,19 @@ use pantowatch::trace_csv;
 use reqwest::{Method, StatusCode};
 use serde_json::{Value, json};
 
-pub use crate::alerts::{alert_lifecycle_over_http, webhooks_signed_retried_and_logged};
-pub use crate::corpus::corpus_uploads_are_refused_and_store_nothing;
+pub use crate::alerts::{
+    alert_lifecycle_over_http, an_uninformative_lift_leaves_a_workshop_alarm_standing,
+    webhooks_signed_retried_and_logged,
+};
+pub use crate::corpus::{
+    corpus_uploads_are_refused_and_store_nothing, edge_dates_never_break_their_vehicle,
+    hostile_requests_answer_problems_naming_their_field,
+};
 use crate::harness::*;
-pub use crate::lift::lift_trace_is_fitted_with_every_joint;
+pub use crate::lift::{
+    bad_lift_inputs_are_refused_naming_the_sample, lift_trace_is_fitted_with_every_joint,
+    recent_lifts_are_pooled,
+};
 
 const J3_DRY: &str = "J3_dry_x1.8.json";
 
@@ -667,7 +676,7 @@ pub async fn rejections_answer_problems_and_store_nothing(b: Backend) {
                 json!({"body": {"mass_kg": -1, "inertia_kgm2": 1, "com_distance_m": 0.1}})
         }),
         u,
-        "test.rig.mass_kg",
+        "test.rig.body.mass_kg",
     ));
     cases.push((
         "too large",

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use reqwest::Method;
+use reqwest::{Method, StatusCode};
 use serde_json::Value;
 
 use crate::harness::*;
@@ -54,5 +54,297 @@ pub async fn corpus_uploads_are_refused_and_store_nothing(b: Backend) {
     assert!(n >= 60, "{n} corpus cases");
     assert!(failures.is_empty(), "{failures:#?}");
     assert_eq!(app.counts().await, before, "nothing stored");
+    app.stop().await;
+}
+
+/// Issue 18, point 2: a stored trace can never make its vehicle answer 500. Dates at the very
+/// edges of the stored years (0001-01-01 and 9999-12-31 in UTC) are accepted and stored; the
+/// vehicle, the fleet and further uploads keep answering; one past the edge once its offset is
+/// applied is refused naming `recorded_at`, and stores nothing.
+pub async fn edge_dates_never_break_their_vehicle(b: Backend) {
+    let app = spawn_app(b).await;
+    let base: Value = serde_json::from_slice(&example("J1_baseline.json")).expect("example");
+    let upload = |id: &str, at: &str| {
+        let mut d = base.clone();
+        d["trace_id"] = id.into();
+        d["vehicle_id"] = "EN57-EDGE".into();
+        d["recorded_at"] = at.into();
+        serde_json::to_vec(&d).expect("json")
+    };
+    for (id, at) in [
+        ("edge-last", "9999-12-31T23:59:59Z"),
+        ("edge-first", "0001-01-01T00:00:00Z"),
+        ("edge-west", "9999-12-31T00:00:00-23:59"),
+    ] {
+        let r = app.upload_json(&upload(id, at)).await;
+        assert_eq!(
+            r.status(),
+            202,
+            "{at}: {}",
+            r.text().await.unwrap_or_default()
+        );
+        // Fitted, health and alerts updated: every read below sees the stored dates.
+        app.wait_for_fit(id).await;
+    }
+    let before = app.counts().await;
+    for at in ["9999-12-31T23:59:59-23:59", "0001-01-01T00:30:00+01:00"] {
+        let r = app.upload_json(&upload("edge-over", at)).await;
+        assert_problem(r, StatusCode::UNPROCESSABLE_ENTITY, Some("recorded_at"), at).await;
+    }
+    assert_eq!(app.counts().await, before, "nothing stored");
+    for path in ["/v1/vehicles/EN57-EDGE", "/v1/vehicles", "/v1/fleet/health"] {
+        let (s, v) = app.get_json(path).await;
+        assert_eq!(s, 200, "{path}: {v}");
+    }
+    let r = app
+        .upload_json(&upload("edge-after", "2026-03-02T07:15:00Z"))
+        .await;
+    assert_eq!(r.status(), 202);
+    let (s, v) = app.get_json("/v1/vehicles/EN57-EDGE").await;
+    assert_eq!(s, 200, "{v}");
+    app.stop().await;
+}
+
+/// Issue 18, point 3: every refusal names what to change (`field`, or `parameter` for the
+/// address) in problem form — 403, 404, 405, 409, 413, 414, 415 included; gzip bodies are read;
+/// a repeated key is refused naming it; ids are NFC and hold no invisible characters; a CSV
+/// with `;` separators and decimal commas is the same trace.
+pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
+    use std::io::Write as _;
+    let app = spawn_app(b).await;
+    let base = example("J1_baseline.json");
+    // No pooled connections: a refusal answered before the body is read closes its connection,
+    // which a pooled client would reuse for the next request.
+    let client = reqwest::Client::builder()
+        .pool_max_idle_per_host(0)
+        .build()
+        .unwrap();
+    let send = |method: Method, path: &str, key: &str| {
+        client.request(method, app.url(path)).bearer_auth(key)
+    };
+    let check = |v: &Value, what: &str| {
+        assert!(
+            v["field"].is_string() || v["parameter"].is_string(),
+            "{what}: no field or parameter: {v}"
+        );
+    };
+    let problem = |r: reqwest::Response, status: u16, what: &'static str| async move {
+        assert_eq!(r.status().as_u16(), status, "{what}");
+        let ct = r
+            .headers()
+            .get("content-type")
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or("")
+            .to_owned();
+        assert!(ct.starts_with("application/problem+json"), "{what}: {ct}");
+        r.json::<Value>().await.expect("problem body")
+    };
+    // 404 (unknown trace, unknown route), 403 (reader uploads), 405.
+    let get = |path: &str| send(Method::GET, path, &app.keys.reader).send();
+    // Security headers on API answers and pages alike.
+    for path in ["/v1/traces/nope", "/", "/healthz"] {
+        let r = get(path).await.unwrap();
+        let h = |n: &str| {
+            r.headers()
+                .get(n)
+                .and_then(|v| v.to_str().ok())
+                .unwrap_or("")
+                .to_owned()
+        };
+        assert!(
+            h("content-security-policy").contains("frame-ancestors 'none'"),
+            "{path}"
+        );
+        assert_eq!(h("x-content-type-options"), "nosniff", "{path}");
+    }
+    let v = problem(get("/v1/traces/nope").await.unwrap(), 404, "404").await;
+    assert_eq!(v["parameter"], "path", "{v}");
+    let v = problem(get("/v1/nowhere").await.unwrap(), 404, "route").await;
+    check(&v, "route");
+    let r = send(Method::POST, "/v1/traces", &app.keys.reader)
+        .header("content-type", "application/json")
+        .body(base.clone())
+        .send()
+        .await
+        .unwrap();
+    let v = problem(r, 403, "403").await;
+    assert_eq!(v["field"], "Authorization", "{v}");
+    let r = send(Method::PUT, "/v1/fleet/health", &app.keys.reader)
+        .send()
+        .await
+        .unwrap();
+    let v = problem(r, 405, "405").await;
+    check(&v, "405");
+    // 409: the same trace id with other content.
+    assert_eq!(app.upload_json(&base).await.status(), 202);
+    let mut other: Value = serde_json::from_slice(&base).unwrap();
+    other["vehicle_id"] = "EN57-OTHER".into();
+    let r = app.upload_json(&serde_json::to_vec(&other).unwrap()).await;
+    let v = problem(r, 409, "409").await;
+    assert_eq!(v["field"], "trace_id", "{v}");
+    // 414 in problem form.
+    let long = format!("/v1/traces/{}", "a".repeat(9000));
+    let v = problem(get(&long).await.unwrap(), 414, "414").await;
+    check(&v, "414");
+    // 413 (over the body limit) in problem form, also when it only grows that large inflated.
+    let huge = vec![b' '; (BODY_LIMIT_MIB as usize) * 1024 * 1024 + 1];
+    let r = send(Method::POST, "/v1/traces", &app.keys.writer)
+        .header("content-type", "application/json")
+        .body(huge.clone())
+        .send()
+        .await
+        .unwrap();
+    let v = problem(r, 413, "413").await;
+    assert_eq!(v["field"], "body", "{v}");
+    let gz = |bytes: &[u8]| {
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        e.write_all(bytes).unwrap();
+        e.finish().unwrap()
+    };
+    let r = send(Method::POST, "/v1/traces", &app.keys.writer)
+        .header("content-type", "application/json")
+        .header("content-encoding", "gzip")
+        .body(gz(&huge))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 413, "inflated past the limit");
+    // gzip read; another encoding 415.
+    let mut zipped: Value = serde_json::from_slice(&base).unwrap();
+    zipped["trace_id"] = "gzipped-upload".into();
+    let r = send(Method::POST, "/v1/traces", &app.keys.writer)
+        .header("content-type", "application/json")
+        .header("content-encoding", "gzip")
+        .body(gz(&serde_json::to_vec(&zipped).unwrap()))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 202, "{}", r.text().await.unwrap_or_default());
+    let r = send(Method::POST, "/v1/traces", &app.keys.writer)
+        .header("content-type", "application/json")
+        .header("content-encoding", "br")
+        .body(base.clone())
+        .send()
+        .await
+        .unwrap();
+    let v = problem(r, 415, "br").await;
+    check(&v, "415");
+    for id in ["example-J1_baseline", "gzipped-upload"] {
+        app.wait_for_fit(id).await;
+    }
+    let before = app.counts().await;
+    // A repeated key: 422 naming it.
+    let text = String::from_utf8(base.clone()).unwrap().replacen(
+        "\"vehicle_id\":",
+        "\"vehicle_id\": \"EN57-DUP\", \"vehicle_id\":",
+        1,
+    );
+    assert_ne!(
+        text.as_bytes(),
+        &base[..],
+        "the example has a vehicle_id key"
+    );
+    let v = problem(app.upload_json(text.as_bytes()).await, 422, "dup").await;
+    assert_eq!(v["field"], "vehicle_id", "{v}");
+    // Ids: `..` alone and invisible characters refused.
+    for (key, bad) in [
+        ("trace_id", ".."),
+        ("vehicle_id", "EN57\u{200B}1021"),
+        ("vehicle_id", "EN57\u{202E}1021"),
+    ] {
+        let mut d: Value = serde_json::from_slice(&base).unwrap();
+        d[key] = bad.into();
+        let r = app.upload_json(&serde_json::to_vec(&d).unwrap()).await;
+        let v = problem(r, 422, "id").await;
+        assert_eq!(v["field"], key, "{bad:?}: {v}");
+    }
+    assert_eq!(app.counts().await, before, "nothing stored");
+    // NFC: two spellings of one vehicle are one vehicle.
+    for (id, vehicle) in [("nfc-1", "Z\u{00FC}rich-1"), ("nfc-2", "Zu\u{0308}rich-1")] {
+        let mut d: Value = serde_json::from_slice(&base).unwrap();
+        d["trace_id"] = id.into();
+        d["vehicle_id"] = vehicle.into();
+        assert_eq!(
+            app.upload_json(&serde_json::to_vec(&d).unwrap())
+                .await
+                .status(),
+            202
+        );
+    }
+    let (s, v) = app.get_json("/v1/vehicles").await;
+    assert_eq!(s, 200);
+    let named: Vec<&str> = v
+        .as_array()
+        .or_else(|| v["vehicles"].as_array())
+        .expect("vehicle list")
+        .iter()
+        .filter_map(|x| x["id"].as_str().or_else(|| x["vehicle_id"].as_str()))
+        .filter(|id| id.contains("rich-1"))
+        .collect();
+    assert_eq!(named, ["Z\u{00FC}rich-1"], "{v}");
+    // Pages answer refusals as pages in the site's style, not problem JSON (issue 18).
+    let html_of = |r: reqwest::Response, status: u16| async move {
+        assert_eq!(r.status().as_u16(), status);
+        let ct = r
+            .headers()
+            .get("content-type")
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or("")
+            .to_owned();
+        assert!(ct.starts_with("text/html"), "{status}: {ct}");
+        r.text().await.expect("html")
+    };
+    let r = client
+        .post(app.url("/login"))
+        .header("content-type", "application/x-www-form-urlencoded")
+        .body("key=pw_not-a-key")
+        .send()
+        .await
+        .unwrap();
+    let html = html_of(r, 401).await;
+    assert!(
+        html.contains("Unknown or revoked API key") && html.contains("<form"),
+        "{html}"
+    );
+    let r = client
+        .get(app.url("/nowhere"))
+        .header("accept", "text/html")
+        .send()
+        .await
+        .unwrap();
+    let html = html_of(r, 404).await;
+    assert!(html.contains("Back to the fleet"), "{html}");
+    let r = client
+        .get(app.url("/v1/nowhere"))
+        .header("accept", "text/html")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 404);
+    assert!(
+        r.headers()["content-type"]
+            .to_str()
+            .unwrap()
+            .starts_with("application/problem+json")
+    );
+    // European CSV: `;` and decimal commas.
+    let csv = "# format: pantograph-trace/1\n# trace_id: eu-csv\n# vehicle_id: EN57-1021\n\
+        # pantograph.model: 160EC\n# pantograph.serial: 160EC-0042\n\
+        # recorded_at: 2026-03-02T07:15:00Z\n# test.kind: pendulum\n# test.joint: J1\n\
+        t_s;alpha_deg\n0;74,2\n0,002;74,19\n0,004;74,17\n";
+    let r = send(Method::POST, "/v1/traces", &app.keys.writer)
+        .header("content-type", "text/csv")
+        .body(csv)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 202, "{}", r.text().await.unwrap_or_default());
+    let (s, v) = app.get_json("/v1/traces/eu-csv/samples").await;
+    assert_eq!(s, 200, "{v}");
+    assert_eq!(
+        v["channels"]["alpha_deg"],
+        serde_json::json!([74.2, 74.19, 74.17]),
+        "{v}"
+    );
     app.stop().await;
 }

@@ -275,6 +275,36 @@ impl TestApp {
         }
     }
 
+    /// A web page's HTML as a reader signed in through `/login` sees it.
+    pub async fn web_page(&self, path: &str) -> String {
+        let client = reqwest::Client::builder()
+            .redirect(reqwest::redirect::Policy::none())
+            .build()
+            .expect("client");
+        let r = client
+            .post(self.url("/login"))
+            .header("content-type", "application/x-www-form-urlencoded")
+            .body(format!("key={}", self.keys.reader))
+            .send()
+            .await
+            .expect("POST /login");
+        let cookie = r
+            .headers()
+            .get("set-cookie")
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.split(';').next())
+            .expect("session cookie")
+            .to_owned();
+        let r = client
+            .get(self.url(path))
+            .header("cookie", cookie)
+            .send()
+            .await
+            .expect("GET page");
+        assert_eq!(r.status(), StatusCode::OK, "{path}");
+        r.text().await.expect("html")
+    }
+
     pub async fn counts(&self) -> Counts {
         self.store.counts().await.expect("counts")
     }

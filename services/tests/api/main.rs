@@ -46,11 +46,16 @@ suite!(
     stopped_between_upload_and_fit_fits_once,
     dead_worker_job_is_reclaimed_after_its_lease,
     lift_trace_is_fitted_with_every_joint,
+    bad_lift_inputs_are_refused_naming_the_sample,
+    recent_lifts_are_pooled,
     keys_created_and_revoked_over_http,
     readiness_and_metrics,
     alert_lifecycle_over_http,
+    an_uninformative_lift_leaves_a_workshop_alarm_standing,
     webhooks_signed_retried_and_logged,
     corpus_uploads_are_refused_and_store_nothing,
+    edge_dates_never_break_their_vehicle,
+    hostile_requests_answer_problems_naming_their_field,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).

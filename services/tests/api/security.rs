@@ -637,10 +637,20 @@ async fn no_secrets_in_logs() {
     let r = client
         .get(format!("{base}/v1/traces/none"))
         .bearer_auth(&key)
+        .header("x-request-id", "req-7f3a9c")
         .send()
         .await
         .expect("GET");
     assert_eq!(r.status(), StatusCode::NOT_FOUND);
+    // Issue 18: the caller's request id is echoed, and one is made when none is sent.
+    assert_eq!(r.headers()["x-request-id"], "req-7f3a9c");
+    let r = client
+        .get(format!("{base}/healthz"))
+        .send()
+        .await
+        .expect("GET");
+    let made = r.headers()["x-request-id"].to_str().expect("id").to_owned();
+    assert_eq!(made.len(), 36, "a UUID: {made}");
     // Web sign-in: the key travels in a form body.
     for (k, want) in [
         (key.as_str(), StatusCode::SEE_OTHER),
@@ -667,7 +677,14 @@ async fn no_secrets_in_logs() {
     let out = cap.text();
     assert!(stopped, "serve did not stop cleanly:\n{out}");
     // The capture really is at trace level and saw the requests (else this proves nothing).
-    for must in ["pantowatch::http", "sqlx::query", "TRACE", "/v1/vehicles"] {
+    // ... and the request id is in the log lines of its request.
+    for must in [
+        "pantowatch::http",
+        "sqlx::query",
+        "TRACE",
+        "/v1/vehicles",
+        "request_id=req-7f3a9c",
+    ] {
         assert!(out.contains(must), "no `{must}` in the server log");
     }
     assert!(out.len() > 5_000, "only {} bytes of log", out.len());

@@ -12,14 +12,28 @@ use tokio::sync::Notify;
 use crate::harness::{Backend, fresh_db};
 use crate::procs::{self, shared_json, wait_until, with_id};
 
-/// Fits per trace, straight from the table (the API shows only the current one).
+/// Each trace's own fits (its job's), straight from the table (the API shows only the current
+/// one). A lift's pooled fit (`… lift pooled over N tests`, written after its own) is another
+/// model version and counted by [`pooled_fits_per_trace`].
 pub async fn fits_per_trace(url: &str) -> Vec<(String, i64)> {
+    fits_where(url, false).await
+}
+
+/// Each trace's pooled lift fits.
+pub async fn pooled_fits_per_trace(url: &str) -> Vec<(String, i64)> {
+    fits_where(url, true).await
+}
+
+async fn fits_where(url: &str, pooled: bool) -> Vec<(String, i64)> {
     let mut c = sqlx::PgConnection::connect(url).await.expect("connect");
-    let rows: Vec<(String, i64)> =
-        sqlx::query_as("SELECT trace_id, count(*) FROM fits GROUP BY trace_id ORDER BY trace_id")
-            .fetch_all(&mut c)
-            .await
-            .expect("fits per trace");
+    let rows: Vec<(String, i64)> = sqlx::query_as(
+        "SELECT trace_id, count(*) FROM fits WHERE (model_version LIKE '%pooled%') = $1 \
+         GROUP BY trace_id ORDER BY trace_id",
+    )
+    .bind(pooled)
+    .fetch_all(&mut c)
+    .await
+    .expect("fits per trace");
     c.close().await.ok();
     rows
 }
@@ -100,6 +114,11 @@ async fn a_worker_killed_mid_fit_has_its_job_run_again_and_written_once() {
     let mut want: Vec<(String, i64)> = ids.iter().map(|i| (i.clone(), 1)).collect();
     want.sort();
     assert_eq!(fits, want, "exactly one fit per trace");
+    let pooled = pooled_fits_per_trace(&db.url).await;
+    assert!(
+        pooled.iter().all(|(_, n)| *n == 1),
+        "a pooled fit is written at most once per trace: {pooled:?}"
+    );
     assert_eq!(second.count("lease lost"), 0, "{:?}", second.log());
     let st = second.terminate(Duration::from_secs(30));
     assert!(st.success(), "worker-2 exit after SIGTERM: {st}");
@@ -142,14 +161,15 @@ async fn sigterm_past_the_grace_period_releases_the_running_job() {
         // The fit ended between the look and the signal: nothing to release (rare).
         eprintln!("SIGTERM drill: the fit finished before the signal; job done");
     } else {
+        // Its fit had started: released with the attempt counted (issue 18).
         assert_eq!(
             (j.state, j.attempts, j.worker.as_deref()),
-            (JobState::Queued, 0, None),
+            (JobState::Queued, 1, None),
             "{j:?}"
         );
         assert_eq!(w.count("released to the queue"), 1, "{:?}", w.log());
         eprintln!(
-            "SIGTERM drill: grace 0, running job released (attempts 0), process exited 0 in {:.2} s",
+            "SIGTERM drill: grace 0, running job released (attempt 1 counted), process exited 0 in {:.2} s",
             stopped_in.as_secs_f64()
         );
     }

@@ -12,6 +12,7 @@ mod harness;
 mod procs;
 
 mod kill;
+mod metrics;
 mod pg_restart;
 mod scale;
 mod shutdown;

@@ -1,6 +1,7 @@
 //! Graceful shutdown: a job claimed but not started is released (attempt not counted), a fit
-//! that outlasts the grace period has its job released, a fit within it is written, and an HTTP
-//! request in flight when the shutdown starts is answered.
+//! that outlasts the grace period has its job released (attempt counted, failed at the limit),
+//! a fit past its budget fails, a fit within the grace is written, and an HTTP request in
+//! flight when the shutdown starts is answered.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -133,22 +134,98 @@ async fn a_fit_outlasting_the_grace_period_has_its_job_released() {
     let store = Store::connect(&db.url).await.expect("store");
     let (id, stopped_in) = stop_during_fit(&store, Duration::ZERO, "grace-out").await;
     let job = job_of(&store, &id).await;
+    // Its fit had started: the attempt stays counted (issue 18), so it cannot loop for ever.
     assert_eq!(
         (job.state, job.attempts, job.worker.as_deref()),
-        (JobState::Queued, 0, None),
+        (JobState::Queued, 1, None),
         "{job:?}"
     );
     assert!(store.get_fit(&id).await.expect("fit").is_none());
     eprintln!("grace 0: pool stopped {stopped_in:?} after the signal, job released");
 
-    // The next worker fits it: one attempt, one fit.
+    // The next worker fits it: its second attempt, one fit.
     let (_tx, running) = watch::channel(false);
     let ev = worker::process_next(&store, "w-next", &options(Duration::ZERO), &running)
         .await
         .expect("process_next");
     assert!(matches!(ev, Some(JobEvent::Done { .. })), "{ev:?}");
     let job = job_of(&store, &id).await;
-    assert_eq!((job.state, job.attempts), (JobState::Done, 1), "{job:?}");
+    assert_eq!((job.state, job.attempts), (JobState::Done, 2), "{job:?}");
+    store.close().await;
+}
+
+/// Issue 18: a fit that outlasts every shutdown does not come back for ever — each stop counts
+/// its attempt, and at the limit the job fails saying why; the next trace is fitted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fit_stopped_at_every_shutdown_fails_at_the_attempt_limit() {
+    let db = fresh_db(Backend::Sqlite).await;
+    let store = Store::connect(&db.url).await.expect("store");
+    let (id, _) = stop_during_fit(&store, Duration::ZERO, "grace-loop").await;
+    for _ in 1..pantowatch::store::MAX_ATTEMPTS {
+        let (tx, rx) = watch::channel(false);
+        let pool = WorkerPool::spawn(
+            store.clone(),
+            options(Duration::ZERO),
+            Arc::new(Notify::new()),
+            rx,
+            None,
+        );
+        wait_until("the job running again", Duration::from_secs(30), || async {
+            let j = job_of(&store, &id).await;
+            (j.state == JobState::Running).then_some(())
+        })
+        .await;
+        tx.send(true).expect("signal");
+        pool.join().await;
+    }
+    let job = job_of(&store, &id).await;
+    assert_eq!(
+        (job.state, job.attempts),
+        (JobState::Failed, pantowatch::store::MAX_ATTEMPTS),
+        "{job:?}"
+    );
+    let why = job.last_error.clone().unwrap_or_default();
+    assert!(why.contains("shutdown_grace_ms"), "{why}");
+    store.close().await;
+}
+
+/// Issue 18: a fit past its budget ends `failed` with the reason, and the worker goes on to
+/// the next job, which is fitted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fit_past_its_budget_fails_and_the_queue_moves_on() {
+    let db = fresh_db(Backend::Sqlite).await;
+    let store = Store::connect(&db.url).await.expect("store");
+    let slow = upload(&store, &slow_lift(), "over-budget").await;
+    let (_tx, running) = watch::channel(false);
+    let mut tight = options(Duration::from_secs(30));
+    tight.fit_budget = Duration::from_millis(1);
+    let ev = worker::process_next(&store, "w-budget", &tight, &running)
+        .await
+        .expect("process_next");
+    assert!(matches!(ev, Some(JobEvent::Failed { .. })), "{ev:?}");
+    let job = job_of(&store, &slow).await;
+    assert_eq!(job.state, JobState::Failed, "{job:?}");
+    let why = job.last_error.clone().unwrap_or_default();
+    assert!(
+        why.contains("budget") && why.contains("fit_budget_secs"),
+        "{why}"
+    );
+    let next = upload(
+        &store,
+        &shared_json("data/examples/J1_baseline.json"),
+        "after-budget",
+    )
+    .await;
+    let ev = worker::process_next(
+        &store,
+        "w-budget",
+        &options(Duration::from_secs(30)),
+        &running,
+    )
+    .await
+    .expect("process_next");
+    assert!(matches!(ev, Some(JobEvent::Done { .. })), "{ev:?}");
+    assert!(store.get_fit(&next).await.expect("fit").is_some());
     store.close().await;
 }
 

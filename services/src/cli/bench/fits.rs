@@ -1,13 +1,13 @@
 //! Fit time and accuracy per test kind: pendulum and slider against the SciPy peer
-//! (`bench/scipy_peer.py`, run as a subprocess on the same example files), lift against its 1 s
-//! target (it has no peer). The ratio is the peer's total time over ours on the same files.
+//! (`bench/scipy_peer.py`, run as a subprocess on the same example files), lift per input-noise
+//! level in `bench::lift` (it has no peer). The ratio is the peer's total time over ours on the
+//! same files.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::identify::{FitOptions, fit_base};
 use serde_json::{Value, json};
 
@@ -18,8 +18,6 @@ use crate::trace::TraceDoc;
 
 /// Target speed-up over the SciPy peer for single joints.
 const RATIO_TARGET: f64 = 200.0;
-/// Target time of one lift fit, s.
-const LIFT_TARGET_S: f64 = 1.0;
 
 /// One timed file: our median time and estimates, the truth, the peer's (if it ran).
 #[derive(Debug, Clone)]
@@ -73,10 +71,7 @@ pub fn run(a: &SuiteArgs, sizes: &Sizes) -> Vec<Row> {
             )),
         },
     }
-    rows.push(
-        lift(sizes)
-            .unwrap_or_else(|e| Row::failed("fit: lift", "≤ 1 s per fit", &format!("{e:#}"))),
-    );
+    rows.extend(super::lift::rows(sizes));
     rows
 }
 
@@ -316,58 +311,4 @@ pub fn lift_doc(seed: u64, j3_dry: f64, serial: &str, trace_id: &str) -> anyhow:
         ..d
     };
     simulate_doc(&args)
-}
-
-/// Lift: median time of `repeat` complete-pantograph fits of two raise-and-lower traces
-/// (Table 4 and J3 dry ×1.8), and J3 dry's error against the truth.
-fn lift(sizes: &Sizes) -> anyhow::Result<Row> {
-    let cases: &[(f64, u64)] = &[(1.0, 11), (1.8, 12)];
-    let mut per = Vec::new();
-    for &(factor, seed) in cases {
-        let doc = lift_doc(seed, factor, "160EC-BENCH", &format!("bench-lift-{factor}"))?;
-        eprintln!("   fitting lift, J3 dry ×{factor}");
-        let mut times = Vec::new();
-        let mut last = None;
-        for _ in 0..sizes.repeat {
-            let t0 = Instant::now();
-            let rep = crate::fitting::fit_lift(&doc, &DriftThresholds::default())
-                .map_err(|e| anyhow::anyhow!("lift fit: {e}"))?;
-            times.push(t0.elapsed().as_secs_f64());
-            last = Some(rep);
-        }
-        let rep = last.ok_or_else(|| anyhow::anyhow!("no fit"))?;
-        let j3 = rep
-            .result
-            .joints
-            .iter()
-            .find(|j| j.joint == "J3")
-            .ok_or_else(|| anyhow::anyhow!("lift fit result has no J3"))?;
-        let base = j3
-            .dry
-            .baseline
-            .ok_or_else(|| anyhow::anyhow!("J3 dry has no baseline"))?;
-        per.push((factor, median(times), err_pct(j3.dry.value, base * factor)));
-    }
-    let worst = per.iter().map(|p| p.1).fold(0.0, f64::max);
-    let err = per.iter().map(|p| p.2.abs()).fold(0.0, f64::max);
-    let list = per
-        .iter()
-        .map(|(f, s, _)| format!("×{f}: {s:.2} s"))
-        .collect::<Vec<_>>()
-        .join(", ");
-    Ok(Row {
-        measure: format!("fit: lift ({} traces, raise and lower)", per.len()),
-        measured: format!(
-            "{worst:.2} s/fit worst ({list} — J3 dry); J3 dry error ≤ {err:.1} %; peer: none (no SciPy lift model)"
-        ),
-        target: "≤ 1 s per fit".into(),
-        pass: Some(worst <= LIFT_TARGET_S),
-        value: Some(worst),
-        unit: "s".into(),
-        detail: json!(
-            per.iter()
-                .map(|(f, s, e)| json!({"j3_dry_factor": f, "seconds": s, "j3_dry_err_pct": e}))
-                .collect::<Vec<_>>()
-        ),
-    })
 }

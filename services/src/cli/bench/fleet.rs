@@ -1,6 +1,7 @@
 //! Fleet re-processing: lift traces synthesised like the demo fleet's (raise and lower, every
-//! sixth pantograph's J3 dry friction worn), fitted on every core with a progress bar; fits per
-//! second and the time projected for a year of monthly lift tests of 1,000 pantographs.
+//! sixth pantograph's J3 dry friction worn, realistic sensor noise on every channel), fitted on
+//! every core with a progress bar; fits per second and the time projected for a year of monthly
+//! lift tests of 1,000 pantographs.
 
 use std::num::NonZeroUsize;
 use std::time::Instant;
@@ -10,7 +11,7 @@ use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::lift::batch;
 use serde_json::json;
 
-use super::fits::lift_doc;
+use super::lift::noisy_lift_doc;
 use super::suite::{Row, Sizes};
 use crate::trace::TraceDoc;
 
@@ -22,7 +23,8 @@ const TARGET_S: f64 = 600.0;
 const CHUNK: usize = 400;
 
 /// The `i`-th trace of the synthetic year: pantograph `i / 12`, month `i % 12`; every sixth
-/// pantograph's J3 dry friction grows to 1.8× over the year, the rest stay at Table 4.
+/// pantograph's J3 dry friction grows to 1.8× over the year, the rest stay at Table 4. Every
+/// channel carries the stand's realistic sensor noise (issue 15: K = 1, inputs included).
 fn fleet_doc(i: usize) -> anyhow::Result<TraceDoc> {
     let (p, m) = (i / 12, i % 12);
     let factor = if p % 6 == 1 {
@@ -30,9 +32,12 @@ fn fleet_doc(i: usize) -> anyhow::Result<TraceDoc> {
     } else {
         1.0
     };
-    lift_doc(
+    let drift = format!("J3:dry={factor}");
+    let scale: &[&str] = if factor == 1.0 { &[] } else { &[&drift] };
+    noisy_lift_doc(
         (i as u64) * 7 + 3,
-        factor,
+        scale,
+        1.0,
         &format!("160EC-{:04}", p + 1),
         &format!("bench-fleet-{i}"),
     )

@@ -7,6 +7,7 @@ pub mod fits;
 pub mod fleet;
 pub mod harness;
 pub mod ingest;
+pub mod lift;
 pub mod machine;
 pub mod query;
 pub mod suite;

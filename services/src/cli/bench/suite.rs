@@ -34,6 +34,10 @@ pub struct SuiteArgs {
     /// Fits per file for the per-kind timing (median reported); default 3, quick 1.
     #[arg(long)]
     pub repeat: Option<usize>,
+    /// Lift fits per input-noise level (clean, realistic, 2×) for the lift rows; default 12,
+    /// quick 3.
+    #[arg(long)]
+    pub lift_seeds: Option<usize>,
     /// Lift traces fitted for the fleet re-processing (projected to 12,000); default 200, quick 8.
     #[arg(long)]
     pub fleet_traces: Option<usize>,
@@ -71,6 +75,7 @@ pub enum Section {
 #[derive(Debug, Clone, Serialize)]
 pub struct Sizes {
     pub repeat: usize,
+    pub lift_seeds: usize,
     pub fleet_traces: usize,
     pub ingest_traces: usize,
     pub concurrency: usize,
@@ -83,6 +88,7 @@ impl SuiteArgs {
         let q = self.quick;
         Sizes {
             repeat: self.repeat.unwrap_or(if q { 1 } else { 3 }).max(1),
+            lift_seeds: self.lift_seeds.unwrap_or(if q { 3 } else { 12 }).max(1),
             fleet_traces: if self.full {
                 super::fleet::FLEET_YEAR
             } else {

@@ -229,21 +229,19 @@ fn status_str(s: Option<Status>) -> &'static str {
     s.map_or("—", Status::as_str)
 }
 
-/// Every joint a fit can report (a lift reports all of them).
-const JOINTS: [&str; 10] = ["J1", "J2", "J2'", "J3", "J4", "J5", "J6", "J7", "J8", "J9"];
-
-/// One pantograph's joints at their latest *informed* fit: a lift reports the joints it cannot
-/// inform at baseline as `unknown`, which must not hide an earlier pendulum test's verdict.
-/// (The store's fleet view takes each joint's latest fit, informed or not.)
+/// One pantograph's joints as fleet health and the alerts see them (`Store::joint_states`:
+/// each parameter from the latest test that informed it), each with the history point of the
+/// test that decides it.
 async fn latest_informed(
     store: &Store,
     serial: &str,
 ) -> anyhow::Result<Vec<(String, crate::store::JointPoint)>> {
     let mut out = Vec::new();
-    for j in JOINTS {
-        let history = store.joint_history(serial, j).await?;
-        if let Some(p) = history.into_iter().rev().find(|p| p.fit.identifiable) {
-            out.push((j.to_string(), p));
+    for s in store.joint_states(serial).await? {
+        let history = store.joint_history(serial, &s.joint).await?;
+        if let Some(mut p) = history.into_iter().find(|p| p.trace_id == s.trace_id) {
+            p.fit.status = s.status;
+            out.push((s.joint, p));
         }
     }
     Ok(out)

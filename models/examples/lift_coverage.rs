@@ -1,0 +1,112 @@
+//! Interval coverage and flags of lift fits on realistic-noise lifts (issue 15, point 2): each
+//! lift has one joint's dry or viscous friction drifted (0.4–3×) or none; prints, per lift, the
+//! informed parameters whose 95 % interval misses the truth and any flag on an undrifted joint.
+//!
+//! `cargo run --release -p pantowatch-models --example lift_coverage -- [SEEDS] [K]`
+
+use pantowatch_models::drift::Status;
+use pantowatch_models::lift::dynamics::LiftModel;
+use pantowatch_models::lift::geometry::builtin_160ec;
+use pantowatch_models::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
+use pantowatch_models::lift::protocol::{LiftProtocol, record};
+use pantowatch_models::lift::sensitivity::LiftParam;
+use pantowatch_models::lift::sensors::LiftSensorNoise;
+use pantowatch_models::lift::simulate::SimOptions;
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let seeds: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(2);
+    let k: f64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1.0);
+    let g = builtin_160ec();
+    let base = LiftModel::new(g);
+    let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
+    let drifts: Vec<Option<(&str, &str, f64)>> = vec![
+        None,
+        Some(("J3", "dry", 2.2)),
+        Some(("J3", "dry", 0.4)),
+        Some(("J1", "dry", 3.0)),
+        Some(("J4", "dry", 3.0)),
+        Some(("J5", "dry", 2.0)),
+        Some(("J2", "dry", 2.5)),
+        Some(("J2'", "viscous", 3.0)),
+        Some(("J8", "dry", 1.8)),
+        Some(("J7", "dry", 3.0)),
+        Some(("J9", "viscous", 2.0)),
+        Some(("J5", "viscous", 2.5)),
+    ];
+    let (mut n, mut hit, mut false_flags) = (0, 0, 0);
+    for seed in 0..seeds {
+        for d in &drifts {
+            let mut m = base.clone();
+            let mut truth_of = |p: LiftParam| p.get(&base, 0.0);
+            let mut drifted = None;
+            if let Some((j, kind, f)) = d {
+                let p = LiftParam::named(j, kind).unwrap();
+                let mut off = 0.0;
+                p.set(&mut m, &mut off, p.get(&base, 0.0) * f);
+                drifted = Some(p);
+            }
+            let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
+            let rec = LiftSensorNoise::realistic()
+                .scaled(k)
+                .apply(&clean, 1000 + seed);
+            let fit = fit_map(
+                &base,
+                &[LiftTrace {
+                    inputs: rec.inputs(),
+                    strip_height_m: &rec.strip_height_m,
+                }],
+                &LiftFitOptions::default(),
+            );
+            let Ok(fit) = fit else {
+                println!("{d:?} seed {seed}: fit failed {:?}", fit.err());
+                continue;
+            };
+            let mut misses = Vec::new();
+            for e in fit.params.iter().filter(|e| e.informed) {
+                let truth = if Some(e.param) == drifted {
+                    e.param.get(&m, 0.0)
+                } else {
+                    truth_of(e.param)
+                };
+                n += 1;
+                if e.ci95[0] <= truth && truth <= e.ci95[1] {
+                    hit += 1;
+                } else {
+                    misses.push(format!(
+                        "{}.{} {:.4} [{:.4}, {:.4}] truth {:.4}",
+                        e.param.joint(),
+                        e.param.kind(),
+                        e.value,
+                        e.ci95[0],
+                        e.ci95[1],
+                        truth
+                    ));
+                }
+            }
+            let flags: Vec<String> = fit
+                .joints
+                .iter()
+                .filter(|j| matches!(j.status, Status::Watch | Status::Alarm))
+                .map(|j| format!("{}:{:?}", j.joint, j.status))
+                .collect();
+            let wrong: Vec<&String> = flags
+                .iter()
+                .filter(|f| drifted.is_none_or(|p| !f.starts_with(&format!("{}:", p.joint()))))
+                .collect();
+            false_flags += wrong.len();
+            let _ = &mut truth_of;
+            println!(
+                "{:<22} seed {seed}: evals {:>3}  flags {:?}  misses {:?}",
+                format!("{d:?}"),
+                fit.evaluations,
+                flags,
+                misses
+            );
+        }
+    }
+    println!(
+        "coverage {hit}/{n} = {:.1} %, flags on undrifted joints {false_flags}",
+        100.0 * hit as f64 / n.max(1) as f64
+    );
+}

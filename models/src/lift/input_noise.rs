@@ -1,0 +1,254 @@
+//! What the inputs' sensor noise adds to a lift fit's covariance (issue 15): a linearised
+//! parametric bootstrap through the model, and the interval coverage it buys on noisy lifts.
+
+use nalgebra::DMatrix;
+
+use super::dynamics::LiftModel;
+use super::identify::{LiftFitError, LiftFitOptions, LiftTrace};
+use super::inputs::{InputReconstruction, reconstruct};
+use super::sensitivity::simulate_sensitivities;
+use super::simulate::{LiftInputs, SimError, SimOptions};
+
+/// What the inputs' sensor noise adds to the estimates' covariance (issue 15: errors in the
+/// inputs, not only in H). The model is driven by the recorded T, Fs and Fm; their noise,
+/// smoothed but not removed by [`reconstruct`], moves the simulated H, and the fit absorbs that
+/// into the parameters — so it barely shows in the H residual, and JᵀJ/σ² misses it (measured
+/// on realistic-noise lifts: 54 % of the intervals held the truth without it).
+///
+/// A linearised parametric bootstrap: for each of `opts.input_noise_draws` draws, white noise
+/// at each channel's estimated sd (`InputReconstruction`, from the data) is added to the
+/// reconstructed inputs and reconstructed again (so it is filtered as the recorded noise was),
+/// the model at the estimate is run on them, and the change ΔH is mapped to the parameters by
+/// the fit's own linear response δx = −Cov·Jᵀ(ΔH/σ_H)/κ². The covariance of the δx is added.
+/// Assumptions: the sensor noise is white at the sampling rate (the stand's, `lift::sensors`);
+/// the response is linear over the noise's effect (ΔH is millimetres); the draws are seeded
+/// (deterministic result). Cost: one plain simulation per draw and trace.
+#[allow(clippy::too_many_arguments)]
+pub fn covariance(
+    model: &LiftModel,
+    traces: &[LiftTrace],
+    infos: &[InputReconstruction],
+    offsets_nm: &[f64],
+    jd: &DMatrix<f64>,
+    cov: &DMatrix<f64>,
+    kappa2: f64,
+    opts: &LiftFitOptions,
+) -> Result<DMatrix<f64>, LiftFitError> {
+    let p = cov.nrows();
+    let draws = opts.input_noise_draws;
+    // Each draw's parameter response and the RMS of its ΔH, m.
+    let mut responses: Vec<(usize, nalgebra::DVector<f64>, f64)> = Vec::new();
+    let mut row0 = 0;
+    for (ti, tr) in traces.iter().enumerate() {
+        let inputs = &tr.inputs;
+        let n = inputs.t_s.len();
+        let sim = SimOptions {
+            torque_offset_nm: offsets_nm[ti],
+            energy: false,
+            ..opts.sim
+        };
+        // The sds the reconstruction estimated from the recorded channels (`traces` are the
+        // reconstructed ones: estimating on them would find no noise).
+        let info = infos[ti];
+        // Only channels the reconstruction found noisy carry noise (a clean record: none).
+        let sd =
+            |c: &super::inputs::ChannelReconstruction| if c.smoothed { c.noise_sd } else { 0.0 };
+        let (sd_t, sd_fs, sd_fm) = (sd(&info.torque), sd(&info.fs), sd(&info.fm));
+        if sd_t == 0.0 && sd_fs == 0.0 && sd_fm == 0.0 {
+            row0 += n;
+            continue;
+        }
+        // Runs on the fit's own integrator (Rosenbrock-W, no sensitivities): the same H the
+        // Jacobian was taken on, and far cheaper in the stiff rest stretches than DOPRI5.
+        let run_h = |u: &LiftInputs| -> Result<Vec<f64>, SimError> {
+            Ok(simulate_sensitivities(model, u, &[], offsets_nm[ti], &sim)?.strip_height_m)
+        };
+        let h0 = run_h(inputs)?;
+        let mut rng = crate::noise::Noise::new(0x1f_2a_3b_4c + ti as u64);
+        let fm: Vec<f64> = if inputs.fm_n.is_empty() {
+            vec![0.0; n]
+        } else {
+            inputs.fm_n.to_vec()
+        };
+        for _ in 0..draws {
+            // The draw's noise as the reconstruction passes it: R(u + e) and R(u − e) share
+            // the smoother and its segments, so (R(u + e) − R(u − e))/2 = S·e exactly for the
+            // linear smoother, with none of the second smoothing of u itself (which alone
+            // would move H by centimetres and masquerade as noise).
+            let e_t: Vec<f64> = (0..n).map(|_| sd_t * rng.normal()).collect();
+            let e_fs: Vec<f64> = (0..n).map(|_| sd_fs * rng.normal()).collect();
+            let e_fm: Vec<f64> = (0..n).map(|_| sd_fm * rng.normal()).collect();
+            let signed = |s: f64| -> Result<super::inputs::ReconstructedInputs, SimError> {
+                let add = |x: &[f64], e: &[f64]| -> Vec<f64> {
+                    x.iter().zip(e).map(|(v, d)| v + s * d).collect()
+                };
+                let (t_n, fs_n, fm_n) = (
+                    add(inputs.torque_nm, &e_t),
+                    add(inputs.fs_n, &e_fs),
+                    add(&fm, &e_fm),
+                );
+                reconstruct(
+                    &LiftInputs {
+                        t_s: inputs.t_s,
+                        torque_nm: &t_n,
+                        fs_n: &fs_n,
+                        fm_n: &fm_n,
+                    },
+                    &opts.inputs,
+                )
+            };
+            let (plus, minus) = (signed(1.0)?, signed(-1.0)?);
+            let half = |base: &[f64], a: &[f64], b: &[f64]| -> Vec<f64> {
+                (0..n).map(|k| base[k] + 0.5 * (a[k] - b[k])).collect()
+            };
+            let t_d = half(inputs.torque_nm, &plus.torque_nm, &minus.torque_nm);
+            let fs_d = half(inputs.fs_n, &plus.fs_n, &minus.fs_n);
+            let fm_d = half(&fm, &plus.fm_n, &minus.fm_n);
+            let u = LiftInputs {
+                t_s: inputs.t_s,
+                torque_nm: &t_d,
+                fs_n: &fs_d,
+                fm_n: &fm_d,
+            };
+            // A draw the model cannot run (a stiff corner) says nothing about the noise: skip.
+            let Ok(run_strip) = run_h(&u) else {
+                continue;
+            };
+            // g = Jᵀ(ΔH/σ_H) over this trace's rows; δx = −Cov·g/κ².
+            let mut g = nalgebra::DVector::zeros(p);
+            let mut ss = 0.0;
+            for k in 0..n {
+                let dh = (run_strip[k] - h0[k]) / opts.h_noise_m;
+                ss += dh * dh;
+                for j in 0..p {
+                    g[j] += jd[(row0 + k, j)] * dh;
+                }
+            }
+            let rms_m = (ss / n as f64).sqrt() * opts.h_noise_m;
+            responses.push((ti, cov * g / kappa2, rms_m));
+        }
+        row0 += n;
+    }
+    // A draw that tips the run into another regime (the head sticking or bouncing where the
+    // estimate's run does not) moves H far more than the linear response covers: such a draw
+    // (ΔH RMS over 4 × the draws' median) is left out rather than let it swamp the others.
+    let mut rms: Vec<f64> = responses.iter().map(|(_, _, r)| *r).collect();
+    rms.sort_by(f64::total_cmp);
+    let median = rms.get(rms.len() / 2).copied().unwrap_or(0.0);
+    // The traces' input noises are independent: their covariances add (each the mean over
+    // its own draws).
+    let mut total = DMatrix::zeros(p, p);
+    for ti in 0..traces.len() {
+        let mut acc = DMatrix::zeros(p, p);
+        let mut kept = 0usize;
+        for (_, dx, _) in responses
+            .iter()
+            .filter(|(t, _, r)| *t == ti && *r <= 4.0 * median)
+        {
+            acc += dx * dx.transpose();
+            kept += 1;
+        }
+        if kept > 0 {
+            total += acc / kept as f64;
+        }
+    }
+    Ok(total)
+}
+
+#[cfg(test)]
+mod coverage_tests {
+    use crate::lift::dynamics::LiftModel;
+    use crate::lift::geometry::builtin_160ec;
+    use crate::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
+    use crate::lift::protocol::{LiftProtocol, record};
+    use crate::lift::sensitivity::LiftParam;
+    use crate::lift::sensors::LiftSensorNoise;
+    use crate::lift::simulate::SimOptions;
+
+    /// Issue 15, point 2, on lifts with the stand's realistic sensor noise on every channel
+    /// (H 0.5 mm, T 1 N·m, Fs/Fm 0.2 N, logger steps): 4 seeds × 12 raise-and-lower lifts, each
+    /// with one joint's dry or viscous friction drifted 0.4–3× (J1, J2, J2', J3, J4, J5, J7,
+    /// J8, J9 — joints a lift hardly sees included) or none. Asserted: the 95 % intervals of
+    /// the parameters the fits call informed hold the truth for ≥ 85 % (measured with
+    /// `examples/lift_coverage`: 63 of 70 = 90 % over 6 seeds, every miss in the J1 ×3 case,
+    /// whose drift the lift attributes to J3 — the combination reporting that would carry it
+    /// is not built yet); every interval is non-negative; a flagged joint always has an
+    /// informed parameter; flags on undrifted joints ≤ 1 in the set; a large J3 drift is found.
+    #[test]
+    fn intervals_hold_the_truth_on_noisy_lifts() {
+        let g = builtin_160ec();
+        let base = LiftModel::new(g);
+        let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
+        let drifts: [Option<(&str, &str, f64)>; 12] = [
+            None,
+            Some(("J3", "dry", 2.2)),
+            Some(("J3", "dry", 0.4)),
+            Some(("J1", "dry", 3.0)),
+            Some(("J4", "dry", 3.0)),
+            Some(("J5", "dry", 2.0)),
+            Some(("J2", "dry", 2.5)),
+            Some(("J2'", "viscous", 3.0)),
+            Some(("J8", "dry", 1.8)),
+            Some(("J7", "dry", 3.0)),
+            Some(("J9", "viscous", 2.0)),
+            Some(("J5", "viscous", 2.5)),
+        ];
+        let (mut n, mut hit, mut false_flags, mut j3_found) = (0, 0, 0, 0);
+        for seed in 0..4u64 {
+            for d in &drifts {
+                let mut m = base.clone();
+                let drifted = d.map(|(j, kind, f)| {
+                    let p = LiftParam::named(j, kind).unwrap();
+                    let mut off = 0.0;
+                    p.set(&mut m, &mut off, p.get(&base, 0.0) * f);
+                    p
+                });
+                let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
+                let rec = LiftSensorNoise::realistic().apply(&clean, 1000 + seed);
+                let fit = fit_map(
+                    &base,
+                    &[LiftTrace {
+                        inputs: rec.inputs(),
+                        strip_height_m: &rec.strip_height_m,
+                    }],
+                    &LiftFitOptions::default(),
+                )
+                .unwrap();
+                for e in &fit.params {
+                    assert!(e.ci95[0] >= 0.0, "{d:?} seed {seed}: {e:?}");
+                    if e.informed {
+                        let truth = e.param.get(&m, 0.0);
+                        n += 1;
+                        hit += usize::from(e.ci95[0] <= truth && truth <= e.ci95[1]);
+                    }
+                }
+                for j in fit.joints.iter().filter(|j| j.flagged()) {
+                    let informed = [&j.viscous, &j.dry]
+                        .into_iter()
+                        .flatten()
+                        .any(|e| e.informed);
+                    assert!(
+                        informed,
+                        "{d:?} seed {seed}: {} flagged uninformed",
+                        j.joint
+                    );
+                    if drifted.is_some_and(|p| p.joint() == j.joint) {
+                        j3_found += usize::from(j.joint == "J3");
+                    } else {
+                        false_flags += 1;
+                        eprintln!("{d:?} seed {seed}: {} flagged ({:?})", j.joint, j.status);
+                    }
+                }
+            }
+        }
+        let coverage = hit as f64 / n as f64;
+        eprintln!(
+            "coverage {hit}/{n} = {:.1} %, flags on undrifted joints {false_flags}",
+            coverage * 100.0
+        );
+        assert!(n >= 30, "only {n} informed parameters");
+        assert!(coverage >= 0.85, "coverage {hit}/{n}");
+        assert!(false_flags <= 1, "{false_flags} flags on undrifted joints");
+        assert!(j3_found >= 4, "J3 ×2.2 found in {j3_found} of 4 lifts");
+    }
+}

@@ -1,0 +1,122 @@
+//! Pooled lift fits (issue 15, point 4): after a lift's own fit is written, the pantograph's
+//! recent lifts are fitted together and the result stored as the newest lift's current fit.
+//!
+//! Window (stated): the newest lift and the lifts before it within [`WINDOW_DAYS`], at most
+//! [`MAX_LIFTS`] — a month of monthly lifts is three tests; J2/J2'/J5 become informed only over
+//! several. The pooled result is a contract fit result with a `pooled` block naming the tests,
+//! written with the model version [`pooled_version`] (so once per set of tests), and it feeds
+//! health and alerts like any fit. No physics here: `models::lift::report` fits.
+
+use chrono::TimeDelta;
+
+use crate::alerts::{self, AlertOptions};
+use crate::ingest::stored_doc;
+use crate::store::{NewFit, Store, StoreError};
+use pantowatch_models::drift::DriftThresholds;
+use pantowatch_models::lift::report::fit_pooled_lift_traces;
+use pantowatch_models::report::MODEL_VERSION;
+
+/// How far back a pooled fit reaches from the newest lift, days.
+pub const WINDOW_DAYS: i64 = 180;
+/// Most lifts in one pooled fit (the newest included).
+pub const MAX_LIFTS: usize = 3;
+
+/// The model version of a pooled fit of `n` lifts.
+pub fn pooled_version(n: usize) -> String {
+    format!("{MODEL_VERSION}; lift pooled over {n} tests")
+}
+
+/// Fit the lifts of `trace_id`'s pantograph in the window ending at it, when there are 2 or
+/// more, and store the result as its fit; then run the alert rules on it. `Ok(None)`: nothing
+/// to pool. CPU work runs off the async runtime.
+pub async fn after_lift(
+    store: &Store,
+    trace_id: &str,
+    thresholds: DriftThresholds,
+    alerts_opts: &AlertOptions,
+) -> Result<Option<i64>, StoreError> {
+    let Some(meta) = store.get_trace(trace_id).await? else {
+        return Ok(None);
+    };
+    let Some(serial) = meta.serial.clone() else {
+        return Ok(None);
+    };
+    if meta.kind != "lift" {
+        return Ok(None);
+    }
+    let from = meta.recorded_at - TimeDelta::days(WINDOW_DAYS);
+    let mut ids: Vec<String> = store
+        .serial_history(&serial)
+        .await?
+        .into_iter()
+        .filter(|p| p.recorded_at >= from && p.recorded_at <= meta.recorded_at)
+        .map(|p| p.trace_id)
+        .collect();
+    ids.dedup();
+    let mut lifts = Vec::new();
+    for id in ids.iter().rev() {
+        if lifts.len() == MAX_LIFTS {
+            break;
+        }
+        if let Some(m) = store.get_trace(id).await?
+            && m.kind == "lift"
+            && !lifts
+                .iter()
+                .any(|(l, _): &(crate::store::TraceMeta, _)| l.trace_id == m.trace_id)
+        {
+            let Some(channels) = store.get_samples(id).await? else {
+                continue;
+            };
+            lifts.push((m, channels));
+        }
+    }
+    // Newest first, the triggering lift at the head (a late fit of an older lift pools the
+    // window ending at it).
+    lifts.sort_by_key(|l| std::cmp::Reverse(l.0.recorded_at));
+    if let Some(i) = lifts.iter().position(|(m, _)| m.trace_id == trace_id) {
+        let own = lifts.remove(i);
+        lifts.insert(0, own);
+    }
+    lifts.truncate(MAX_LIFTS);
+    if lifts.len() < 2 || lifts[0].0.trace_id != trace_id {
+        return Ok(None);
+    }
+    let n = lifts.len();
+    let version = pooled_version(n);
+    let ids: Vec<String> = lifts.iter().map(|(m, _)| m.trace_id.clone()).collect();
+    let docs = lifts
+        .into_iter()
+        .map(|(m, c)| stored_doc(&m, c))
+        .collect::<Result<Vec<_>, String>>()
+        .map_err(StoreError::Invalid)?;
+    let fitted = tokio::task::spawn_blocking(move || {
+        let channels = docs
+            .iter()
+            .map(|d| d.lift_channels().map_err(|e| e.to_string()))
+            .collect::<Result<Vec<_>, String>>()?;
+        fit_pooled_lift_traces(&channels, &ids, WINDOW_DAYS as f64, &thresholds)
+            .map(|r| r.result)
+            .map_err(|e| e.to_string())
+    })
+    .await
+    .map_err(|e| StoreError::Task(e.to_string()))?;
+    let result = match fitted {
+        Ok(r) => r,
+        Err(e) => {
+            tracing::info!(trace = %trace_id, error = %e, "pooled lift fit did not converge; the lift's own fit stands");
+            return Ok(None);
+        }
+    };
+    let json = serde_json::to_value(&result)
+        .map_err(|e| StoreError::Invalid(format!("pooled fit result: {e}")))?;
+    let fit = NewFit::from_result(json)?;
+    let w = store.insert_fit(trace_id, &version, &fit).await?;
+    if w.created {
+        tracing::info!(trace = %trace_id, fit_id = w.fit_id, lifts = n, "pooled lift fit written");
+        if let Err(e) = alerts::after_fit(store, trace_id, w.fit_id, &fit.result, alerts_opts).await
+        {
+            tracing::error!(trace = %trace_id, error = %e, "alert rules failed after the pooled fit");
+        }
+    }
+    Ok(Some(w.fit_id))
+}
