@@ -84,6 +84,38 @@ fn main() {
                     ));
                 }
             }
+            let relative = |p: LiftParam| p.get(&m, 0.0) / p.get(&base, 0.0);
+            for c in fit.combinations.iter().filter(|c| c.informed) {
+                let truth = c.level_of(relative);
+                n += 1;
+                if c.ci95[0] <= truth && truth <= c.ci95[1] {
+                    hit += 1;
+                } else {
+                    misses.push(format!(
+                        "{} {:.4} [{:.4}, {:.4}] truth {:.4}",
+                        c.label(),
+                        c.value,
+                        c.ci95[0],
+                        c.ci95[1],
+                        truth
+                    ));
+                }
+            }
+            let combos: Vec<String> = fit
+                .combinations
+                .iter()
+                .map(|c| {
+                    format!(
+                        "{} w{:.2?} {:.3} [{:.3},{:.3}] {:?}",
+                        c.label(),
+                        c.weights,
+                        c.value,
+                        c.ci95[0],
+                        c.ci95[1],
+                        c.status
+                    )
+                })
+                .collect();
             let flags: Vec<String> = fit
                 .joints
                 .iter()
@@ -97,10 +129,11 @@ fn main() {
             false_flags += wrong.len();
             let _ = &mut truth_of;
             println!(
-                "{:<22} seed {seed}: evals {:>3}  flags {:?}  misses {:?}",
+                "{:<22} seed {seed}: evals {:>3}  flags {:?}  combos {:?}  misses {:?}",
                 format!("{d:?}"),
                 fit.evaluations,
                 flags,
+                combos,
                 misses
             );
         }

@@ -91,6 +91,7 @@ pub fn fit_joint_test_with_finding(
         residual: finding.residual.clone(),
         fit: report::details(&reported, test.t_s[reported.start], units, test.unit),
         pooled: None,
+        combinations: Vec::new(),
     };
     Ok((result, reported, finding))
 }

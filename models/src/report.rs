@@ -22,6 +22,33 @@ pub struct ParamResult {
     pub unit: String,
     pub identifiable: bool,
     pub status: Status,
+    /// Set when the test informs this parameter only together with others: the label of the
+    /// combination it is reported in (issue 15; a lift's `J1+J3 dry`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub combination: Option<String>,
+}
+
+/// A combination of parameters a test informs together (issue 15): the level the data pin,
+/// each member over its Table 4 baseline weighted by its share (1 = every member at baseline).
+/// It is also listed in `joints` under its label's joints (e.g. `J1+J3`), so health and alerts
+/// judge it like a joint.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct CombinationResult {
+    pub label: String,
+    pub members: Vec<CombinationMember>,
+    pub value: f64,
+    pub ci95: [f64; 2],
+    pub identifiable: bool,
+    pub status: Status,
+}
+
+/// One member of a [`CombinationResult`].
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct CombinationMember {
+    pub joint: String,
+    /// `viscous` or `dry`.
+    pub kind: String,
+    pub weight: f64,
 }
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -90,6 +117,9 @@ pub struct FitResult {
     /// Set on a pooled fit: the tests it fitted together (issue 15).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pooled: Option<PooledTests>,
+    /// Parameters the test informs only together (lift fits; issue 15).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub combinations: Vec<CombinationResult>,
 }
 
 /// The tests a pooled fit combined: the friction shared, one torque offset per test.
@@ -119,6 +149,7 @@ fn param(
         unit: unit.to_string(),
         identifiable: v.identifiable,
         status: v.status,
+        combination: None,
     }
 }
 

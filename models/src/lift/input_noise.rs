@@ -157,23 +157,26 @@ pub fn covariance(
 
 #[cfg(test)]
 mod coverage_tests {
+    use crate::drift::Status;
     use crate::lift::dynamics::LiftModel;
     use crate::lift::geometry::builtin_160ec;
-    use crate::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
+    use crate::lift::identify::{LiftFitOptions, LiftTrace, Shown, fit_map};
     use crate::lift::protocol::{LiftProtocol, record};
     use crate::lift::sensitivity::LiftParam;
     use crate::lift::sensors::LiftSensorNoise;
     use crate::lift::simulate::SimOptions;
+    use crate::lift::topology::RevJoint;
 
     /// Issue 15, point 2, on lifts with the stand's realistic sensor noise on every channel
     /// (H 0.5 mm, T 1 N·m, Fs/Fm 0.2 N, logger steps): 4 seeds × 12 raise-and-lower lifts, each
     /// with one joint's dry or viscous friction drifted 0.4–3× (J1, J2, J2', J3, J4, J5, J7,
-    /// J8, J9 — joints a lift hardly sees included) or none. Asserted: the 95 % intervals of
-    /// the parameters the fits call informed hold the truth for ≥ 85 % (measured with
-    /// `examples/lift_coverage`: 63 of 70 = 90 % over 6 seeds, every miss in the J1 ×3 case,
-    /// whose drift the lift attributes to J3 — the combination reporting that would carry it
-    /// is not built yet); every interval is non-negative; a flagged joint always has an
-    /// informed parameter; flags on undrifted joints ≤ 1 in the set; a large J3 drift is found.
+    /// J8, J9 — joints a lift hardly sees included) or none. Asserted, over the reported
+    /// entries (separately identified parameters and informed combinations, `lift::attribution`):
+    /// the 95 % intervals hold the truth for ≥ 90 % (measured with `examples/lift_coverage`:
+    /// 22 of 22 over 6 seeds); every interval is non-negative; no joint or combination without
+    /// the drifted joint is flagged; J3 dry ×2.2 is flagged in the entry holding J3 in every
+    /// lift; a J1 ×3 drift shows in the entry holding J1 (the J1+J3 combination) with the truth
+    /// in its interval, and J3 is not reported as drifted alone.
     #[test]
     fn intervals_hold_the_truth_on_noisy_lifts() {
         let g = builtin_160ec();
@@ -193,7 +196,7 @@ mod coverage_tests {
             Some(("J9", "viscous", 2.0)),
             Some(("J5", "viscous", 2.5)),
         ];
-        let (mut n, mut hit, mut false_flags, mut j3_found) = (0, 0, 0, 0);
+        let (mut n, mut hit, mut false_flags, mut j3_found, mut j1_shown) = (0, 0, 0, 0, 0);
         for seed in 0..4u64 {
             for d in &drifts {
                 let mut m = base.clone();
@@ -217,26 +220,38 @@ mod coverage_tests {
                 for e in &fit.params {
                     assert!(e.ci95[0] >= 0.0, "{d:?} seed {seed}: {e:?}");
                     if e.informed {
-                        let truth = e.param.get(&m, 0.0);
                         n += 1;
-                        hit += usize::from(e.ci95[0] <= truth && truth <= e.ci95[1]);
+                        hit += usize::from(Shown::Alone(e).covers(&m, &base));
+                    }
+                }
+                for c in &fit.combinations {
+                    assert!(c.ci95[0] >= 0.0, "{d:?} seed {seed}: {c:?}");
+                    if c.informed {
+                        n += 1;
+                        hit += usize::from(Shown::In(c).covers(&m, &base));
+                    }
+                    let holds_drift = drifted.is_some_and(|p| c.params.contains(&p));
+                    if !holds_drift && matches!(c.status, Status::Watch | Status::Alarm) {
+                        false_flags += 1;
+                        eprintln!("{d:?} seed {seed}: {} flagged ({:?})", c.label(), c.status);
                     }
                 }
                 for j in fit.joints.iter().filter(|j| j.flagged()) {
-                    let informed = [&j.viscous, &j.dry]
-                        .into_iter()
-                        .flatten()
-                        .any(|e| e.informed);
-                    assert!(
-                        informed,
-                        "{d:?} seed {seed}: {} flagged uninformed",
-                        j.joint
-                    );
-                    if drifted.is_some_and(|p| p.joint() == j.joint) {
-                        j3_found += usize::from(j.joint == "J3");
-                    } else {
+                    if drifted.is_none_or(|p| p.joint() != j.joint) {
                         false_flags += 1;
                         eprintln!("{d:?} seed {seed}: {} flagged ({:?})", j.joint, j.status);
+                    }
+                }
+                if let Some(p) = drifted {
+                    let shown = fit.shown_in(p);
+                    if p == LiftParam::Dry(RevJoint::J3) && p.get(&m, 0.0) > p.get(&base, 0.0) {
+                        j3_found += usize::from(shown.is_some_and(|s| s.flagged()));
+                    }
+                    if p == LiftParam::Dry(RevJoint::J1) {
+                        let s = shown.expect("J1 ×3 shows in an informed entry");
+                        assert!(matches!(s, Shown::In(_)), "{s:?}");
+                        assert!(s.covers(&m, &base), "J1 ×3 seed {seed}: {s:?}");
+                        j1_shown += 1;
                     }
                 }
             }
@@ -246,9 +261,12 @@ mod coverage_tests {
             "coverage {hit}/{n} = {:.1} %, flags on undrifted joints {false_flags}",
             coverage * 100.0
         );
-        assert!(n >= 30, "only {n} informed parameters");
-        assert!(coverage >= 0.85, "coverage {hit}/{n}");
-        assert!(false_flags <= 1, "{false_flags} flags on undrifted joints");
+        // A lift separates few parameters: most of the 48 lifts report J1+J3 dry, and only
+        // the drifted ones often with an interval inside the watch band.
+        assert!(n >= 12, "only {n} informed entries");
+        assert!(coverage >= 0.90, "coverage {hit}/{n}");
+        assert_eq!(false_flags, 0, "flags on entries without the drifted joint");
+        assert_eq!(j1_shown, 4);
         assert!(j3_found >= 4, "J3 ×2.2 found in {j3_found} of 4 lifts");
     }
 }

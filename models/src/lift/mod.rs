@@ -15,10 +15,12 @@
 //! - [`report`] — a lift fit as the contract's fit result (every joint J1…J9).
 //! - [`inputs`] — measured inputs reconstructed before a fit: noise per channel, smoothing, steps.
 //! - [`input_noise`] — the inputs' sensor noise propagated into a lift fit's intervals.
+//! - [`attribution`] — which friction parameters a fit tells apart; combinations of the rest.
 //! - [`identify`] — Fisher information per trace, MAP fit with Table 4 as prior, verdicts.
 //! - [`batch`] — many lift fits on all cores, results in input order, progress by callback.
 //! - `integrate` — DOPRI5 or Rosenbrock-W over a sampled record, dense output at the samples.
 
+pub mod attribution;
 pub mod batch;
 pub mod dynamics;
 pub mod geometry;

@@ -20,13 +20,15 @@
 
 use std::sync::OnceLock;
 
+use super::attribution::Combination;
 use super::dynamics::LiftModel;
 use super::identify::{JointEstimate, LiftFit, LiftFitError, LiftFitOptions, LiftTrace, fit_map};
 use super::simulate::LiftInputs;
 use super::topology::RevJoint;
 use crate::drift::{DriftThresholds, Status};
 use crate::report::{
-    FitDetails, FitResult, JointResult, MODEL_VERSION, ParamResult, Quantity, ResidualResult,
+    CombinationMember, CombinationResult, FitDetails, FitResult, JointResult, MODEL_VERSION,
+    ParamResult, Quantity, ResidualResult,
 };
 
 /// The recorded channels of a lift trace (contract `lift` kind).
@@ -170,10 +172,16 @@ fn not_estimated(baseline: Option<f64>, unit: &str, prior_relative_sd: f64) -> P
         unit: unit.into(),
         identifiable: false,
         status: Status::Unknown,
+        combination: None,
     }
 }
 
-fn joint_result(model: &LiftModel, j: &JointEstimate, prior_relative_sd: f64) -> JointResult {
+fn joint_result(
+    model: &LiftModel,
+    j: &JointEstimate,
+    combos: &[Combination],
+    prior_relative_sd: f64,
+) -> JointResult {
     let f = &model.friction;
     let baseline = |kind: &str| -> Option<f64> {
         match (j.joint, kind) {
@@ -200,6 +208,7 @@ fn joint_result(model: &LiftModel, j: &JointEstimate, prior_relative_sd: f64) ->
             // Judged by the drift bands when informed (`unknown` if its interval is still wider
             // than the watch band); an uninformed parameter is never flagged.
             status: e.status,
+            combination: e.combination.and_then(|c| combos.get(c)).map(|c| c.label()),
         },
         None => not_estimated(baseline(kind), unit_of(j.joint, kind), prior_relative_sd),
     };
@@ -243,10 +252,32 @@ pub fn fit_result(
     opts: &LiftFitOptions,
     trace_id: &str,
 ) -> FitResult {
-    let joints = fit
+    let mut joints: Vec<JointResult> = fit
         .joints
         .iter()
-        .map(|j| joint_result(model, j, opts.prior_relative_sd))
+        .map(|j| joint_result(model, j, &fit.combinations, opts.prior_relative_sd))
+        .collect();
+    joints.extend(fit.combinations.iter().map(|c| combination_joint(c, opts)));
+    let combinations = fit
+        .combinations
+        .iter()
+        .map(|c| CombinationResult {
+            label: c.label(),
+            members: c
+                .params
+                .iter()
+                .zip(&c.weights)
+                .map(|(p, w)| CombinationMember {
+                    joint: p.joint().into(),
+                    kind: p.kind().into(),
+                    weight: *w,
+                })
+                .collect(),
+            value: c.value,
+            ci95: c.ci95,
+            identifiable: c.informed,
+            status: c.status,
+        })
         .collect();
     let rmse = fit.rmse_m.first().copied().unwrap_or(f64::NAN);
     let offset = fit.offsets.first();
@@ -302,6 +333,49 @@ pub fn fit_result(
             viscous_dry_correlation: f64::NAN,
         },
         pooled: None,
+        combinations,
+    }
+}
+
+/// A combination as an entry of `joints`, so health, trends and alerts judge it like a joint:
+/// named by its members' joints (`J1+J3`), the level (relative to Table 4, baseline 1) in the
+/// slot of its members' kind (`dry` when the kinds differ, the name then carrying the kinds:
+/// `J3 dry+J8 viscous`), the other slot not estimated.
+fn combination_joint(c: &Combination, opts: &LiftFitOptions) -> JointResult {
+    let label = c.label();
+    let kind = c.params[0].kind();
+    let same_kind = c.params.iter().all(|p| p.kind() == kind);
+    let name = if same_kind {
+        label.trim_end_matches(&format!(" {kind}")).to_string()
+    } else {
+        label.clone()
+    };
+    let level = ParamResult {
+        value: c.value,
+        ci95: c.ci95,
+        baseline: Some(1.0),
+        unit: "× Table 4".into(),
+        identifiable: c.informed,
+        status: c.status,
+        combination: Some(label),
+    };
+    let other = not_estimated(None, "× Table 4", opts.prior_relative_sd);
+    let (viscous, dry) = if same_kind && kind == "viscous" {
+        (level, other)
+    } else {
+        (other, level)
+    };
+    let identifiable = viscous.identifiable || dry.identifiable;
+    JointResult {
+        joint: name,
+        status: if identifiable {
+            c.status
+        } else {
+            Status::Unknown
+        },
+        identifiable,
+        viscous,
+        dry,
     }
 }
 
@@ -334,9 +408,16 @@ mod tests {
         let r = &rep.result;
         let names: Vec<&str> = r.joints.iter().map(|j| j.joint.as_str()).collect();
         assert_eq!(
-            names,
+            names[..10],
             ["J1", "J2", "J2'", "J3", "J4", "J5", "J6", "J7", "J8", "J9"]
         );
+        // After them, each combination the lift informs (issue 15): J3 dry with J1's, which
+        // the lift cannot tell apart; J3 is then not separately identified.
+        assert_eq!(names[10..], ["J1+J3"], "{:?}", r.combinations);
+        let c = &r.combinations[0];
+        assert_eq!(c.label, "J1+J3 dry");
+        let share: f64 = c.members.iter().map(|m| m.weight).sum();
+        assert!((share - 1.0).abs() < 1e-9);
         for j in &r.joints {
             assert!(
                 matches!(j.status, Status::Ok | Status::Unknown),
@@ -353,7 +434,10 @@ mod tests {
             }
         }
         let j3 = r.joints.iter().find(|j| j.joint == "J3").unwrap();
-        assert!(j3.identifiable && j3.dry.identifiable && j3.status == Status::Ok);
+        assert!(!j3.dry.identifiable && j3.dry.combination.as_deref() == Some("J1+J3 dry"));
+        let both = r.joints.iter().find(|j| j.joint == "J1+J3").unwrap();
+        assert!(both.identifiable && both.dry.identifiable && both.status == Status::Ok);
+        assert_eq!(both.dry.baseline, Some(1.0));
         assert_eq!(r.rmse.unit, "m");
         assert!(r.rmse.value < 1e-4, "noise-free: {}", r.rmse.value);
         assert_eq!(rep.fitted_height_m.len(), rec.t_s.len());

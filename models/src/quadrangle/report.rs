@@ -140,6 +140,7 @@ fn param(e: &QuadEstimate) -> ParamResult {
         },
         identifiable: e.informed,
         status: e.status,
+        combination: None,
     }
 }
 
@@ -214,6 +215,7 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
             viscous_dry_correlation: f64::NAN,
         },
         pooled: None,
+        combinations: Vec::new(),
     }
 }
 
