@@ -149,7 +149,8 @@ pub fn attribute(
         let members: Vec<usize> = (0..p).filter(|&i| v[i] * v[i] >= opts.min_share).collect();
         // Informed along v: the data's information there (eigenvalue, H noise only) at least
         // that of a posterior sd of prior sd / factor — (factor² − 1)/prior sd².
-        if !(eig.eigenvalues[k] >= (informed_factor.powi(2) - 1.0) / (prior_sd * prior_sd)) {
+        let needed = (informed_factor.powi(2) - 1.0) / (prior_sd * prior_sd);
+        if eig.eigenvalues[k].is_nan() || eig.eigenvalues[k] < needed {
             continue;
         }
         if members.len() < 2 {

@@ -170,6 +170,12 @@ pub struct FitView {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Object>)]
     pub pooled: Option<Value>,
+    /// Parameters the test informs only together (lift fits, issue 15): `[{ label, members:
+    /// [{ joint, kind, weight }], value, ci95, identifiable, status }]`; each is also an entry
+    /// of `joints` (e.g. `J1+J3`). Absent when there are none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Vec<Object>>)]
+    pub combinations: Option<Value>,
 }
 
 /// The trace document (`pantograph-trace/1`) as uploaded; see the trace format.
@@ -357,6 +363,7 @@ pub async fn get_fit(
             residual: part("residual"),
             fit: part("fit"),
             pooled: f.result.get("pooled").cloned(),
+            combinations: f.result.get("combinations").cloned(),
             trace_id: f.trace_id,
             fit_id: f.id,
             model_version: f.model_version,

@@ -20,10 +20,13 @@ pub async fn lift_trace_is_fitted_with_every_joint(b: Backend) {
     let joints = fit["joints"].as_array().expect("joints");
     let names: Vec<&str> = joints.iter().filter_map(|j| j["joint"].as_str()).collect();
     assert_eq!(
-        names,
+        names[..10],
         ["J1", "J2", "J2'", "J3", "J4", "J5", "J6", "J7", "J8", "J9"],
         "{fit}"
     );
+    // Then the combinations the lift informs (issue 15): J1+J3 dry, judged like a joint.
+    assert_eq!(names[10..], ["J1+J3"], "{fit}");
+    assert_eq!(fit["combinations"][0]["label"], "J1+J3 dry", "{fit}");
     for j in joints {
         let status = j["status"].as_str().unwrap_or("");
         assert!(status == "ok" || status == "unknown", "{j}");
@@ -32,7 +35,12 @@ pub async fn lift_trace_is_fitted_with_every_joint(b: Backend) {
         }
     }
     let j3 = joints.iter().find(|j| j["joint"] == "J3").expect("J3");
-    assert_eq!(j3["identifiable"], true, "{j3}");
+    assert_eq!(j3["dry"]["combination"], "J1+J3 dry", "{j3}");
+    let both = joints
+        .iter()
+        .find(|j| j["joint"] == "J1+J3")
+        .expect("J1+J3");
+    assert_eq!(both["identifiable"], true, "{both}");
     assert_eq!(fit["rmse"]["unit"], "m");
     assert!(fit["rmse"]["value"].as_f64().expect("rmse") < 1e-3, "{fit}");
     assert_eq!(fit["residual"]["effects"], json!([]));
@@ -202,11 +210,12 @@ pub async fn recent_lifts_are_pooled(b: Backend) {
         let (w1, w3) = (width(&single, joint), width(&pooled, joint));
         eprintln!("{joint} dry 95 % width: one lift {w1:.4}, three pooled {w3:.4}");
     }
+    // J3's dry friction is informed together with J1's (issue 15): the J1+J3 entry.
     let j3 = pooled["joints"]
         .as_array()
         .unwrap()
         .iter()
-        .find(|j| j["joint"] == "J3")
+        .find(|j| j["joint"] == "J1+J3")
         .unwrap();
     assert_eq!(j3["dry"]["identifiable"], true, "{j3}");
     // Written once: the next poll finds the same fit.
