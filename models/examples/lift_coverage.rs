@@ -20,20 +20,7 @@ fn main() {
     let g = builtin_160ec();
     let base = LiftModel::new(g);
     let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
-    let drifts: Vec<Option<(&str, &str, f64)>> = vec![
-        None,
-        Some(("J3", "dry", 2.2)),
-        Some(("J3", "dry", 0.4)),
-        Some(("J1", "dry", 3.0)),
-        Some(("J4", "dry", 3.0)),
-        Some(("J5", "dry", 2.0)),
-        Some(("J2", "dry", 2.5)),
-        Some(("J2'", "viscous", 3.0)),
-        Some(("J8", "dry", 1.8)),
-        Some(("J7", "dry", 3.0)),
-        Some(("J9", "viscous", 2.0)),
-        Some(("J5", "viscous", 2.5)),
-    ];
+    let drifts = pantowatch_models::lift::input_noise::COVERAGE_DRIFTS;
     let (mut n, mut hit, mut false_flags) = (0, 0, 0);
     for seed in 0..seeds {
         for d in &drifts {

@@ -155,6 +155,24 @@ pub fn covariance(
     Ok(total)
 }
 
+/// The drift set of the lift coverage checks (issue 15, point 2; the coverage test below and
+/// `examples/lift_coverage`): one joint's (joint, kind, factor) per lift, or none — dry and
+/// viscous, 0.4–3×, joints a lift hardly sees included.
+pub const COVERAGE_DRIFTS: [Option<(&str, &str, f64)>; 12] = [
+    None,
+    Some(("J3", "dry", 2.2)),
+    Some(("J3", "dry", 0.4)),
+    Some(("J1", "dry", 3.0)),
+    Some(("J4", "dry", 3.0)),
+    Some(("J5", "dry", 2.0)),
+    Some(("J2", "dry", 2.5)),
+    Some(("J2'", "viscous", 3.0)),
+    Some(("J8", "dry", 1.8)),
+    Some(("J7", "dry", 3.0)),
+    Some(("J9", "viscous", 2.0)),
+    Some(("J5", "viscous", 2.5)),
+];
+
 #[cfg(test)]
 mod coverage_tests {
     use crate::drift::Status;
@@ -182,20 +200,7 @@ mod coverage_tests {
         let g = builtin_160ec();
         let base = LiftModel::new(g);
         let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
-        let drifts: [Option<(&str, &str, f64)>; 12] = [
-            None,
-            Some(("J3", "dry", 2.2)),
-            Some(("J3", "dry", 0.4)),
-            Some(("J1", "dry", 3.0)),
-            Some(("J4", "dry", 3.0)),
-            Some(("J5", "dry", 2.0)),
-            Some(("J2", "dry", 2.5)),
-            Some(("J2'", "viscous", 3.0)),
-            Some(("J8", "dry", 1.8)),
-            Some(("J7", "dry", 3.0)),
-            Some(("J9", "viscous", 2.0)),
-            Some(("J5", "viscous", 2.5)),
-        ];
+        let drifts = super::COVERAGE_DRIFTS;
         let (mut n, mut hit, mut false_flags, mut j3_found, mut j1_shown) = (0, 0, 0, 0, 0);
         for seed in 0..4u64 {
             for d in &drifts {
