@@ -27,6 +27,8 @@
 
 use nalgebra::DMatrix;
 
+use super::dynamics::LiftModel;
+use super::identify::{LiftFit, ParamEstimate};
 use super::sensitivity::LiftParam;
 use crate::drift::{DriftThresholds, Status};
 
@@ -215,6 +217,54 @@ pub fn attribute(
         separate,
         group,
         combinations,
+    }
+}
+
+impl LiftFit {
+    /// The entry a parameter's drift shows in (issue 15): the parameter itself when separately
+    /// identified, else the informed combination it is a member of; `None` when neither.
+    pub fn shown_in(&self, param: LiftParam) -> Option<Shown<'_>> {
+        let e = self.params.iter().find(|e| e.param == param)?;
+        if e.informed {
+            return Some(Shown::Alone(e));
+        }
+        let c = self.combinations.get(e.combination?)?;
+        c.informed.then_some(Shown::In(c))
+    }
+}
+
+/// Where a parameter's drift shows: see [`LiftFit::shown_in`].
+#[derive(Debug, Clone, Copy)]
+pub enum Shown<'a> {
+    Alone(&'a ParamEstimate),
+    In(&'a Combination),
+}
+
+impl Shown<'_> {
+    pub fn status(&self) -> Status {
+        match self {
+            Shown::Alone(e) => e.status,
+            Shown::In(c) => c.status,
+        }
+    }
+
+    pub fn flagged(&self) -> bool {
+        matches!(self.status(), Status::Watch | Status::Alarm)
+    }
+
+    /// Whether the 95 % interval holds the truth of a model `truth` (fitted from `base`): the
+    /// parameter's value, or the combination's level of `truth`'s members over `base`'s.
+    pub fn covers(&self, truth: &LiftModel, base: &LiftModel) -> bool {
+        match self {
+            Shown::Alone(e) => {
+                let v = e.param.get(truth, 0.0);
+                e.ci95[0] <= v && v <= e.ci95[1]
+            }
+            Shown::In(c) => {
+                let v = c.level_of(|p| p.get(truth, 0.0) / p.get(base, 0.0));
+                c.ci95[0] <= v && v <= c.ci95[1]
+            }
+        }
     }
 }
 
