@@ -400,13 +400,14 @@ fn horizon_schedule(traces: &[LiftTrace], h_noise_m: f64) -> Vec<Vec<usize>> {
     stages
 }
 
-/// The Fisher information of one trace at the model's parameters (a design question: it needs
-/// the trace's inputs only; its H is not used).
-pub fn identifiability(
+/// One trace's ∂H/∂x over σ_H at the model's parameters, n × p, with x in the fit's scaled
+/// units (friction relative to its baseline, then the torque offset in N·m): the rows of the
+/// fit's Jacobian a design computes from the inputs alone.
+pub fn scaled_jacobian(
     model: &LiftModel,
     inputs: &LiftInputs,
     opts: &LiftFitOptions,
-) -> Result<Identifiability, LiftFitError> {
+) -> Result<(Vec<LiftParam>, DMatrix<f64>), LiftFitError> {
     let baseline = baseline_of(model, &opts.friction_params)?;
     let mut params = opts.friction_params.clone();
     params.push(LiftParam::TorqueOffset);
@@ -414,23 +415,23 @@ pub fn identifiability(
     let p = params.len();
     let n = inputs.t_s.len();
     let scale = |i: usize| if i < baseline.len() { baseline[i] } else { 1.0 };
-    let mut fisher = DMatrix::zeros(p, p);
-    let s2 = opts.h_noise_m * opts.h_noise_m;
-    for k in 0..n {
-        let row = &run.d_height[k * p..(k + 1) * p];
-        for i in 0..p {
-            for j in i..p {
-                fisher[(i, j)] += row[i] * scale(i) * row[j] * scale(j) / s2;
-            }
-        }
-    }
-    for i in 0..p {
-        for j in 0..i {
-            fisher[(i, j)] = fisher[(j, i)];
-        }
-    }
+    let jd = DMatrix::from_fn(n, p, |k, i| run.d_height[k * p + i] * scale(i) / opts.h_noise_m);
+    Ok((params, jd))
+}
+
+/// The Fisher information of one trace at the model's parameters (a design question: it needs
+/// the trace's inputs only; its H is not used).
+pub fn identifiability(
+    model: &LiftModel,
+    inputs: &LiftInputs,
+    opts: &LiftFitOptions,
+) -> Result<Identifiability, LiftFitError> {
+    let (params, jd) = scaled_jacobian(model, inputs, opts)?;
+    let p = params.len();
+    let n_fric = p - 1;
+    let fisher = jd.tr_mul(&jd);
     let prior_sd = |i: usize| {
-        if i < baseline.len() {
+        if i < n_fric {
             opts.prior_relative_sd
         } else {
             opts.offset_prior_sd_nm

@@ -9,6 +9,7 @@
 //! - [`statics`] — static drive torque (frictionless or at impending motion), equilibria.
 //! - [`simulate`] — a lift test driven by its recorded inputs, with dissipated energies.
 //! - [`protocol`] — a lift test as the stand records it (drive damper, spring, cut weight).
+//! - [`design`] — what a protocol tells (Fisher, predicted sds), the stand's limits, D-optimal moves.
 //! - [`sensors`] — the stand's sensor noise and logger steps on every channel, inputs too.
 //! - [`sensitivity`] — ∂H/∂θ along a simulated lift (friction of every joint, torque offset).
 //! - [`readout`] — H and its partials tabulated over α (geometry only), read at every sample.
@@ -22,6 +23,7 @@
 
 pub mod attribution;
 pub mod batch;
+pub mod design;
 pub mod dynamics;
 pub mod geometry;
 pub mod identify;

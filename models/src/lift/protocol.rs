@@ -7,7 +7,10 @@
 //!   1.84 m and rests; friction shows only mixed with the drive's torque balance;
 //! - *raise and lower* ([`LiftProtocol::raise_and_lower`]): the same raise, then the set torque
 //!   falls back to the frictionless holding torque at the start height, and the head comes down:
-//!   friction opposes the motion in both directions and shows as the hysteresis between them.
+//!   friction opposes the motion in both directions and shows as the hysteresis between them;
+//! - *designed* (`lift::design`, issue 15 point 3): the same raise, then any sequence of
+//!   [`Move`]s — the set torque relaxing to the holding torque of a target height at a chosen
+//!   speed — within the stand's [`ProtocolLimits`].
 
 use super::dynamics::LiftModel;
 use super::geometry::Geometry;
@@ -16,8 +19,10 @@ use super::simulate::{
 };
 use super::statics::{StaticFriction, StaticsError, alpha_at_height, static_point};
 
-/// The protocol of the paper's complete-assembly lift test.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The protocol of the paper's complete-assembly lift test (serialised as `pantowatch
+/// design-test` writes it and `simulate --protocol` reads it).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct LiftProtocol {
     pub t_start_s: f64,
     pub t_end_s: f64,
@@ -32,16 +37,25 @@ pub struct LiftProtocol {
     pub spring: StripSpring,
     /// Suspended weight Fm, cut at t = 0.
     pub weight_n: f64,
-    /// Lowering phase (raise-and-lower protocol); `None`: raise only.
-    pub lower: Option<Lowering>,
+    /// What follows the raise, in time order (raise and lower: one move back down; raise
+    /// only: none).
+    #[serde(default)]
+    pub moves: Vec<Move>,
 }
 
-/// The lowering phase of a raise-and-lower test: from `t_s` the set torque falls, with the same
-/// time constant as the raise, to `torque_nm`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Lowering {
+/// One change of the drive's set point after the raise: from `t_s` the set torque relaxes
+/// exponentially, with time constant `tau_s` (the pneumatic drive's pressure response), from
+/// wherever it was to `torque_nm` — a pressure step at a chosen speed. `height_m` is the strip
+/// height whose frictionless holding torque `torque_nm` is, when the move was made from one
+/// (for the reader; the model reads `torque_nm`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Move {
     pub t_s: f64,
     pub torque_nm: f64,
+    pub tau_s: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height_m: Option<f64>,
 }
 
 impl LiftProtocol {
@@ -64,7 +78,7 @@ impl LiftProtocol {
                 h_ref_m: lt.initial.h_m,
             },
             weight_n: lt.initial.fm_n,
-            lower: None,
+            moves: Vec::new(),
         }
     }
 
@@ -79,29 +93,36 @@ impl LiftProtocol {
         let load_n = lt.initial.fs_n;
         let alpha = alpha_at_height(model, lt.initial.h_m, load_n, range)?;
         let hold = static_point(model, alpha, load_n, StaticFriction::None)?;
+        let raise = Self::reference(g);
         Ok(Self {
-            lower: Some(Lowering {
+            moves: vec![Move {
                 t_s: 3.5,
                 torque_nm: hold.drive_torque_nm,
-            }),
-            ..Self::reference(g)
+                tau_s: raise.tau_s,
+                height_m: Some(lt.initial.h_m),
+            }],
+            ..raise
         })
     }
 
-    /// The set torque at time t.
+    /// The set torque at time t: held before the cut, the raise's relaxation from t = 0, then
+    /// each move's relaxation from where the previous one had brought it (moves in time order).
     pub fn set_torque_nm(&self, t_s: f64) -> f64 {
-        let raise = |t: f64| {
-            self.torque_final_nm
-                + (self.torque_initial_nm - self.torque_final_nm) * (-t / self.tau_s).exp()
-        };
-        match self.lower {
-            _ if t_s < 0.0 => self.torque_initial_nm,
-            Some(l) if t_s >= l.t_s => {
-                let from = raise(l.t_s);
-                l.torque_nm + (from - l.torque_nm) * (-(t_s - l.t_s) / self.tau_s).exp()
-            }
-            _ => raise(t_s),
+        if t_s < 0.0 {
+            return self.torque_initial_nm;
         }
+        // The current segment: (start time, value at start, target, time constant).
+        let (mut t0, mut from, mut to, mut tau) = (
+            0.0,
+            self.torque_initial_nm,
+            self.torque_final_nm,
+            self.tau_s,
+        );
+        for m in self.moves.iter().take_while(|m| m.t_s <= t_s) {
+            from = to + (from - to) * (-(m.t_s - t0) / tau).exp();
+            (t0, to, tau) = (m.t_s, m.torque_nm, m.tau_s);
+        }
+        to + (from - to) * (-(t_s - t0) / tau).exp()
     }
 }
 
@@ -198,13 +219,13 @@ mod tests {
         let opts = LiftFitOptions::default();
         let raise = LiftProtocol::reference(g);
         let both = LiftProtocol::raise_and_lower(&m, g).unwrap();
-        let lower = both.lower.unwrap();
+        let lower = both.moves[0];
         eprintln!(
             "lowering torque {:.1} N·m at t = {} s",
             lower.torque_nm, lower.t_s
         );
         let mut verdicts = Vec::new();
-        for p in [raise, both] {
+        for p in [raise, both.clone()] {
             let rec = record(&m, &p, &SimOptions::default()).unwrap();
             let at = |t: f64| rec.strip_height_m[((t - p.t_start_s) * p.sample_hz) as usize];
             eprintln!(

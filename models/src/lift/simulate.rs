@@ -186,7 +186,7 @@ impl DriveModel {
 /// An external spring pulling the strip down, as on the lift-test stand (paper Fig 15a):
 /// force = `force_at_ref_n` + `stiffness_n_per_m`·(H − `h_ref_m`), added to the strip load.
 /// For simulating a test; a recorded test has the force as its `Fs_N` channel instead.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StripSpring {
     pub force_at_ref_n: f64,
     pub stiffness_n_per_m: f64,

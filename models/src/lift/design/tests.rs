@@ -1,0 +1,142 @@
+use super::*;
+use crate::lift::geometry::builtin_160ec;
+use crate::lift::sensors::LiftSensorNoise;
+
+#[test]
+fn limits_name_the_field_outside_them() {
+    let g = builtin_160ec();
+    let m = LiftModel::new(g);
+    let lim = ProtocolLimits::stand(g);
+    let ok = LiftProtocol::raise_and_lower(&m, g).unwrap();
+    lim.check(&ok).unwrap();
+    let mut p = ok.clone();
+    p.moves[0].tau_s = 0.1;
+    assert_eq!(lim.check(&p).unwrap_err().field, "moves[0].tau_s");
+    let mut p = ok.clone();
+    p.moves[0].height_m = Some(2.2);
+    assert_eq!(lim.check(&p).unwrap_err().field, "moves[0].height_m");
+    let mut p = ok.clone();
+    p.moves[0].torque_nm = 5000.0;
+    assert_eq!(lim.check(&p).unwrap_err().field, "moves[0].torque_nm");
+    let mut p = ok.clone();
+    p.t_end_s = 60.0;
+    assert_eq!(lim.check(&p).unwrap_err().field, "t_end_s");
+    let mut p = ok.clone();
+    p.moves.push(Move {
+        t_s: 4.0,
+        ..p.moves[0]
+    });
+    assert_eq!(lim.check(&p).unwrap_err().field, "moves[1].t_s");
+}
+
+#[test]
+fn set_torque_is_continuous_through_every_move() {
+    let g = builtin_160ec();
+    let mut p = LiftProtocol::reference(g);
+    p.moves = vec![
+        Move {
+            t_s: 3.5,
+            torque_nm: 900.0,
+            tau_s: 0.4,
+            height_m: None,
+        },
+        Move {
+            t_s: 6.0,
+            torque_nm: 1000.0,
+            tau_s: 2.0,
+            height_m: None,
+        },
+    ];
+    for t in [0.0, 3.5, 6.0] {
+        let (a, b) = (p.set_torque_nm(t - 1e-9), p.set_torque_nm(t + 1e-9));
+        assert!((a - b).abs() < 1e-5, "jump at {t}: {a} → {b}");
+    }
+    // Each move relaxes to its target: 5 τ after the last, within 1 % of the way left.
+    let left = (p.set_torque_nm(6.0) - 1000.0).abs();
+    assert!((p.set_torque_nm(16.0) - 1000.0).abs() < 0.01 * left);
+    let json = serde_json::to_string(&p).unwrap();
+    let back: LiftProtocol = serde_json::from_str(&json).unwrap();
+    assert_eq!(back, p);
+}
+
+/// Issue 15, point 3: the designed protocol's predicted standard deviations against those its
+/// fits realise. 12 lifts of the designed protocol at Table 4 with the stand's realistic sensor
+/// noise on every channel (H 0.5 mm, T 1 N·m, Fs/Fm 0.2 N, logger steps; seeds 7000–7011),
+/// each fitted as the service fits a lift; the sample sd of each estimate the design says is
+/// informed is within a factor 1.5 of the predicted spread (`Prediction::sd_sampling`).
+/// Measured (`examples/lift_design -- 16`): J3 dry 0.047 vs 0.039, J5 dry 0.235 vs 0.291,
+/// J8 dry 0.075 vs 0.088 (× Table 4). The design beats the raise and lower on its criterion and
+/// on J3 dry's predicted sd, and keeps the stand's limits.
+#[test]
+fn designed_protocol_realises_its_predicted_spread() {
+    use crate::lift::identify::fit_map;
+    let g = builtin_160ec();
+    let m = LiftModel::new(g);
+    let lim = ProtocolLimits::stand(g);
+    let noise = LiftSensorNoise::realistic();
+    let opts = LiftFitOptions::default();
+    let d = design(
+        &m,
+        g,
+        &lim,
+        &DesignSpace::stand(&lim),
+        &noise,
+        &opts,
+        None,
+        &|_, _| {},
+    )
+    .unwrap();
+    lim.check(&d.protocol).unwrap();
+    assert!(!d.steps.is_empty());
+    let rl = LiftProtocol::raise_and_lower(&m, g).unwrap();
+    let a = predict(&m, &rl, &noise, &opts, opts.input_noise_draws).unwrap();
+    let b = predict(&m, &d.protocol, &noise, &opts, opts.input_noise_draws).unwrap();
+    assert!(b.log_det > a.log_det, "{} vs {}", b.log_det, a.log_det);
+    let j3 = LiftParam::named("J3", "dry").unwrap();
+    assert!(b.sd_of(j3).unwrap() < a.sd_of(j3).unwrap());
+    let clean = record(&m, &d.protocol, &SimOptions::default()).unwrap();
+    let fits: Vec<_> = (0..12u64)
+        .map(|seed| {
+            let rec = noise.apply(&clean, 7000 + seed);
+            fit_map(
+                &m,
+                &[LiftTrace {
+                    inputs: rec.inputs(),
+                    strip_height_m: &rec.strip_height_m,
+                }],
+                &opts,
+            )
+            .unwrap()
+        })
+        .collect();
+    let mut checked = 0;
+    for (i, p) in b.params.iter().enumerate() {
+        if !b.informed[i] || *p == LiftParam::TorqueOffset {
+            continue;
+        }
+        let xs: Vec<f64> = fits
+            .iter()
+            .map(|f| {
+                let e = f.params.iter().find(|e| e.param == *p).unwrap();
+                e.map_value / e.baseline
+            })
+            .collect();
+        let mean = xs.iter().sum::<f64>() / xs.len() as f64;
+        let sd =
+            (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (xs.len() - 1) as f64).sqrt();
+        let ratio = sd / b.sd_sampling[i];
+        eprintln!(
+            "{}.{}: predicted {:.3}, realised {sd:.3} (ratio {ratio:.2})",
+            p.joint(),
+            p.kind(),
+            b.sd_sampling[i]
+        );
+        assert!(
+            (1.0 / 1.5..=1.5).contains(&ratio),
+            "{p:?}: predicted {} realised {sd}",
+            b.sd_sampling[i]
+        );
+        checked += 1;
+    }
+    assert!(checked >= 2, "only {checked} informed parameters");
+}
