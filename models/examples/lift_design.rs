@@ -14,7 +14,10 @@ fn main() {
     let noise = LiftSensorNoise::realistic();
     let opts = LiftFitOptions::default();
     let t0 = std::time::Instant::now();
-    let d = design(&m, g, &lim, &space, &noise, &opts, None, &|i, n| eprintln!("step {i}/{n} {:?}", t0.elapsed())).unwrap();
+    let d = design(&m, g, &lim, &space, &noise, &opts, None, &|i, n| {
+        eprintln!("step {i}/{n} {:?}", t0.elapsed())
+    })
+    .unwrap();
     eprintln!("designed in {:?}, {} candidates", t0.elapsed(), d.evaluated);
     for s in &d.steps {
         eprintln!("{:?} dwell {} logdet {:.2}", s.chosen, s.dwell_s, s.log_det);
@@ -25,34 +28,85 @@ fn main() {
     eprintln!("logdet {:.2} vs {:.2}", a.log_det, b.log_det);
     for pr in [&a, &b] {
         let mut post = pr.fisher.clone();
-        for i in 0..post.nrows() { post[(i,i)] += if i + 1 < post.nrows() { 4.0 } else { 0.01 }; }
+        for i in 0..post.nrows() {
+            post[(i, i)] += if i + 1 < post.nrows() { 4.0 } else { 0.01 };
+        }
         let c = post.try_inverse().unwrap();
-        eprintln!("corr J1dry-J3dry (H only) {:.3}", c[(1,7)] / (c[(1,1)]*c[(7,7)]).sqrt());
+        eprintln!(
+            "corr J1dry-J3dry (H only) {:.3}",
+            c[(1, 7)] / (c[(1, 1)] * c[(7, 7)]).sqrt()
+        );
     }
     for (i, p) in a.params.iter().enumerate() {
-        eprintln!("{:>4} {:>8} | {:.3} {:.3} {} | {:.3} {:.3} {}", p.joint(), p.kind(), a.sd_h[i], a.sd[i], a.informed[i], b.sd_h[i], b.sd[i], b.informed[i]);
+        eprintln!(
+            "{:>4} {:>8} | {:.3} {:.3} {} | {:.3} {:.3} {}",
+            p.joint(),
+            p.kind(),
+            a.sd_h[i],
+            a.sd[i],
+            a.informed[i],
+            b.sd_h[i],
+            b.sd[i],
+            b.informed[i]
+        );
     }
-    let seeds: u64 = std::env::args().nth(1).and_then(|s| s.parse().ok()).unwrap_or(0);
+    let seeds: u64 = std::env::args()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0);
     for (name, proto, pred) in [("designed", &d.protocol, &b), ("raise-and-lower", &rl, &a)] {
-        if seeds == 0 { break; }
-        let clean = pantowatch_models::lift::protocol::record(&m, proto, &Default::default()).unwrap();
+        if seeds == 0 {
+            break;
+        }
+        let clean =
+            pantowatch_models::lift::protocol::record(&m, proto, &Default::default()).unwrap();
         let mut est: Vec<Vec<f64>> = Vec::new();
         let mut times = Vec::new();
         for seed in 0..seeds {
             let rec = noise.apply(&clean, 7000 + seed);
             let t0 = std::time::Instant::now();
-            let fit = pantowatch_models::lift::identify::fit_map(&m, &[pantowatch_models::lift::identify::LiftTrace { inputs: rec.inputs(), strip_height_m: &rec.strip_height_m }], &opts).unwrap();
+            let fit = pantowatch_models::lift::identify::fit_map(
+                &m,
+                &[pantowatch_models::lift::identify::LiftTrace {
+                    inputs: rec.inputs(),
+                    strip_height_m: &rec.strip_height_m,
+                }],
+                &opts,
+            )
+            .unwrap();
             times.push(t0.elapsed().as_secs_f64());
-            est.push(pred.params.iter().map(|q| fit.params.iter().find(|e| e.param == *q).map_or(f64::NAN, |e| e.map_value / if e.baseline > 0.0 { e.baseline } else { 1.0 })).collect());
+            est.push(
+                pred.params
+                    .iter()
+                    .map(|q| {
+                        fit.params
+                            .iter()
+                            .find(|e| e.param == *q)
+                            .map_or(f64::NAN, |e| {
+                                e.map_value / if e.baseline > 0.0 { e.baseline } else { 1.0 }
+                            })
+                    })
+                    .collect(),
+            );
         }
         times.sort_by(f64::total_cmp);
         eprintln!("{name}: fit p50 {:.3} s", times[times.len() / 2]);
         for (i, p) in pred.params.iter().enumerate() {
             let xs: Vec<f64> = est.iter().map(|e| e[i]).collect();
             let mean = xs.iter().sum::<f64>() / xs.len() as f64;
-            let sd = (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (xs.len() - 1) as f64).sqrt();
-            eprintln!("{:>4} {:>8} predicted {:.3} sampling {:.3} realised {:.3} (mean {:.3}) ratio {:.2} {}", p.joint(), p.kind(), pred.sd[i], pred.sd_sampling[i], sd, mean, sd / pred.sd_sampling[i], if pred.informed[i] {"informed"} else {""});
+            let sd =
+                (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (xs.len() - 1) as f64).sqrt();
+            eprintln!(
+                "{:>4} {:>8} predicted {:.3} sampling {:.3} realised {:.3} (mean {:.3}) ratio {:.2} {}",
+                p.joint(),
+                p.kind(),
+                pred.sd[i],
+                pred.sd_sampling[i],
+                sd,
+                mean,
+                sd / pred.sd_sampling[i],
+                if pred.informed[i] { "informed" } else { "" }
+            );
         }
     }
 }
-

@@ -32,6 +32,9 @@ enum Command {
     Keys(cli::keys::KeysArgs),
     /// Identify a trace's joint friction (viscous and dry, 95 % intervals, drift status).
     Fit(cli::fit::FitArgs),
+    /// Design an on-vehicle lift test: D-optimal drive moves within the stand's limits, and
+    /// what it and the raise and lower tell per Table 4 parameter (issue 15).
+    DesignTest(cli::design::DesignArgs),
     /// Write a synthetic trace document.
     Simulate(Box<cli::simulate::SimulateArgs>),
     /// Time the identification of trace files.
@@ -69,6 +72,7 @@ fn main() {
         }
         // The suite's in-process service would log every timed request: bench sets its own.
         Command::Bench(a) => cli::bench::run(a),
+        Command::DesignTest(a) => cli::design::run(&a),
         Command::Examples => {
             init_logging(&LogSettings::default());
             cli::examples::run(&thresholds)

@@ -276,7 +276,7 @@ impl TraceDoc {
         }
         let test_v = root.get("test").ok_or_else(|| bad("test", "is required"))?;
         let test = obj(test_v, "test")?;
-        only_keys(test, &["kind", "joint", "rig"], "test")?;
+        only_keys(test, &["kind", "joint", "rig", "protocol"], "test")?;
         let kind = match string(test, "kind", "test.kind", true)?.as_deref() {
             Some("pendulum") => Kind::Pendulum,
             Some("slider") => Kind::Slider,
@@ -437,6 +437,7 @@ impl TraceDoc {
         }
         let get = |name: &str| self.channel(name).unwrap_or_default();
         lift_gaps(get("t_s"))?;
+        self.lift_protocol(get("t_s"))?;
         if let Some([lo, hi]) =
             pantowatch_models::lift::geometry::builtin_160ec().drive_torque_range_nm
             && let Some(i) = get("T_Nm").iter().position(|t| !(lo..=hi).contains(t))
@@ -456,6 +457,38 @@ impl TraceDoc {
             fs_n: get("Fs_N"),
             fm_n: get("Fm_N"),
         })
+    }
+
+    /// The drive protocol a lift states it ran (`test.protocol`, optional: as `pantowatch
+    /// design-test` writes it), checked against the stand's limits
+    /// (`lift::design::ProtocolLimits::stand`, issue 15 point 7): a field outside them, or a
+    /// record longer than the limit's duration, is refused naming it. `None`: not stated.
+    pub fn lift_protocol(
+        &self,
+        t_s: &[f64],
+    ) -> Result<Option<pantowatch_models::lift::protocol::LiftProtocol>, TraceError> {
+        use pantowatch_models::lift::design::ProtocolLimits;
+        let Some(v) = self.test.get("protocol") else {
+            return Ok(None);
+        };
+        let p: pantowatch_models::lift::protocol::LiftProtocol =
+            serde_json::from_value(v.clone()).map_err(|e| bad("test.protocol", e.to_string()))?;
+        let lim = ProtocolLimits::stand(pantowatch_models::lift::geometry::builtin_160ec());
+        lim.check(&p)
+            .map_err(|e| bad(format!("test.protocol.{}", e.field), e.message))?;
+        if let (Some(first), Some(last)) = (t_s.first(), t_s.last())
+            && last - first > lim.duration_max_s
+        {
+            return Err(bad(
+                "channels.t_s",
+                format!(
+                    "the record lasts {:.1} s, over the stated protocol limit of {} s",
+                    last - first,
+                    lim.duration_max_s
+                ),
+            ));
+        }
+        Ok(Some(p))
     }
 
     /// The channels and stand of a `quadrangle_swing` test for the lower-quadrangle model

@@ -16,7 +16,7 @@
 //! 0.002,74.19
 //! ```
 //!
-//! Metadata keys are the contract's field paths; `test.rig` is a JSON object. Rows are read by
+//! Metadata keys are the contract's field paths; `test.rig` and `test.protocol` are JSON objects. Rows are read by
 //! the `csv` crate: separated by `,` (decimal point `.`) or, when the header row holds a `;`,
 //! by `;` with a decimal comma or point (`0,002;74,19` — what European spreadsheet tools write);
 //! fields may be quoted; `nan`/`inf` are rejected like any non-finite value. Blank lines are
@@ -31,7 +31,7 @@ use serde_json::{Map, Value};
 use crate::trace::{MAX_CHANNELS, MAX_SAMPLES, TraceDoc, TraceError};
 
 /// Metadata keys accepted in the `# key: value` header.
-pub const META_KEYS: [&str; 9] = [
+pub const META_KEYS: [&str; 10] = [
     "format",
     "trace_id",
     "vehicle_id",
@@ -41,6 +41,7 @@ pub const META_KEYS: [&str; 9] = [
     "test.kind",
     "test.joint",
     "test.rig",
+    "test.protocol",
 ];
 
 /// Why a CSV body was refused: its structure (`Malformed`) or a contract rule (`Invalid`).
@@ -124,9 +125,9 @@ pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
                 format!("unknown metadata key (allowed: {})", META_KEYS.join(", ")),
             ));
         }
-        let value = if key == "test.rig" {
+        let value = if key == "test.rig" || key == "test.protocol" {
             serde_json::from_str::<Value>(value)
-                .map_err(|e| malformed("test.rig", format!("not valid JSON: {e}")))?
+                .map_err(|e| malformed(key, format!("not valid JSON: {e}")))?
         } else {
             Value::String(value.to_owned())
         };
@@ -289,6 +290,9 @@ pub fn write(doc: &TraceDoc) -> String {
     }
     if let Some(rig) = doc.test.get("rig") {
         meta("test.rig", &rig.to_string());
+    }
+    if let Some(p) = doc.test.get("protocol") {
+        meta("test.protocol", &p.to_string());
     }
     let names: Vec<&str> = doc.channels.iter().map(|(n, _)| n.as_str()).collect();
     let _ = writeln!(s, "{}", names.join(","));

@@ -249,8 +249,8 @@ pub fn predict(
     opts: &LiftFitOptions,
     input_draws: usize,
 ) -> Result<Prediction, DesignError> {
-    let rec = record(model, protocol, &SimOptions::default())
-        .map_err(|e| DesignError::Fit(e.into()))?;
+    let rec =
+        record(model, protocol, &SimOptions::default()).map_err(|e| DesignError::Fit(e.into()))?;
     let o = LiftFitOptions {
         h_noise_m: noise.h_sd_m.max(1e-6),
         input_noise_draws: input_draws,
@@ -294,7 +294,11 @@ pub fn predict(
     } else {
         log_det_h
     };
-    let sd_of = |c: &DMatrix<f64>| (0..p).map(|i| c[(i, i)].max(0.0).sqrt()).collect::<Vec<_>>();
+    let sd_of = |c: &DMatrix<f64>| {
+        (0..p)
+            .map(|i| c[(i, i)].max(0.0).sqrt())
+            .collect::<Vec<_>>()
+    };
     let sd = sd_of(&cov);
     let informed = (0..p)
         .map(|i| {
@@ -365,6 +369,7 @@ pub struct Design {
 /// are computed on `threads` workers (`batch::map`); `progress(done, total)` after each step.
 /// Every candidate passes `limits.check`. Assumes the information at Table 4 stands for a worn
 /// pantograph's (local design).
+#[allow(clippy::too_many_arguments)]
 pub fn design(
     model: &LiftModel,
     g: &Geometry,

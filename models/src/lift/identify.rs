@@ -415,7 +415,9 @@ pub fn scaled_jacobian(
     let p = params.len();
     let n = inputs.t_s.len();
     let scale = |i: usize| if i < baseline.len() { baseline[i] } else { 1.0 };
-    let jd = DMatrix::from_fn(n, p, |k, i| run.d_height[k * p + i] * scale(i) / opts.h_noise_m);
+    let jd = DMatrix::from_fn(n, p, |k, i| {
+        run.d_height[k * p + i] * scale(i) / opts.h_noise_m
+    });
     Ok((params, jd))
 }
 

@@ -135,7 +135,6 @@ pub fn covariance(
     let mut rms: Vec<f64> = responses.iter().map(|(_, _, r)| *r).collect();
     rms.sort_by(f64::total_cmp);
     let median = rms.get(rms.len() / 2).copied().unwrap_or(0.0);
-    if std::env::var("PW_DEBUG_DRAWS").is_ok() { eprintln!("draw rms {rms:?}"); }
     // The traces' input noises are independent: their covariances add (each the mean over
     // its own draws).
     let mut total = DMatrix::zeros(p, p);

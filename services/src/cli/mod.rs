@@ -3,6 +3,7 @@
 
 pub mod bench;
 pub mod demo;
+pub mod design;
 pub mod examples;
 pub mod fit;
 pub mod keys;

@@ -72,8 +72,9 @@ pub struct SimulateArgs {
     pub pull: Option<f64>,
     #[arg(long, default_value_t = 0.5)]
     pub release_at: f64,
-    /// Lift only: `raise-and-lower` (default) or `raise` (the paper's raise alone); 8 s from
-    /// t = −0.5 s at `--fs`.
+    /// Lift only: `raise-and-lower` (default) or `raise` (the paper's raise alone), 8 s from
+    /// t = −0.5 s at `--fs`; or a protocol file as `pantowatch design-test --out` writes it
+    /// (JSON, checked against the stand's limits; stated in the trace as `test.protocol`).
     #[arg(long, default_value = "raise-and-lower")]
     pub protocol: String,
     /// Lift and quadrangle_swing: scale a joint's friction from Table 4,
@@ -231,12 +232,23 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
             p.set(&mut model, &mut offset, v0 * f);
         }
     }
-    let mut protocol = match a.protocol.as_str() {
-        "raise-and-lower" => LiftProtocol::raise_and_lower(&base, g)?,
-        "raise" => LiftProtocol::reference(g),
-        p => anyhow::bail!("--protocol: `{p}` (raise-and-lower or raise)"),
+    let (mut protocol, stated) = match a.protocol.as_str() {
+        "raise-and-lower" => (LiftProtocol::raise_and_lower(&base, g)?, false),
+        "raise" => (LiftProtocol::reference(g), false),
+        p if std::path::Path::new(p).is_file() => {
+            let text = std::fs::read(p).with_context(|| format!("reading --protocol {p}"))?;
+            let proto: LiftProtocol = serde_json::from_slice(&text)
+                .map_err(|e| anyhow::anyhow!("--protocol {p}: {e}"))?;
+            pantowatch_models::lift::design::ProtocolLimits::stand(g)
+                .check(&proto)
+                .map_err(|e| anyhow::anyhow!("--protocol {p}: {e}"))?;
+            (proto, true)
+        }
+        p => anyhow::bail!("--protocol: `{p}` (raise-and-lower, raise, or a protocol file)"),
     };
-    protocol.sample_hz = a.fs;
+    if !stated {
+        protocol.sample_hz = a.fs;
+    }
     let mut rec = record(&model, &protocol, &SimOptions::default()).context("lift simulation")?;
     if a.sensor_noise > 0.0 {
         // Its own stream (seed offset), so `--h-noise-mm`'s draws stay those of the same seed.
@@ -249,8 +261,12 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     for h in &mut rec.strip_height_m {
         *h += a.h_noise_mm * 1e-3 * rng.normal();
     }
+    let mut test = json!({"kind": "lift", "rig": {}});
+    if stated {
+        test["protocol"] = serde_json::to_value(&protocol)?;
+    }
     let mut doc = json!({"format": FORMAT, "vehicle_id": a.vehicle, "pantograph": {"model": "160EC", "serial": a.serial},
-        "recorded_at": a.recorded_at, "test": {"kind": "lift", "rig": {}},
+        "recorded_at": a.recorded_at, "test": test,
         "channels": {"t_s": rec.t_s, "H_m": rec.strip_height_m, "T_Nm": rec.torque_nm, "Fs_N": rec.fs_n, "Fm_N": rec.fm_n}});
     if let Some(id) = &a.trace_id {
         doc["trace_id"] = json!(id);

@@ -101,6 +101,33 @@ pub async fn bad_lift_inputs_are_refused_naming_the_sample(b: Backend) {
             edit(&|d| d["channels"]["Fs_N"][7] = json!("NaN")),
             "channels.Fs_N[7]".into(),
         ),
+        // A stated drive protocol outside the stand's limits (issue 15 point 7,
+        // `lift::design::ProtocolLimits::stand`): a pressure step faster than the drive's
+        // response, a dwell height outside the working range, a field that is no protocol's.
+        (
+            edit(&|d| {
+                let mut p = stated_protocol();
+                p["moves"][0]["tau_s"] = json!(0.05);
+                d["test"]["protocol"] = p;
+            }),
+            "test.protocol.moves[0].tau_s".into(),
+        ),
+        (
+            edit(&|d| {
+                let mut p = stated_protocol();
+                p["moves"][0]["height_m"] = json!(2.3);
+                d["test"]["protocol"] = p;
+            }),
+            "test.protocol.moves[0].height_m".into(),
+        ),
+        (
+            edit(&|d| {
+                let mut p = stated_protocol();
+                p["pressure_bar"] = json!(6);
+                d["test"]["protocol"] = p;
+            }),
+            "test.protocol".into(),
+        ),
     ];
     for (body, field) in cases {
         let r = app.upload_json(&body).await;
@@ -138,6 +165,89 @@ pub async fn bad_lift_inputs_are_refused_naming_the_sample(b: Backend) {
     )
     .await;
     assert_eq!(app.counts().await, before, "nothing stored");
+    app.stop().await;
+}
+
+/// The raise and lower as a trace states it (`test.protocol`).
+fn stated_protocol() -> Value {
+    let g = pantowatch_models::lift::geometry::builtin_160ec();
+    let m = pantowatch_models::lift::dynamics::LiftModel::new(g);
+    serde_json::to_value(
+        pantowatch_models::lift::protocol::LiftProtocol::raise_and_lower(&m, g).expect("protocol"),
+    )
+    .expect("json")
+}
+
+/// Issue 15, point 3: a lift run by a designed protocol (`pantowatch design-test`'s moves,
+/// stated in `test.protocol`, realistic sensor noise on every channel) is accepted, fitted and
+/// served; the protocol survives storage and the CSV round trip.
+pub async fn a_designed_lift_is_accepted_and_fitted(b: Backend) {
+    use pantowatch_models::lift::protocol::Move;
+    let app = spawn_app(b).await;
+    let g = pantowatch_models::lift::geometry::builtin_160ec();
+    let m = pantowatch_models::lift::dynamics::LiftModel::new(g);
+    let mut p = pantowatch_models::lift::protocol::LiftProtocol::reference(g);
+    // The moves `design-test` chose on the stand's space (README, "A designed lift test").
+    for (t_s, h) in [(3.5, 1.424), (5.5, 1.216)] {
+        p.moves.push(Move {
+            t_s,
+            torque_nm: pantowatch_models::lift::design::holding_torque_nm(&m, g, &p, h)
+                .expect("torque"),
+            tau_s: 1.0,
+            height_m: Some(h),
+        });
+    }
+    p.t_end_s = 7.5;
+    let file = std::env::temp_dir().join(format!("pw-designed-{}.json", std::process::id()));
+    std::fs::write(&file, serde_json::to_vec(&p).expect("json")).expect("write");
+    let defaults = pantowatch::cli::bench::fits::simulate_defaults().expect("defaults");
+    let doc = pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
+        kind: "lift".into(),
+        protocol: file.display().to_string(),
+        sensor_noise: 1.0,
+        h_noise_mm: 0.0,
+        seed: 11,
+        trace_id: Some("designed-1".into()),
+        ..defaults
+    })
+    .expect("designed lift");
+    let _ = std::fs::remove_file(&file);
+    assert_eq!(doc.test["protocol"]["moves"][1]["height_m"], json!(1.216));
+    let csv = pantowatch::trace_csv::write(&doc);
+    let back = pantowatch::trace::TraceDoc::from_value(
+        &pantowatch::trace_csv::to_value(csv.as_bytes()).expect("csv"),
+    )
+    .expect("csv doc");
+    assert_eq!(back.test["protocol"], doc.test["protocol"]);
+    let r = app
+        .upload_json(&serde_json::to_vec(&doc.to_value()).expect("json"))
+        .await;
+    assert_eq!(r.status(), StatusCode::ACCEPTED);
+    let id: String = r.json::<Value>().await.expect("json")["trace_id"]
+        .as_str()
+        .expect("id")
+        .into();
+    let fit = app.wait_for_fit(&id).await;
+    let j3 = fit["joints"]
+        .as_array()
+        .expect("joints")
+        .iter()
+        .find(|j| {
+            j["joint"]
+                .as_str()
+                .is_some_and(|n| n.split('+').any(|p| p == "J3"))
+                && j["dry"]["ci95"].is_array()
+                && j["identifiable"] == json!(true)
+        })
+        .unwrap_or_else(|| panic!("an informed entry holding J3: {fit}"));
+    let ci = &j3["dry"]["ci95"];
+    let (lo, hi) = (ci[0].as_f64().expect("lo"), ci[1].as_f64().expect("hi"));
+    let truth = if j3["joint"] == json!("J3") {
+        0.20
+    } else {
+        1.0
+    };
+    assert!(lo <= truth && truth <= hi, "{j3}");
     app.stop().await;
 }
 

@@ -48,6 +48,7 @@ suite!(
     lift_trace_is_fitted_with_every_joint,
     bad_lift_inputs_are_refused_naming_the_sample,
     recent_lifts_are_pooled,
+    a_designed_lift_is_accepted_and_fitted,
     keys_created_and_revoked_over_http,
     readiness_and_metrics,
     alert_lifecycle_over_http,

@@ -60,8 +60,8 @@ fn set_torque_is_continuous_through_every_move() {
 }
 
 /// Issue 15, point 3: the designed protocol's predicted standard deviations against those its
-/// fits realise. 12 lifts of the designed protocol at Table 4 with the stand's realistic sensor
-/// noise on every channel (H 0.5 mm, T 1 N·m, Fs/Fm 0.2 N, logger steps; seeds 7000–7011),
+/// fits realise. 16 lifts of the designed protocol at Table 4 with the stand's realistic sensor
+/// noise on every channel (H 0.5 mm, T 1 N·m, Fs/Fm 0.2 N, logger steps; seeds 7000–7015),
 /// each fitted as the service fits a lift; the sample sd of each estimate the design says is
 /// informed is within a factor 1.5 of the predicted spread (`Prediction::sd_sampling`).
 /// Measured (`examples/lift_design -- 16`): J3 dry 0.047 vs 0.039, J5 dry 0.235 vs 0.291,
@@ -95,7 +95,7 @@ fn designed_protocol_realises_its_predicted_spread() {
     let j3 = LiftParam::named("J3", "dry").unwrap();
     assert!(b.sd_of(j3).unwrap() < a.sd_of(j3).unwrap());
     let clean = record(&m, &d.protocol, &SimOptions::default()).unwrap();
-    let fits: Vec<_> = (0..12u64)
+    let fits: Vec<_> = (0..16u64)
         .map(|seed| {
             let rec = noise.apply(&clean, 7000 + seed);
             fit_map(
