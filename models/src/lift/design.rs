@@ -218,17 +218,21 @@ fn stand_infos(noise: &LiftSensorNoise, sample_hz: f64) -> InputReconstruction {
     }
 }
 
+/// The fit's prior sd of parameter `i` of `p` (friction first, the offset last).
+fn prior_sd(i: usize, p: usize, opts: &LiftFitOptions) -> f64 {
+    if i + 1 < p {
+        opts.prior_relative_sd
+    } else {
+        opts.offset_prior_sd_nm
+    }
+}
+
 /// Posterior information (F + P⁻¹) and its log det, with the fit's prior.
 fn posterior_info(fisher: &DMatrix<f64>, opts: &LiftFitOptions) -> (DMatrix<f64>, f64) {
     let p = fisher.nrows();
     let mut post = fisher.clone();
     for i in 0..p {
-        let sd = if i + 1 < p {
-            opts.prior_relative_sd
-        } else {
-            opts.offset_prior_sd_nm
-        };
-        post[(i, i)] += 1.0 / (sd * sd);
+        post[(i, i)] += prior_sd(i, p, opts).powi(-2);
     }
     let log_det = match post.clone().cholesky() {
         Some(c) => 2.0 * c.l().diagonal().iter().map(|d| d.ln()).sum::<f64>(),
@@ -301,14 +305,7 @@ pub fn predict(
     };
     let sd = sd_of(&cov);
     let informed = (0..p)
-        .map(|i| {
-            let prior = if i + 1 < p {
-                opts.prior_relative_sd
-            } else {
-                opts.offset_prior_sd_nm
-            };
-            sd[i] < prior / opts.informed_factor
-        })
+        .map(|i| sd[i] < prior_sd(i, p, opts) / opts.informed_factor)
         .collect();
     Ok(Prediction {
         params,
