@@ -22,6 +22,21 @@ fn main() {
     let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
     let drifts = pantowatch_models::lift::input_noise::COVERAGE_DRIFTS;
     let (mut n, mut hit, mut false_flags) = (0, 0, 0);
+    // z = ln(estimate / truth) / relative sd: sd(z) ≈ 1 when the intervals are calibrated.
+    let mut zs: Vec<f64> = Vec::new();
+    let mut opts = LiftFitOptions::default();
+    if let Some(d) = std::env::var("PW_DRAWS").ok().and_then(|s| s.parse().ok()) {
+        opts.input_noise_draws = d;
+    }
+    if let Ok(r) = std::env::var("PW_ROBUST") {
+        opts.robust_covariance = r == "1";
+    }
+    if let Some(s) = std::env::var("PW_SIGMA_H_M")
+        .ok()
+        .and_then(|s| s.parse().ok())
+    {
+        opts.h_noise_m = s;
+    }
     for seed in 0..seeds {
         for d in &drifts {
             let mut m = base.clone();
@@ -43,7 +58,7 @@ fn main() {
                     inputs: rec.inputs(),
                     strip_height_m: &rec.strip_height_m,
                 }],
-                &LiftFitOptions::default(),
+                &opts,
             );
             let Ok(fit) = fit else {
                 println!("{d:?} seed {seed}: fit failed {:?}", fit.err());
@@ -57,6 +72,7 @@ fn main() {
                     truth_of(e.param)
                 };
                 n += 1;
+                zs.push((e.value / truth).ln() / (e.posterior_sd / e.value));
                 if e.ci95[0] <= truth && truth <= e.ci95[1] {
                     hit += 1;
                 } else {
@@ -72,9 +88,19 @@ fn main() {
                 }
             }
             let relative = |p: LiftParam| p.get(&m, 0.0) / p.get(&base, 0.0);
+            // A flagged combination without the drifted parameter is a false flag too.
+            false_flags += fit
+                .combinations
+                .iter()
+                .filter(|c| {
+                    matches!(c.status, Status::Watch | Status::Alarm)
+                        && drifted.is_none_or(|p| !c.params.contains(&p))
+                })
+                .count();
             for c in fit.combinations.iter().filter(|c| c.informed) {
                 let truth = c.level_of(relative);
                 n += 1;
+                zs.push((c.value / truth).ln() / (c.posterior_sd / c.value));
                 if c.ci95[0] <= truth && truth <= c.ci95[1] {
                     hit += 1;
                 } else {
@@ -125,6 +151,8 @@ fn main() {
             );
         }
     }
+    let rms_z = (zs.iter().map(|z| z * z).sum::<f64>() / zs.len().max(1) as f64).sqrt();
+    println!("RMS z over the reported entries {rms_z:.3} (1 = calibrated; < 1 = too wide)");
     println!(
         "coverage {hit}/{n} = {:.1} %, flags on undrifted joints {false_flags}",
         100.0 * hit as f64 / n.max(1) as f64

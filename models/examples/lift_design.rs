@@ -23,8 +23,24 @@ fn main() {
         eprintln!("{:?} dwell {} logdet {:.2}", s.chosen, s.dwell_s, s.log_det);
     }
     let rl = LiftProtocol::raise_and_lower(&m, g).unwrap();
-    let a = predict(&m, &rl, &noise, &opts, 12).unwrap();
-    let b = predict(&m, &d.protocol, &noise, &opts, 12).unwrap();
+    let a = predict(
+        &m,
+        &rl,
+        &noise,
+        &opts,
+        pantowatch_models::lift::design::INPUT_DRAWS,
+    )
+    .unwrap();
+    let a0 = predict(&m, &rl, &noise, &opts, 0).unwrap();
+    let b = predict(
+        &m,
+        &d.protocol,
+        &noise,
+        &opts,
+        pantowatch_models::lift::design::INPUT_DRAWS,
+    )
+    .unwrap();
+    let b0 = predict(&m, &d.protocol, &noise, &opts, 0).unwrap();
     eprintln!("logdet {:.2} vs {:.2}", a.log_det, b.log_det);
     for pr in [&a, &b] {
         let mut post = pr.fisher.clone();
@@ -54,7 +70,10 @@ fn main() {
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(0);
-    for (name, proto, pred) in [("designed", &d.protocol, &b), ("raise-and-lower", &rl, &a)] {
+    for (name, proto, pred, pred0) in [
+        ("designed", &d.protocol, &b, &b0),
+        ("raise-and-lower", &rl, &a, &a0),
+    ] {
         if seeds == 0 {
             break;
         }
@@ -63,7 +82,21 @@ fn main() {
         let mut est: Vec<Vec<f64>> = Vec::new();
         let mut times = Vec::new();
         for seed in 0..seeds {
-            let rec = noise.apply(&clean, 7000 + seed);
+            // PW_APPLY=inputs: the stand's noise on the inputs only; =h: on H only.
+            let applied = match std::env::var("PW_APPLY").as_deref() {
+                Ok("inputs") => LiftSensorNoise {
+                    h_sd_m: 0.0,
+                    ..noise
+                },
+                Ok("h") => LiftSensorNoise {
+                    torque_sd_nm: 0.0,
+                    fs_sd_n: 0.0,
+                    fm_sd_n: 0.0,
+                    ..noise
+                },
+                _ => noise,
+            };
+            let rec = applied.apply(&clean, 7000 + seed);
             let t0 = std::time::Instant::now();
             let fit = pantowatch_models::lift::identify::fit_map(
                 &m,
@@ -97,11 +130,12 @@ fn main() {
             let sd =
                 (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (xs.len() - 1) as f64).sqrt();
             eprintln!(
-                "{:>4} {:>8} predicted {:.3} sampling {:.3} realised {:.3} (mean {:.3}) ratio {:.2} {}",
+                "{:>4} {:>8} predicted {:.3} sampling {:.3} (H alone {:.3}) realised {:.3} (mean {:.3}) ratio {:.2} {}",
                 p.joint(),
                 p.kind(),
                 pred.sd[i],
                 pred.sd_sampling[i],
+                pred0.sd_sampling[i],
                 sd,
                 mean,
                 sd / pred.sd_sampling[i],

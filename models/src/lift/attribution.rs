@@ -192,7 +192,9 @@ pub fn attribute(
             let rel = post_sd / level;
             [level * (-1.96 * rel).exp(), level * (1.96 * rel).exp()]
         } else {
-            [level - 1.96 * post_sd, level + 1.96 * post_sd]
+            // Every member at the zero bound: a level is never negative, so the interval
+            // starts at 0 (it is not informed: `level > 0` fails above).
+            [0.0, level.max(0.0) + 1.96 * post_sd]
         };
         let status = if informed {
             thresholds.judge(ci95, level, Some(1.0)).status
