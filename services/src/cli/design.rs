@@ -86,7 +86,7 @@ pub fn run(a: &DesignArgs) -> anyhow::Result<()> {
         );
     }
     let rl = LiftProtocol::raise_and_lower(&model, g)?;
-    let draws = opts.input_noise_draws;
+    let draws = pantowatch_models::lift::design::INPUT_DRAWS;
     let a_pred = predict(&model, &rl, &noise, &opts, draws)?;
     let b_pred = predict(&model, &d.protocol, &noise, &opts, draws)?;
     print_table(a, &a_pred, &b_pred);
