@@ -85,6 +85,14 @@ pub struct ResidualResult {
     /// With `unexplained`: the signals the residual correlates with most (name, correlation).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub correlates_with: Vec<(String, f64)>,
+    /// Residual RMS over the sensor noise estimated from its first differences (lift fits,
+    /// issue 16); absent where not computed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub excess_ratio: Option<f64>,
+    /// Set when the fit's joint statuses are withheld (reported `unknown`, not identified, no
+    /// alert) because the residual shows a model error: the reason, in words.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joints_withheld: Option<String>,
 }
 
 /// How the fit was made: the release, the fitted start and sensor zero, the optimiser's end.

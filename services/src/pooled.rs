@@ -5,7 +5,9 @@
 //! [`MAX_LIFTS`] — a month of monthly lifts is three tests; J2/J2'/J5 become informed only over
 //! several. The pooled result is a contract fit result with a `pooled` block naming the tests,
 //! written with the model version [`pooled_version`] (so once per set of tests), and it feeds
-//! health and alerts like any fit. No physics here: `models::lift::report` fits.
+//! health and alerts like any fit. A lift whose own fit withheld its joints (issue 16: the
+//! residual showed a model error) neither pools nor is pooled. No physics here:
+//! `models::lift::report` fits.
 
 use chrono::TimeDelta;
 
@@ -53,6 +55,16 @@ pub async fn after_lift(
         .map(|p| p.trace_id)
         .collect();
     ids.dedup();
+    // A lift whose own fit withheld its joints (the model missed something: a sensor fault, an
+    // unmodelled effect) is not pooled, nor pools others: its error would spread to the pool.
+    let withheld = |f: &crate::store::FitRecord| {
+        f.result
+            .pointer("/residual/joints_withheld")
+            .is_some_and(|w| !w.is_null())
+    };
+    if store.get_fit(trace_id).await?.is_some_and(|f| withheld(&f)) {
+        return Ok(None);
+    }
     let mut lifts = Vec::new();
     for id in ids.iter().rev() {
         if lifts.len() == MAX_LIFTS {
@@ -64,6 +76,9 @@ pub async fn after_lift(
                 .iter()
                 .any(|(l, _): &(crate::store::TraceMeta, _)| l.trace_id == m.trace_id)
         {
+            if store.get_fit(id).await?.is_some_and(|f| withheld(&f)) {
+                continue;
+            }
             let Some(channels) = store.get_samples(id).await? else {
                 continue;
             };

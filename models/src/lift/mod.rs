@@ -14,6 +14,7 @@
 //! - [`sensitivity`] — ∂H/∂θ along a simulated lift (friction of every joint, torque offset).
 //! - [`readout`] — H and its partials tabulated over α (geometry only), read at every sample.
 //! - [`report`] — a lift fit as the contract's fit result (every joint J1…J9).
+//! - [`residual`] — what a fit leaves in H against the noise; when joint statuses are withheld.
 //! - [`inputs`] — measured inputs reconstructed before a fit: noise per channel, smoothing, steps.
 //! - [`input_noise`] — the inputs' sensor noise propagated into a lift fit's intervals.
 //! - [`attribution`] — which friction parameters a fit tells apart; combinations of the rest.
@@ -34,6 +35,7 @@ pub mod kinematics;
 pub mod protocol;
 pub mod readout;
 pub mod report;
+pub mod residual;
 pub mod sensitivity;
 pub mod sensors;
 pub mod simulate;

@@ -189,6 +189,8 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
             holdout_rmse_after: rmse,
             verdict: None,
             correlates_with: Vec::new(),
+            excess_ratio: None,
+            joints_withheld: None,
         },
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),

@@ -393,6 +393,8 @@ pub fn analyse(
         } else {
             Vec::new()
         },
+        excess_ratio: None,
+        joints_withheld: None,
     };
     Ok(Finding {
         residual,

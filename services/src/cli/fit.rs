@@ -158,6 +158,9 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
         r.residual.holdout_rmse_after,
         r.rmse.unit
     );
+    if let Some(w) = &r.residual.joints_withheld {
+        s += &format!("joint statuses withheld: {w}\n");
+    }
     s
 }
 

@@ -690,8 +690,40 @@ fn residual_finding(result: &serde_json::Value) -> String {
     } else {
         "no structure left that an effect would explain".to_owned()
     };
+    let correlates: Vec<String> = r
+        .get("correlates_with")
+        .and_then(|v| v.as_array())
+        .into_iter()
+        .flatten()
+        .filter_map(|p| {
+            let name = p.get(0)?.as_str()?;
+            let c = p.get(1)?.as_f64()?;
+            Some(format!("{} ({c:+.2})", esc(name)))
+        })
+        .collect();
+    let follows = if correlates.is_empty() {
+        String::new()
+    } else {
+        format!(" The residual follows {}.", correlates.join(", "))
+    };
+    let excess = r
+        .get("excess_ratio")
+        .and_then(|v| v.as_f64())
+        .map_or(String::new(), |x| {
+            format!(" Residual RMS {} × the sensor noise.", fmt_num(x))
+        });
+    // A lift whose residual shows a model error (issue 16): the joints above are withheld.
+    let withheld = r
+        .get("joints_withheld")
+        .and_then(|v| v.as_str())
+        .map_or(String::new(), |w| {
+            format!(
+                r#"<p id="withheld" class="alarm"><b>Joint statuses withheld:</b> {}.</p>"#,
+                esc(w)
+            )
+        });
     format!(
-        r#"<h2>Residual finding</h2><p id="finding">{finding}. RMSE before {} / after {}; held-out {} / {}.</p>"#,
+        r#"<h2>Residual finding</h2><p id="finding">{finding}. RMSE before {} / after {}; held-out {} / {}.{excess}{follows}</p>{withheld}"#,
         num("rmse_before"),
         num("rmse_after"),
         num("holdout_rmse_before"),

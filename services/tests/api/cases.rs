@@ -18,8 +18,9 @@ pub use crate::corpus::{
 };
 use crate::harness::*;
 pub use crate::lift::{
-    a_designed_lift_is_accepted_and_fitted, bad_lift_inputs_are_refused_naming_the_sample,
-    lift_trace_is_fitted_with_every_joint, recent_lifts_are_pooled,
+    a_designed_lift_is_accepted_and_fitted, a_model_error_raises_no_wear_alarm,
+    bad_lift_inputs_are_refused_naming_the_sample, lift_trace_is_fitted_with_every_joint,
+    recent_lifts_are_pooled,
 };
 
 const J3_DRY: &str = "J3_dry_x1.8.json";

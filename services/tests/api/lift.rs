@@ -327,9 +327,79 @@ pub async fn recent_lifts_are_pooled(b: Backend) {
         .iter()
         .find(|j| j["joint"] == "J1+J3")
         .unwrap();
-    assert_eq!(j3["dry"]["identifiable"], true, "{j3}");
+    assert_eq!(
+        j3["dry"]["identifiable"], true,
+        "{j3} {}",
+        pooled["residual"]
+    );
     // Written once: the next poll finds the same fit.
     let (_, again) = app.get_json("/v1/traces/pool-mar/fit").await;
     assert_eq!(again["fit_id"], pooled["fit_id"]);
+    app.stop().await;
+}
+
+/// Issue 16, point 4, over HTTP: a lift of an unworn pantograph with realistic sensor noise whose
+/// H channel lags the inputs by 30 ms (an undeclared sensor delay). Without the gate the fit
+/// flagged joints that had not drifted. Now the fit result says `unexplained`, gives the reason
+/// its joints are withheld and what the residual follows, reports every joint not identified
+/// and `unknown`; no alert is opened and fleet health shows nothing drifted.
+pub async fn a_model_error_raises_no_wear_alarm(b: Backend) {
+    let app = spawn_app(b).await;
+    let defaults = pantowatch::cli::bench::fits::simulate_defaults().expect("defaults");
+    let doc = pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
+        kind: "lift".into(),
+        protocol: "raise-and-lower".into(),
+        sensor_noise: 1.0,
+        h_noise_mm: 0.0,
+        seed: 23,
+        vehicle: "EN57-DELAY".into(),
+        serial: "160EC-DELAY".into(),
+        trace_id: Some("delayed-h".into()),
+        ..defaults
+    })
+    .expect("lift");
+    let mut v = doc.to_value();
+    let h: Vec<f64> = v["channels"]["H_m"]
+        .as_array()
+        .expect("H_m")
+        .iter()
+        .map(|x| x.as_f64().expect("number"))
+        .collect();
+    // 30 ms at 500 Hz: 15 samples.
+    let delayed: Vec<f64> = (0..h.len()).map(|i| h[i.saturating_sub(15)]).collect();
+    v["channels"]["H_m"] = json!(delayed);
+    let r = app.upload_json(&serde_json::to_vec(&v).unwrap()).await;
+    assert_eq!(r.status(), StatusCode::ACCEPTED);
+    let fit = app.wait_for_fit("delayed-h").await;
+    let res = &fit["residual"];
+    assert_eq!(res["verdict"], "unexplained", "{res}");
+    assert!(
+        res["joints_withheld"]
+            .as_str()
+            .is_some_and(|w| w.contains("sensor noise")),
+        "{res}"
+    );
+    assert!(res["excess_ratio"].as_f64().unwrap() > 3.0, "{res}");
+    assert!(!res["correlates_with"].as_array().unwrap().is_empty());
+    for j in fit["joints"].as_array().expect("joints") {
+        assert_eq!(j["status"], "unknown", "{j}");
+        assert_eq!(j["identifiable"], false, "{j}");
+    }
+    let (s, alerts) = app.get_json("/v1/alerts?vehicle=EN57-DELAY").await;
+    assert_eq!(s, StatusCode::OK, "{alerts}");
+    let open = alerts
+        .get("alerts")
+        .or_else(|| alerts.get("rows"))
+        .and_then(|a| a.as_array())
+        .map_or(0, |a| a.len());
+    assert_eq!(open, 0, "{alerts}");
+    let (s, h) = app.get_json("/v1/fleet/health?vehicle=EN57-DELAY").await;
+    assert_eq!(s, StatusCode::OK, "{h}");
+    for row in h["rows"].as_array().unwrap() {
+        assert!(
+            !matches!(row["worst_status"].as_str(), Some("watch" | "alarm")),
+            "{row}"
+        );
+    }
     app.stop().await;
 }

@@ -49,6 +49,7 @@ suite!(
     bad_lift_inputs_are_refused_naming_the_sample,
     recent_lifts_are_pooled,
     a_designed_lift_is_accepted_and_fitted,
+    a_model_error_raises_no_wear_alarm,
     keys_created_and_revoked_over_http,
     readiness_and_metrics,
     alert_lifecycle_over_http,
