@@ -14,6 +14,7 @@
 //! - [`sensitivity`] — ∂H/∂θ along a simulated lift (friction of every joint, torque offset).
 //! - [`readout`] — H and its partials tabulated over α (geometry only), read at every sample.
 //! - [`report`] — a lift fit as the contract's fit result (every joint J1…J9).
+//! - [`effects`] — effects a lift fit can name on a model error (`sensor_delay`).
 //! - [`residual`] — what a fit leaves in H against the noise; when joint statuses are withheld.
 //! - [`inputs`] — measured inputs reconstructed before a fit: noise per channel, smoothing, steps.
 //! - [`input_noise`] — the inputs' sensor noise propagated into a lift fit's intervals.
@@ -26,6 +27,7 @@ pub mod attribution;
 pub mod batch;
 pub mod design;
 pub mod dynamics;
+pub mod effects;
 pub mod geometry;
 pub mod identify;
 pub mod input_noise;

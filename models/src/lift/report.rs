@@ -95,9 +95,50 @@ pub fn fit_lift_trace(
     let fit = fit_map(model, &[trace], &opts)?;
     let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
     let result = fit_result(model, &fit, &trace, &fitted_height_m, &opts, trace_id);
+    if result.residual.joints_withheld.is_none() {
+        return Ok(LiftReport {
+            result,
+            fit,
+            fitted_height_m,
+        });
+    }
+    // A model error: try the vocabulary (`lift::effects`); what it cannot name stays withheld.
+    let Some(found) = super::effects::try_sensor_delay(model, &trace, &fit, &opts)? else {
+        return Ok(LiftReport {
+            result,
+            fit,
+            fitted_height_m,
+        });
+    };
+    let shifted = LiftTrace {
+        inputs,
+        strip_height_m: &found.shifted_height_m,
+    };
+    let refitted = found
+        .fit
+        .fitted_height_m
+        .first()
+        .cloned()
+        .unwrap_or_default();
+    let mut named = fit_result(model, &found.fit, &shifted, &refitted, &opts, trace_id);
+    // Joints come from the augmented fit; the residual block tells before and after.
+    let (before, after) = (result.rmse.value, named.rmse.value);
+    let mut params = serde_json::Map::new();
+    params.insert("delay_s".into(), serde_json::json!(found.delay_s));
+    params.insert("delay_s_ci95".into(), serde_json::json!(found.delay_ci95_s));
+    named.residual.effects = vec![crate::report::EffectResult {
+        name: "sensor_delay".into(),
+        params,
+    }];
+    named.residual.rmse_before = before;
+    named.residual.rmse_after = after;
+    named.residual.holdout_rmse_before = before;
+    named.residual.holdout_rmse_after = after;
+    // The model's H as the logger would have recorded it (delayed), against the measured H.
+    let fitted_height_m = super::effects::advance(channels.t_s, &refitted, -found.delay_s);
     Ok(LiftReport {
-        result,
-        fit,
+        result: named,
+        fit: found.fit,
         fitted_height_m,
     })
 }

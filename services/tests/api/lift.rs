@@ -338,11 +338,11 @@ pub async fn recent_lifts_are_pooled(b: Backend) {
     app.stop().await;
 }
 
-/// Issue 16, point 4, over HTTP: a lift of an unworn pantograph with realistic sensor noise whose
-/// H channel lags the inputs by 30 ms (an undeclared sensor delay). Without the gate the fit
-/// flagged joints that had not drifted. Now the fit result says `unexplained`, gives the reason
-/// its joints are withheld and what the residual follows, reports every joint not identified
-/// and `unknown`; no alert is opened and fleet health shows nothing drifted.
+/// Issue 16, points 3–4, over HTTP: a lift of an unworn pantograph with realistic sensor noise
+/// whose H channel reads 5 % high (a mis-scaled sensor: outside the lift vocabulary). The fit
+/// result says `unexplained` with no effect named, gives the reason its joints are withheld and
+/// what the residual follows, reports every joint not identified and `unknown`; no alert is
+/// opened and fleet health shows nothing drifted.
 pub async fn a_model_error_raises_no_wear_alarm(b: Backend) {
     let app = spawn_app(b).await;
     let defaults = pantowatch::cli::bench::fits::simulate_defaults().expect("defaults");
@@ -352,9 +352,9 @@ pub async fn a_model_error_raises_no_wear_alarm(b: Backend) {
         sensor_noise: 1.0,
         h_noise_mm: 0.0,
         seed: 23,
-        vehicle: "EN57-DELAY".into(),
-        serial: "160EC-DELAY".into(),
-        trace_id: Some("delayed-h".into()),
+        vehicle: "EN57-GAIN".into(),
+        serial: "160EC-GAIN".into(),
+        trace_id: Some("gain-h".into()),
         ..defaults
     })
     .expect("lift");
@@ -365,14 +365,14 @@ pub async fn a_model_error_raises_no_wear_alarm(b: Backend) {
         .iter()
         .map(|x| x.as_f64().expect("number"))
         .collect();
-    // 30 ms at 500 Hz: 15 samples.
-    let delayed: Vec<f64> = (0..h.len()).map(|i| h[i.saturating_sub(15)]).collect();
-    v["channels"]["H_m"] = json!(delayed);
+    let scaled: Vec<f64> = h.iter().map(|x| x * 1.05).collect();
+    v["channels"]["H_m"] = json!(scaled);
     let r = app.upload_json(&serde_json::to_vec(&v).unwrap()).await;
     assert_eq!(r.status(), StatusCode::ACCEPTED);
-    let fit = app.wait_for_fit("delayed-h").await;
+    let fit = app.wait_for_fit("gain-h").await;
     let res = &fit["residual"];
     assert_eq!(res["verdict"], "unexplained", "{res}");
+    assert_eq!(res["effects"], json!([]), "{res}");
     assert!(
         res["joints_withheld"]
             .as_str()
@@ -385,7 +385,7 @@ pub async fn a_model_error_raises_no_wear_alarm(b: Backend) {
         assert_eq!(j["status"], "unknown", "{j}");
         assert_eq!(j["identifiable"], false, "{j}");
     }
-    let (s, alerts) = app.get_json("/v1/alerts?vehicle=EN57-DELAY").await;
+    let (s, alerts) = app.get_json("/v1/alerts?vehicle=EN57-GAIN").await;
     assert_eq!(s, StatusCode::OK, "{alerts}");
     let open = alerts
         .get("alerts")
@@ -393,7 +393,7 @@ pub async fn a_model_error_raises_no_wear_alarm(b: Backend) {
         .and_then(|a| a.as_array())
         .map_or(0, |a| a.len());
     assert_eq!(open, 0, "{alerts}");
-    let (s, h) = app.get_json("/v1/fleet/health?vehicle=EN57-DELAY").await;
+    let (s, h) = app.get_json("/v1/fleet/health?vehicle=EN57-GAIN").await;
     assert_eq!(s, StatusCode::OK, "{h}");
     for row in h["rows"].as_array().unwrap() {
         assert!(
