@@ -15,6 +15,7 @@
 
 use super::dynamics::LiftModel;
 use super::identify::{LiftFit, LiftFitError, LiftFitOptions, LiftTrace, fit_map};
+use super::residual::speed;
 
 /// Longest delay tried, s: a logger's H lag is tens of ms; 0.2 s is a slow filter, not a lag.
 pub const MAX_DELAY_S: f64 = 0.2;
@@ -61,18 +62,6 @@ pub fn advance(t_s: &[f64], h: &[f64], tau_s: f64) -> Vec<f64> {
         }
     }
     out
-}
-
-/// Speed of `h` over `t_s` by central differences (one-sided at the ends), m/s.
-pub fn speed(t_s: &[f64], h: &[f64]) -> Vec<f64> {
-    let n = t_s.len().min(h.len());
-    (0..n)
-        .map(|k| {
-            let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
-            let dt = t_s[b] - t_s[a];
-            if dt > 0.0 { (h[b] - h[a]) / dt } else { 0.0 }
-        })
-        .collect()
 }
 
 /// Tries the `sensor_delay` effect on a trace whose base fit `base` left a model error.

@@ -20,7 +20,7 @@
 //!   as the gate: the inputs' smoothed noise makes it fail on every correct lift (Q 34–3,800
 //!   against χ²₂₀(0.001) = 45.3).
 
-use crate::residual::{ljung_box, noise_sigma};
+use crate::residual::{corr, ljung_box, noise_sigma};
 
 /// Residual RMS over the noise above which the model is missing something a friction refit has
 /// absorbed: 3 — about 2× the largest seen on correct lifts (1.60 against σ̂), under a third of
@@ -83,19 +83,9 @@ pub fn diagnose(
     } else {
         f64::NAN
     };
-    // The strip's speed from the fitted height (central differences): a delay shows as a
-    // residual ∝ speed, an offset as one ∝ 1, a missing force as one ∝ the height or torque.
-    let speed: Vec<f64> = (0..fitted_height_m.len())
-        .map(|k| {
-            let (a, b) = (k.saturating_sub(1), (k + 1).min(fitted_height_m.len() - 1));
-            let dt = t_s.get(b).zip(t_s.get(a)).map_or(0.0, |(tb, ta)| tb - ta);
-            if dt > 0.0 {
-                (fitted_height_m[b] - fitted_height_m[a]) / dt
-            } else {
-                0.0
-            }
-        })
-        .collect();
+    // The strip's speed: a delay shows as a residual ∝ speed, an offset as one ∝ 1, a missing
+    // force as one ∝ the height or torque.
+    let speed = speed(t_s, fitted_height_m);
     let mut correlates_with: Vec<(String, f64)> = [
         ("strip speed", speed.as_slice()),
         ("strip height", fitted_height_m),
@@ -104,8 +94,9 @@ pub fn diagnose(
     ]
     .into_iter()
     .filter(|(_, s)| s.len() == n)
-    .map(|(name, s)| (name.to_string(), correlation(residual_m, s)))
-    .filter(|(_, c)| c.is_finite())
+    .map(|(name, s)| (name.to_string(), corr(residual_m, s)))
+    // `corr` is 0 against a constant signal: nothing to report.
+    .filter(|(_, c)| c.is_finite() && *c != 0.0)
     .collect();
     correlates_with.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
     LiftResidual {
@@ -120,24 +111,16 @@ pub fn diagnose(
     }
 }
 
-/// Pearson correlation (NaN when either side is constant or empty).
-fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len());
-    if n < 2 {
-        return f64::NAN;
-    }
-    let (ma, mb) = (
-        a[..n].iter().sum::<f64>() / n as f64,
-        b[..n].iter().sum::<f64>() / n as f64,
-    );
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for k in 0..n {
-        let (x, y) = (a[k] - ma, b[k] - mb);
-        sab += x * y;
-        saa += x * x;
-        sbb += y * y;
-    }
-    sab / (saa * sbb).sqrt()
+/// Speed of `h` over `t_s` by central differences (one-sided at the ends), m/s.
+pub fn speed(t_s: &[f64], h: &[f64]) -> Vec<f64> {
+    let n = t_s.len().min(h.len());
+    (0..n)
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
+            let dt = t_s[b] - t_s[a];
+            if dt > 0.0 { (h[b] - h[a]) / dt } else { 0.0 }
+        })
+        .collect()
 }
 
 /// Lag-1 autocorrelation of a residual (NaN when it is empty or constant).

@@ -45,7 +45,8 @@ pub fn chi2_critical_001(k: usize) -> f64 {
     k * (1.0 - 2.0 / (9.0 * k) + z * (2.0 / (9.0 * k)).sqrt()).powi(3)
 }
 
-fn corr(a: &[f64], b: &[f64]) -> f64 {
+/// Pearson correlation of two equally long signals (0 when either is constant).
+pub fn corr(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len() as f64;
     let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
     let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);

@@ -24,7 +24,9 @@
 mod diagnose;
 mod effects;
 
-pub use diagnose::{Diagnosis, chi2_critical_001, diagnose, is_white, ljung_box, noise_sigma};
+pub use diagnose::{
+    Diagnosis, chi2_critical_001, corr, diagnose, is_white, ljung_box, noise_sigma,
+};
 pub use effects::{Effect, sensor_offset_effect};
 use effects::{Scales, effect_result};
 
