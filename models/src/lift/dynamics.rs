@@ -201,6 +201,13 @@ pub struct LiftModel {
     pub preload_n: f64,
     pub friction: FrictionParams,
     pub sign_law: SignLaw,
+    /// `quadratic_drag` (issue 16, a lift effect; 0 in the paper's model): c_a = ½ρC_dA of the
+    /// head and upper frame, N/(m/s)². The air's force on the strip is −c_a·v|v| with v the
+    /// strip's vertical velocity, added to the strip load ([`LiftModel::head_drag_n`]).
+    /// Assumptions: still air; the force acts vertically at the strip point (the strip's
+    /// horizontal motion in a lift, a few cm over the whole stroke, is left out); the frame's
+    /// own drag is lumped into the head's c_a.
+    pub head_drag_ns2_per_m2: f64,
     /// Lower-arm range searched for static states (`[range]`), rad.
     pub alpha_range_rad: (f64, f64),
     /// H and its partials tabulated over α (geometry only; shared by the clones a fit makes).
@@ -261,8 +268,21 @@ impl LiftModel {
             preload_n: g.slide.preload_n,
             friction: FrictionParams::baseline(g),
             sign_law: SignLaw::REFERENCE,
+            head_drag_ns2_per_m2: 0.0,
             alpha_range_rad,
         }
+    }
+
+    /// The `quadratic_drag` load on the strip at a state, N: c_a·v|v| with v the strip's vertical
+    /// velocity (∂y/∂α·α̇ + u_y·ḣ), positive pressing down (rising) like the strip load it is
+    /// added to. 0 when the model has no drag.
+    #[inline]
+    pub fn head_drag_n(&self, head: &HeadKin, s: &State) -> f64 {
+        if self.head_drag_ns2_per_m2 == 0.0 {
+            return 0.0;
+        }
+        let v = head.strip_d_alpha.y * s.alpha_dot_rad_s + head.u.y * s.h_dot_m_s;
+        self.head_drag_ns2_per_m2 * v * v.abs()
     }
 
     /// The contact-strip height H at (α, h) with its partials ∂H/∂α (m/rad) and ∂H/∂h (1):

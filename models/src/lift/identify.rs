@@ -36,6 +36,13 @@ pub struct LiftTrace<'a> {
 pub struct LiftFitOptions {
     /// Friction parameters estimated (the rest stay at the model's values).
     pub friction_params: Vec<LiftParam>,
+    /// Lift effects fitted with the friction (issue 16; `lift::effects`), in physical units
+    /// with the prior of [`effect_prior`]; empty (the default): the paper's model.
+    pub effect_params: Vec<LiftParam>,
+    /// Every posterior sd multiplied by this (≥ 1; 1, the default: none). For a fit whose
+    /// intervals are known, from measurements, to be too narrow by a factor: an augmented fit
+    /// (`lift::effects`) whose effect term carries the inputs' noise into every estimate.
+    pub interval_scale: f64,
     /// H measurement noise σ_H, m: the floor of the interval's noise scale. The fit widens it
     /// to the residual RMS when that is larger (κ², [`fit_map_in`]), never narrows it.
     pub h_noise_m: f64,
@@ -74,6 +81,8 @@ impl Default for LiftFitOptions {
                 .into_iter()
                 .filter(|p| *p != LiftParam::TorqueOffset)
                 .collect(),
+            effect_params: Vec::new(),
+            interval_scale: 1.0,
             // The stand's H channel (`lift::sensors::LiftSensorNoise::realistic`, 0.5 mm) × √2,
             // calibrated on the coverage set (`examples/lift_coverage -- 24 [K]`, 288 lifts per
             // noise level, one joint drifted 0.4–3× or none): at 0.5 mm 95.6 % / 93.8 % of the
@@ -180,9 +189,11 @@ pub struct LiftFit {
     pub params: Vec<ParamEstimate>,
     /// Torque-sensor offset of each trace, N·m.
     pub offsets: Vec<ParamEstimate>,
+    /// The lift effects fitted (`LiftFitOptions::effect_params`), in their order.
+    pub effects: Vec<EffectEstimate>,
     /// Every joint J1…J9 (J6: locked, nothing to estimate).
     pub joints: Vec<JointEstimate>,
-    /// Correlations of the posterior (friction parameters, then offsets).
+    /// Correlations of the posterior (friction parameters, offsets, then effects).
     pub posterior_correlation: DMatrix<f64>,
     /// H residual RMS of each trace, m.
     pub rmse_m: Vec<f64>,
@@ -225,6 +236,40 @@ const MAX_STEPS_PER_S: f64 = 1000.0;
 /// Upper bound of a friction coefficient as a multiple of its baseline.
 const MAX_MULTIPLE: f64 = 10.0;
 
+/// The prior of a lift effect's parameter: zero-mean normal with this sd, within these bounds
+/// (physical units). `quadratic_drag` c_a: sd 5 N/(m/s)², in [0, 50]: still air gives
+/// c_a = ½ρC_dA ≈ 0.6·1.2·A, a few N/(m/s)² for a head and upper frame of ~1–3 m² frontal
+/// area (issue 16); the prior only keeps an uninformative lift near 0, and a drag is
+/// dissipative (≥ 0). `None` for a parameter that is not an effect.
+pub fn effect_prior(p: LiftParam) -> Option<EffectPrior> {
+    match p {
+        LiftParam::HeadDrag => Some(EffectPrior {
+            sd: 5.0,
+            lower: 0.0,
+            upper: 50.0,
+        }),
+        _ => None,
+    }
+}
+
+/// Prior of one effect parameter ([`effect_prior`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EffectPrior {
+    pub sd: f64,
+    pub lower: f64,
+    pub upper: f64,
+}
+
+/// One fitted effect parameter, physical units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectEstimate {
+    pub param: LiftParam,
+    pub value: f64,
+    pub posterior_sd: f64,
+    /// value ± 1.96 sd, cut at the prior's bounds.
+    pub ci95: [f64; 2],
+}
+
 /// Friction parameters in scaled units: x = θ/θ₀.
 fn baseline_of(model: &LiftModel, params: &[LiftParam]) -> Result<Vec<f64>, LiftFitError> {
     params
@@ -256,7 +301,10 @@ struct MapProblem<'a, 'w> {
     fric: &'a [LiftParam],
     baseline: &'a [f64],
     opts: &'a LiftFitOptions,
+    /// `fric`, the offset, then the effects: the sensitivity run's parameters.
     with_offset: Vec<LiftParam>,
+    /// Priors of the effects (`opts.effect_params`), in their order.
+    effect_priors: &'a [EffectPrior],
     n_data: usize,
 }
 
@@ -267,19 +315,25 @@ impl MapProblem<'_, '_> {
         for (i, p) in self.fric.iter().enumerate() {
             p.set(&mut m, &mut dummy, x[i] * self.baseline[i]);
         }
+        let e0 = self.fric.len() + self.traces.len();
+        for (i, p) in self.opts.effect_params.iter().enumerate() {
+            p.set(&mut m, &mut dummy, x[e0 + i]);
+        }
         m
     }
 }
 
 impl Problem for MapProblem<'_, '_> {
     fn n_params(&self) -> usize {
-        self.fric.len() + self.traces.len()
+        self.fric.len() + self.traces.len() + self.effect_priors.len()
     }
     fn n_residuals(&self) -> usize {
         self.n_data + self.n_params()
     }
     fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
         let pf = self.fric.len();
+        let ne = self.effect_priors.len();
+        let e0 = pf + self.traces.len();
         let m = self.model_at(x);
         let sigma = self.opts.h_noise_m;
         jac.fill(0.0);
@@ -301,6 +355,9 @@ impl Problem for MapProblem<'_, '_> {
                     jac[(row, i)] = run.d_height[k * p + i] * self.baseline[i] / sigma;
                 }
                 jac[(row, pf + ti)] = run.d_height[k * p + pf] / sigma;
+                for e in 0..ne {
+                    jac[(row, e0 + e)] = run.d_height[k * p + pf + 1 + e] / sigma;
+                }
                 row += 1;
             }
         }
@@ -316,11 +373,17 @@ impl Problem for MapProblem<'_, '_> {
             jac[(row, pf + ti)] = 1.0 / self.opts.offset_prior_sd_nm;
             row += 1;
         }
+        for (e, pr) in self.effect_priors.iter().enumerate() {
+            r[row] = x[e0 + e] / pr.sd;
+            jac[(row, e0 + e)] = 1.0 / pr.sd;
+            row += 1;
+        }
         Ok(())
     }
     fn lower_bounds(&self) -> Vec<f64> {
         let mut v = vec![0.0; self.fric.len()];
         v.extend(std::iter::repeat_n(f64::NEG_INFINITY, self.traces.len()));
+        v.extend(self.effect_priors.iter().map(|p| p.lower));
         v
     }
     /// At most 10× Table 4 (20 prior sd): far beyond any worn joint, and it keeps trial steps
@@ -328,6 +391,7 @@ impl Problem for MapProblem<'_, '_> {
     fn upper_bounds(&self) -> Vec<f64> {
         let mut v = vec![MAX_MULTIPLE; self.fric.len()];
         v.extend(std::iter::repeat_n(f64::INFINITY, self.traces.len()));
+        v.extend(self.effect_priors.iter().map(|p| p.upper));
         v
     }
 }
@@ -557,8 +621,24 @@ pub fn fit_map_in(
     let fric = &opts.friction_params;
     let baseline = baseline_of(model, fric)?;
     let pf = fric.len();
+    let effect_priors = opts
+        .effect_params
+        .iter()
+        .map(|p| {
+            effect_prior(*p).ok_or_else(|| {
+                LiftFitError::Invalid(format!("{}.{} is not a lift effect", p.joint(), p.kind()))
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    if !effect_priors.is_empty() && opts.input_noise_draws > 0 {
+        return Err(LiftFitError::Invalid(
+            "input-noise draws are not propagated through effect parameters".into(),
+        ));
+    }
+    let ne = effect_priors.len();
     let mut with_offset = fric.clone();
     with_offset.push(LiftParam::TorqueOffset);
+    with_offset.extend(opts.effect_params.iter().copied());
     let mut problem = MapProblem {
         ws,
         base: model,
@@ -567,10 +647,18 @@ pub fn fit_map_in(
         baseline: &baseline,
         opts,
         with_offset,
+        effect_priors: &effect_priors,
         n_data,
     };
     let mut x = vec![1.0; pf];
     x.extend(std::iter::repeat_n(0.0, traces.len()));
+    // Effects start at the model's values (0 in the paper's model), within their bounds.
+    x.extend(
+        opts.effect_params
+            .iter()
+            .zip(&effect_priors)
+            .map(|(p, pr)| p.get(model, 0.0).clamp(pr.lower, pr.upper)),
+    );
     // Continuation in the horizon: driven open-loop by the recorded torque, a lift drifts away
     // from the data with the smallest friction error (the net stiffness is nearly zero), so
     // output error over the whole trace is far from quadratic around the baseline (J3 ×1.8
@@ -627,6 +715,7 @@ pub fn fit_map_in(
             opts: problem.opts,
             n_data: ends.iter().sum(),
             with_offset: problem.with_offset.clone(),
+            effect_priors: problem.effect_priors,
         };
         // A stage only has to bring the next one into its quadratic region: a few iterations,
         // stopping once a step would move the parameters by less than one standard error.
@@ -655,7 +744,8 @@ pub fn fit_map_in(
     }
     rep.evaluations += evaluations;
     rep.iterations += iterations;
-    let p = pf + traces.len();
+    let e0 = pf + traces.len();
+    let p = e0 + ne;
     // Noise scale: the stated σ_H, or the residual RMS if the fit is worse than that.
     let ssr: f64 = rep.residuals[..n_data].iter().map(|v| v * v).sum();
     let kappa2 = (ssr / n_data as f64).max(1.0);
@@ -677,14 +767,19 @@ pub fn fit_map_in(
     let prior_sd = |i: usize| {
         if i < pf {
             opts.prior_relative_sd
-        } else {
+        } else if i < e0 {
             opts.offset_prior_sd_nm
+        } else {
+            effect_priors[i - e0].sd
         }
     };
     for i in 0..p {
         post[(i, i)] += 1.0 / prior_sd(i).powi(2);
     }
     let mut cov = inverse_spd(&post);
+    if opts.interval_scale > 1.0 {
+        cov *= opts.interval_scale * opts.interval_scale;
+    }
     // H noise only: the directions the data pin (`lift::attribution`).
     let cov_h = cov.clone();
     if opts.input_noise_draws > 0 {
@@ -791,6 +886,24 @@ pub fn fit_map_in(
     let offsets = (0..traces.len())
         .map(|t| estimate(pf + t, LiftParam::TorqueOffset, 1.0))
         .collect();
+    let effects = opts
+        .effect_params
+        .iter()
+        .zip(&effect_priors)
+        .enumerate()
+        .map(|(e, (param, pr))| {
+            let (value, sd) = (rep.x[e0 + e], cov[(e0 + e, e0 + e)].max(0.0).sqrt());
+            EffectEstimate {
+                param: *param,
+                value,
+                posterior_sd: sd,
+                ci95: [
+                    (value - 1.96 * sd).max(pr.lower),
+                    (value + 1.96 * sd).min(pr.upper),
+                ],
+            }
+        })
+        .collect();
     let mut joints = Vec::new();
     let names = RevJoint::ALL.iter().map(|j| j.name()).chain(["J8", "J9"]);
     for name in names {
@@ -839,6 +952,7 @@ pub fn fit_map_in(
     Ok(LiftFit {
         params,
         offsets,
+        effects,
         joints,
         posterior_correlation: correlation(&cov),
         rmse_m,

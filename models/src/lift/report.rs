@@ -95,7 +95,11 @@ pub fn fit_lift_trace(
     let fit = fit_map(model, &[trace], &opts)?;
     let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
     let result = fit_result(model, &fit, &trace, &fitted_height_m, &opts, trace_id);
-    if result.residual.joints_withheld.is_none() {
+    let try_effects = result
+        .residual
+        .excess_ratio
+        .is_some_and(|r| r > super::residual::EFFECT_TRY_RATIO);
+    if !try_effects {
         return Ok(LiftReport {
             result,
             fit,
@@ -103,6 +107,32 @@ pub fn fit_lift_trace(
         });
     }
     // A model error: try the vocabulary (`lift::effects`); what it cannot name stays withheld.
+    // `quadratic_drag` first (one fit), then `sensor_delay` (a profile of 8–15 refits).
+    let before = result.rmse.value;
+    if let Some(found) = super::effects::try_quadratic_drag(model, &trace, &fit, &opts)? {
+        let refitted = found
+            .fit
+            .fitted_height_m
+            .first()
+            .cloned()
+            .unwrap_or_default();
+        let mut named = fit_result(model, &found.fit, &trace, &refitted, &opts, trace_id);
+        let mut params = serde_json::Map::new();
+        params.insert(
+            "c_a_ns2_per_m2".into(),
+            serde_json::json!(found.c_a_ns2_per_m2),
+        );
+        params.insert(
+            "c_a_ns2_per_m2_ci95".into(),
+            serde_json::json!(found.c_a_ci95),
+        );
+        name_effect(&mut named, "quadratic_drag", params, before);
+        return Ok(LiftReport {
+            result: named,
+            fit: found.fit,
+            fitted_height_m: refitted,
+        });
+    }
     let Some(found) = super::effects::try_sensor_delay(model, &trace, &fit, &opts)? else {
         return Ok(LiftReport {
             result,
@@ -121,19 +151,10 @@ pub fn fit_lift_trace(
         .cloned()
         .unwrap_or_default();
     let mut named = fit_result(model, &found.fit, &shifted, &refitted, &opts, trace_id);
-    // Joints come from the augmented fit; the residual block tells before and after.
-    let (before, after) = (result.rmse.value, named.rmse.value);
     let mut params = serde_json::Map::new();
     params.insert("delay_s".into(), serde_json::json!(found.delay_s));
     params.insert("delay_s_ci95".into(), serde_json::json!(found.delay_ci95_s));
-    named.residual.effects = vec![crate::report::EffectResult {
-        name: "sensor_delay".into(),
-        params,
-    }];
-    named.residual.rmse_before = before;
-    named.residual.rmse_after = after;
-    named.residual.holdout_rmse_before = before;
-    named.residual.holdout_rmse_after = after;
+    name_effect(&mut named, "sensor_delay", params, before);
     // The model's H as the logger would have recorded it (delayed), against the measured H.
     let fitted_height_m = super::effects::advance(channels.t_s, &refitted, -found.delay_s);
     Ok(LiftReport {
@@ -141,6 +162,26 @@ pub fn fit_lift_trace(
         fit: found.fit,
         fitted_height_m,
     })
+}
+
+/// Marks `named` (the augmented fit's result) as explained by one effect: joints come from the
+/// augmented fit; the residual block tells the error before (`rmse_before_m`, the plain fit's)
+/// and after.
+fn name_effect(
+    named: &mut FitResult,
+    name: &str,
+    params: serde_json::Map<String, serde_json::Value>,
+    rmse_before_m: f64,
+) {
+    let after = named.rmse.value;
+    named.residual.effects = vec![crate::report::EffectResult {
+        name: name.into(),
+        params,
+    }];
+    named.residual.rmse_before = rmse_before_m;
+    named.residual.rmse_after = after;
+    named.residual.holdout_rmse_before = rmse_before_m;
+    named.residual.holdout_rmse_after = after;
 }
 
 /// Fit several lift traces of one pantograph together (friction shared, one torque offset per

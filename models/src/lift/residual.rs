@@ -28,6 +28,15 @@ use crate::residual::{corr, ljung_box, noise_sigma};
 /// under it is not detected here.
 pub const MODEL_ERROR_RATIO: f64 = 3.0;
 
+/// Residual RMS over the noise above which the effects of the vocabulary are tried
+/// (`lift::effects`), even where the fit stays trusted: 1.5, over the correct lifts at the
+/// stand's noise (≤ 1.21) and at the top of those at twice it (≤ 1.51). Measured with
+/// `examples/lift_effects_probe`: a head drag of 2–4 N/(m/s)² left some base fits at
+/// 1.2–2.7 (the friction took up most of it); tried from 1.5 they are named. A named effect
+/// needs its refit at ≤ half the base RMS, which a lift at the noise cannot reach, so the lower
+/// trigger costs time on a few correct lifts and cannot name an effect on them.
+pub const EFFECT_TRY_RATIO: f64 = 1.5;
+
 /// Samples averaged per point of the whiteness statistic (500 Hz → 50 Hz).
 const DECIMATE: usize = 10;
 /// Ljung–Box lags.

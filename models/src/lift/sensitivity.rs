@@ -13,6 +13,7 @@ use std::cell::Cell;
 
 use super::dynamics::{DynamicsError, LiftModel, Q_DRIVE, Q_SLIDE, State};
 use super::integrate::{Segmented, integrate};
+use super::kinematics::HeadKin;
 use super::simulate::{LiftInputs, SimError, SimOptions, initial_state};
 use super::topology::{N_REV, RevJoint};
 use crate::ode::{OdeError, Rosw, Tolerances, WSystem};
@@ -32,6 +33,10 @@ pub enum LiftParam {
     J9Damping,
     /// Torque-sensor offset, N·m (recorded = true + offset).
     TorqueOffset,
+    /// `quadratic_drag` on the head, c_a in N/(m/s)² ([`LiftModel::head_drag_n`]): a lift
+    /// effect, not a friction parameter (not in [`LiftParam::all`]; fitted only when a fit's
+    /// `effect_params` name it).
+    HeadDrag,
 }
 
 impl LiftParam {
@@ -69,15 +74,17 @@ impl LiftParam {
             LiftParam::J8Viscous | LiftParam::J8Dry => "J8",
             LiftParam::J9Damping => "J9",
             LiftParam::TorqueOffset => "T",
+            LiftParam::HeadDrag => "head",
         }
     }
 
-    /// `viscous`, `dry` or `offset`.
+    /// `viscous`, `dry`, `offset` or `drag`.
     pub fn kind(self) -> &'static str {
         match self {
             LiftParam::Viscous(_) | LiftParam::J8Viscous | LiftParam::J9Damping => "viscous",
             LiftParam::Dry(_) | LiftParam::J8Dry => "dry",
             LiftParam::TorqueOffset => "offset",
+            LiftParam::HeadDrag => "drag",
         }
     }
 
@@ -90,6 +97,7 @@ impl LiftParam {
             LiftParam::J8Dry => f.j8_dry_mu,
             LiftParam::J9Damping => f.j9_damping_ns_per_m_each,
             LiftParam::TorqueOffset => offset_nm,
+            LiftParam::HeadDrag => model.head_drag_ns2_per_m2,
         }
     }
 
@@ -102,6 +110,7 @@ impl LiftParam {
             LiftParam::J8Dry => f.j8_dry_mu = v,
             LiftParam::J9Damping => f.j9_damping_ns_per_m_each = v,
             LiftParam::TorqueOffset => *offset_nm = v,
+            LiftParam::HeadDrag => model.head_drag_ns2_per_m2 = v,
         }
     }
 }
@@ -163,9 +172,20 @@ impl SensSys<'_> {
             alpha_dot_rad_s: y[2],
             h_dot_m_s: y[3],
         };
-        let loads = self.inputs.loads(t, self.fm_n, self.offset_nm);
+        let mut loads = self.inputs.loads(t, self.fm_n, self.offset_nm);
         let pose = m.linkage.pose(s.alpha_rad)?;
         let head = m.linkage.head(&pose, s.h_m, s.alpha_dot_rad_s, s.h_dot_m_s);
+        // `quadratic_drag` is a load that depends on the state: each perturbed state below
+        // carries its own.
+        let drag = m.head_drag_n(&head, &s);
+        loads.strip_load_n += drag;
+        let loads_at = |hp: &HeadKin, sp: &State| {
+            let mut l = loads;
+            if m.head_drag_ns2_per_m2 != 0.0 {
+                l.strip_load_n += m.head_drag_n(hp, sp) - drag;
+            }
+            l
+        };
         // The fixed point starts from the last evaluation's torques (a nearby state: the
         // previous stage); it converges to the same 10⁻¹⁴ tolerance from any start.
         let guess = self.last_torque.get();
@@ -195,14 +215,14 @@ impl SensSys<'_> {
                 let hp = m
                     .linkage
                     .head(&pp, sp.h_m, sp.alpha_dot_rad_s, sp.h_dot_m_s);
-                m.accelerations_near(&pp, &hp, &sp, &loads, &torque, &phi, None)?
+                m.accelerations_near(&pp, &hp, &sp, &loads_at(&hp, &sp), &torque, &phi, None)?
             } else {
                 let hp = m
                     .linkage
                     .head(&pose, sp.h_m, sp.alpha_dot_rad_s, sp.h_dot_m_s);
                 // h and ḣ leave the revolute joints' rates, so their sign-law values, as they were.
                 let sign = (c != 2).then_some(&e.sign);
-                m.accelerations_near(&pose, &hp, &sp, &loads, &torque, &phi, sign)?
+                m.accelerations_near(&pose, &hp, &sp, &loads_at(&hp, &sp), &torque, &phi, sign)?
             };
             jy[0][c] = (ap[0] - acc[0]) / d;
             jy[1][c] = (ap[1] - acc[1]) / d;
@@ -217,7 +237,42 @@ impl SensSys<'_> {
         }
         let f = &m.friction;
         let hd = s.h_dot_m_s;
+        // ∂acc/∂(strip load) at this state, for `quadratic_drag`: the difference of two
+        // first-order-exact recoveries 1 N apart (the load enters the equations and the
+        // reactions linearly; the normal-force feedback through Φ).
+        let mut per_strip_n = None;
         for (i, p) in self.params.iter().enumerate() {
+            let sv = &y[4 + 4 * i..8 + 4 * i];
+            let o = &mut dy[4 + 4 * i..8 + 4 * i];
+            if *p == LiftParam::HeadDrag {
+                let d = match per_strip_n {
+                    Some(d) => d,
+                    None => {
+                        let mut up = loads;
+                        up.strip_load_n += 1.0;
+                        let sign = Some(&e.sign);
+                        let a1 =
+                            m.accelerations_near(&pose, &head, &s, &up, &torque, &phi, sign)?;
+                        let a0 =
+                            m.accelerations_near(&pose, &head, &s, &loads, &torque, &phi, sign)?;
+                        let d = [a1[0] - a0[0], a1[1] - a0[1]];
+                        per_strip_n = Some(d);
+                        d
+                    }
+                };
+                let v = head.strip_d_alpha.y * s.alpha_dot_rad_s + head.u.y * hd;
+                let dq = v * v.abs();
+                o[0] = sv[2];
+                o[1] = sv[3];
+                for r in 0..2 {
+                    o[2 + r] = jy[r][0] * sv[0]
+                        + jy[r][1] * sv[1]
+                        + jy[r][2] * sv[2]
+                        + jy[r][3] * sv[3]
+                        + d[r] * dq;
+                }
+                continue;
+            }
             // Direct change of one generalised friction input per unit parameter.
             let (q, dq) = match *p {
                 LiftParam::Viscous(j) => (j.index(), e.rel_rate_rad_s[j.index()]),
@@ -239,9 +294,8 @@ impl SensSys<'_> {
                 ),
                 LiftParam::J9Damping => (Q_SLIDE, -m.j9_count * hd),
                 LiftParam::TorqueOffset => (Q_DRIVE, -1.0),
+                LiftParam::HeadDrag => unreachable!("handled above"),
             };
-            let sv = &y[4 + 4 * i..8 + 4 * i];
-            let o = &mut dy[4 + 4 * i..8 + 4 * i];
             o[0] = sv[2];
             o[1] = sv[3];
             for r in 0..2 {
@@ -516,9 +570,12 @@ mod tests {
         }
     }
 
+    /// With `quadratic_drag` on (c_a = 3 N/(m/s)², so its state dependence enters every
+    /// column) and c_a among the parameters.
     #[test]
     fn sensitivities_match_finite_differences_of_whole_runs() {
-        let base = LiftModel::new(builtin_160ec());
+        let mut base = LiftModel::new(builtin_160ec());
+        base.head_drag_ns2_per_m2 = 3.0;
         let (t, tq, fs, fm) = short_lift();
         let inputs = LiftInputs {
             t_s: &t,
@@ -531,7 +588,8 @@ mod tests {
             atol: 1e-13,
             ..Default::default()
         };
-        let params = LiftParam::all();
+        let mut params = LiftParam::all();
+        params.push(LiftParam::HeadDrag);
         let offset = 2.0;
         // Sensitivities are error-controlled with the state: 10⁻⁹ suffices against 10⁻⁴.
         let sens_opts = SimOptions {

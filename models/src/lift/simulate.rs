@@ -283,11 +283,15 @@ impl OdeSystem for Sys<'_> {
             .pose(s.alpha_rad)
             .map_err(DynamicsError::from)
             .and_then(|pose| {
+                let head = self
+                    .model
+                    .linkage
+                    .head(&pose, s.h_m, s.alpha_dot_rad_s, s.h_dot_m_s);
                 if let Some(sp) = &self.strip_spring {
-                    let head = self.model.linkage.head(&pose, s.h_m, 0.0, 0.0);
                     loads.strip_load_n += sp.force_n(head.strip.y);
                 }
-                self.model.eval(&pose, &s, &loads)
+                loads.strip_load_n += self.model.head_drag_n(&head, &s);
+                self.model.eval_with_head(&pose, &head, &s, &loads, None)
             })
         else {
             dy.fill(f64::NAN);

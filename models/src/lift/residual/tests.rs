@@ -229,3 +229,72 @@ fn a_delay_is_named_and_other_errors_stay_unexplained() {
         "sensor_delay named on {named} of {tried}"
     );
 }
+
+/// Issue 16, points 2 and 4, `quadratic_drag` through the service's entry: realistic-noise
+/// raise-and-lower lifts (2 seeds each) of a head with c_a = 4 N/(m/s)² on an unworn
+/// pantograph, and c_a = 8 with J3 dry friction ×2. The drag is named, its 95 % interval holds
+/// the truth, the RMSE at least halves, no joint is flagged but the drifted one's entry
+/// (J1+J3, the combination a raise and lower informs), and joints come from the augmented fit.
+/// Measured (`examples/lift_effects_probe`, seeds 12–19): c_a 2, 4, 8 and 4 with J3 ×2 named on
+/// 25 of 32 lifts (the rest absorbed by the friction to 0.95–1.39× the noise, below the try
+/// ratio, no flag), 25 of 25 intervals holding the truth.
+#[test]
+fn a_head_drag_is_named_with_joints_from_the_augmented_fit() {
+    use crate::lift::report::{LiftChannels, fit_lift_trace};
+    let g = builtin_160ec();
+    let base = LiftModel::new(g);
+    let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
+    let j3 = LiftParam::named("J3", "dry").unwrap();
+    for (c_a, j3_factor) in [(4.0, 1.0), (8.0, 2.0)] {
+        let mut m = base.clone();
+        m.head_drag_ns2_per_m2 = c_a;
+        let mut off = 0.0;
+        j3.set(&mut m, &mut off, j3.get(&base, 0.0) * j3_factor);
+        let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
+        for seed in 0..2u64 {
+            let rec = LiftSensorNoise::realistic().apply(&clean, 7012 + seed);
+            let u = rec.inputs();
+            let r = fit_lift_trace(
+                &LiftChannels {
+                    t_s: u.t_s,
+                    strip_height_m: &rec.strip_height_m,
+                    torque_nm: u.torque_nm,
+                    fs_n: u.fs_n,
+                    fm_n: u.fm_n,
+                },
+                &crate::drift::DriftThresholds::default(),
+                "t",
+            )
+            .unwrap()
+            .result;
+            eprintln!(
+                "c_a {c_a} J3 ×{j3_factor} seed {seed}: effects {:?} rmse {:.3} -> {:.3} mm",
+                r.residual.effects,
+                r.residual.rmse_before * 1e3,
+                r.residual.rmse_after * 1e3
+            );
+            assert_eq!(r.residual.effects.len(), 1, "{:?}", r.residual);
+            let e = &r.residual.effects[0];
+            assert_eq!(e.name, "quadratic_drag");
+            let ci = e.params["c_a_ns2_per_m2_ci95"].as_array().unwrap();
+            let (lo, hi) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+            assert!(lo <= c_a && c_a <= hi, "{e:?} truth {c_a}");
+            assert!(r.residual.rmse_after <= 0.5 * r.residual.rmse_before);
+            assert!(r.residual.joints_withheld.is_none() && r.residual.verdict.is_none());
+            let shown = r.joints.iter().any(|j| {
+                j.joint.contains("J3") && matches!(j.status, Status::Watch | Status::Alarm)
+            });
+            assert_eq!(shown, j3_factor > 1.0, "{:?}", r.joints);
+            for j in &r.joints {
+                let flagged = matches!(j.status, Status::Watch | Status::Alarm);
+                // The drift shows in the combination holding J3 (its own entry is reported as
+                // not separately identified).
+                if j3_factor > 1.0 && j.joint.contains("J3") && j.joint.contains('+') {
+                    assert!(flagged, "J3 ×{j3_factor} not shown: {j:?}");
+                } else {
+                    assert!(!flagged, "c_a {c_a}: {j:?}");
+                }
+            }
+        }
+    }
+}
