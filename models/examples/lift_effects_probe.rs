@@ -109,12 +109,15 @@ fn main() {
                 .map(|e| format!("{} {}", e.name, serde_json::Value::Object(e.params.clone())))
                 .collect();
             println!(
-                "{case:>10} seed {seed}: verdict {:?} ratio {:.2} rmse {:.3}->{:.3} mm effects {effects:?} flags {flags:?} withheld {:?} {secs:.2}s",
+                "{case:>10} seed {seed}: verdict {:?} ratio {:.2} rmse {:.3}->{:.3} mm holdout {:.3}->{:.3} mm {:?} effects {effects:?} flags {flags:?} withheld {:?} {secs:.2}s",
                 r.verdict,
                 r.excess_ratio.unwrap_or(f64::NAN),
                 r.rmse_before * 1e3,
                 r.rmse_after * 1e3,
-                r.joints_withheld,
+                r.holdout_rmse_before * 1e3,
+                r.holdout_rmse_after * 1e3,
+                r.holdout_note,
+                r.joints_withheld.is_some(),
             );
         }
     }

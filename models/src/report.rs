@@ -93,6 +93,10 @@ pub struct ResidualResult {
     /// alert) because the residual shows a model error: the reason, in words.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub joints_withheld: Option<String>,
+    /// Set when no held-out test was run (lift fits: a segment too short, `lift::holdout`): the
+    /// reason, in words; the `holdout_` pair then repeats the fitted RMSE.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_note: Option<String>,
 }
 
 /// How the fit was made: the release, the fitted start and sensor zero, the optimiser's end.

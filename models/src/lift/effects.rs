@@ -67,6 +67,15 @@ pub struct DelayFinding {
 /// 0.9–1.1; at twice the noise 4 of 4 (RMS z 1.3).
 pub const DRAG_INTERVAL_SCALE: f64 = 3.0;
 
+/// `opts` with c_a fitted and the intervals scaled by [`DRAG_INTERVAL_SCALE`].
+pub fn drag_options(opts: &LiftFitOptions) -> LiftFitOptions {
+    LiftFitOptions {
+        effect_params: vec![LiftParam::HeadDrag],
+        interval_scale: DRAG_INTERVAL_SCALE,
+        ..opts.clone()
+    }
+}
+
 /// A named head drag and the fit with it.
 #[derive(Debug, Clone)]
 pub struct DragFinding {
@@ -85,11 +94,7 @@ pub fn try_quadratic_drag(
 ) -> Result<Option<DragFinding>, LiftFitError> {
     let n = trace.strip_height_m.len();
     let base_rms = base.rmse_m.first().copied().unwrap_or(f64::NAN);
-    let with_drag = LiftFitOptions {
-        effect_params: vec![LiftParam::HeadDrag],
-        interval_scale: DRAG_INTERVAL_SCALE,
-        ..opts.clone()
-    };
+    let with_drag = drag_options(opts);
     let fit = match fit_map(model, std::slice::from_ref(trace), &with_drag) {
         Ok(f) => f,
         Err(LiftFitError::Failed(_)) => return Ok(None),

@@ -43,6 +43,15 @@ pub struct LiftFitOptions {
     /// intervals are known, from measurements, to be too narrow by a factor: an augmented fit
     /// (`lift::effects`) whose effect term carries the inputs' noise into every estimate.
     pub interval_scale: f64,
+    /// Where the LM starts, in the fit's units (friction θ/θ₀, each trace's torque offset in
+    /// N·m, then the effects in theirs: [`LiftFit::start_point`]); `None` (the default): Table 4,
+    /// zero offsets, the model's effects, with the continuation in the horizon. A start of the
+    /// right length skips the continuation: for refits near a known solution (a held-out
+    /// segment's, `lift::holdout`) and, with `lm.max_iter` 0, to predict a trace at it.
+    pub start: Option<Vec<f64>>,
+    /// Samples of the first trace left out of the fit (true: held out; `lift::holdout`): their
+    /// residuals count for nothing. `None` (the default): every sample is fitted.
+    pub holdout_mask: Option<Vec<bool>>,
     /// H measurement noise σ_H, m: the floor of the interval's noise scale. The fit widens it
     /// to the residual RMS when that is larger (κ², [`fit_map_in`]), never narrows it.
     pub h_noise_m: f64,
@@ -83,6 +92,8 @@ impl Default for LiftFitOptions {
                 .collect(),
             effect_params: Vec::new(),
             interval_scale: 1.0,
+            start: None,
+            holdout_mask: None,
             // The stand's H channel (`lift::sensors::LiftSensorNoise::realistic`, 0.5 mm) × √2,
             // calibrated on the coverage set (`examples/lift_coverage -- 24 [K]`, 288 lifts per
             // noise level, one joint drifted 0.4–3× or none): at 0.5 mm 95.6 % / 93.8 % of the
@@ -173,6 +184,19 @@ pub struct JointEstimate {
     pub identifiable: bool,
     /// Worst status of its informed parameters; `Unknown` when none is informed.
     pub status: Status,
+}
+
+impl LiftFit {
+    /// The MAP in the fit's own units, for [`LiftFitOptions::start`]: friction over its
+    /// baseline, the offsets, the effects.
+    pub fn start_point(&self) -> Vec<f64> {
+        self.params
+            .iter()
+            .map(|p| p.map_value / p.baseline)
+            .chain(self.offsets.iter().map(|o| o.map_value))
+            .chain(self.effects.iter().map(|e| e.value))
+            .collect()
+    }
 }
 
 impl JointEstimate {
@@ -349,7 +373,13 @@ impl Problem for MapProblem<'_, '_> {
             )
             .map_err(|e| e.to_string())?;
             let p = self.with_offset.len();
+            let mask = self.opts.holdout_mask.as_deref().filter(|_| ti == 0);
             for k in 0..tr.strip_height_m.len() {
+                if mask.is_some_and(|m| m.get(k) == Some(&true)) {
+                    r[row] = 0.0;
+                    row += 1;
+                    continue;
+                }
                 r[row] = (run.strip_height_m[k] - tr.strip_height_m[k]) / sigma;
                 for i in 0..pf {
                     jac[(row, i)] = run.d_height[k * p + i] * self.baseline[i] / sigma;
@@ -669,6 +699,13 @@ pub fn fit_map_in(
     // A trace the starting model already follows (H RMS within 5 σ_H: a joint near its
     // baseline) needs no continuation: the whole-trace problem is already nearly quadratic.
     // The whole-trace evaluation at the start tells, and is the LM's first when it is close.
+    let warm = opts
+        .start
+        .as_ref()
+        .filter(|s| s.len() == x.len() && s.iter().all(|v| v.is_finite()));
+    if let Some(s) = warm {
+        x.clone_from(s);
+    }
     let x0 = project(&problem, &x);
     let mut r0 = vec![0.0; problem.n_residuals()];
     let mut jac0 = DMatrix::zeros(problem.n_residuals(), problem.n_params());
@@ -682,7 +719,7 @@ pub fn fit_map_in(
             (ss / n as f64).sqrt() < 5.0
         })
     });
-    let close = start == Some(true);
+    let close = start == Some(true) || (warm.is_some() && start.is_some());
     let schedule = if close {
         Vec::new()
     } else {

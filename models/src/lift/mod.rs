@@ -14,8 +14,9 @@
 //! - [`sensitivity`] — ∂H/∂θ along a simulated lift (friction of every joint, torque offset).
 //! - [`readout`] — H and its partials tabulated over α (geometry only), read at every sample.
 //! - [`report`] — a lift fit as the contract's fit result (every joint J1…J9).
-//! - [`effects`] — effects a lift fit can name on a model error (`sensor_delay`).
+//! - [`effects`] — effects a lift fit can name on a model error (`quadratic_drag`, `sensor_delay`).
 //! - [`residual`] — what a fit leaves in H against the noise; when joint statuses are withheld.
+//! - [`holdout`] — the held-out test: refit without every fourth 0.5 s block, judged on them.
 //! - [`inputs`] — measured inputs reconstructed before a fit: noise per channel, smoothing, steps.
 //! - [`input_noise`] — the inputs' sensor noise propagated into a lift fit's intervals.
 //! - [`attribution`] — which friction parameters a fit tells apart; combinations of the rest.
@@ -29,6 +30,7 @@ pub mod design;
 pub mod dynamics;
 pub mod effects;
 pub mod geometry;
+pub mod holdout;
 pub mod identify;
 pub mod input_noise;
 pub mod inputs;

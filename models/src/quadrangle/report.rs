@@ -191,6 +191,7 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
             correlates_with: Vec::new(),
             excess_ratio: None,
             joints_withheld: None,
+            holdout_note: None,
         },
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),

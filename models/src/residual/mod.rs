@@ -397,6 +397,7 @@ pub fn analyse(
         },
         excess_ratio: None,
         joints_withheld: None,
+        holdout_note: None,
     };
     Ok(Finding {
         residual,

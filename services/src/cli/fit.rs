@@ -161,6 +161,9 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
     if let Some(w) = &r.residual.joints_withheld {
         s += &format!("joint statuses withheld: {w}\n");
     }
+    if let Some(w) = &r.residual.holdout_note {
+        s += &format!("{w}\n");
+    }
     s
 }
 

@@ -722,8 +722,14 @@ fn residual_finding(result: &serde_json::Value) -> String {
                 esc(w)
             )
         });
+    let holdout_note = r
+        .get("holdout_note")
+        .and_then(|v| v.as_str())
+        .map_or(String::new(), |w| {
+            format!(r#"<p id="holdout-note">{}.</p>"#, esc(w))
+        });
     format!(
-        r#"<h2>Residual finding</h2><p id="finding">{finding}. RMSE before {} / after {}; held-out {} / {}.{excess}{follows}</p>{withheld}"#,
+        r#"<h2>Residual finding</h2><p id="finding">{finding}. RMSE before {} / after {}; held-out {} / {}.{excess}{follows}</p>{withheld}{holdout_note}"#,
         num("rmse_before"),
         num("rmse_after"),
         num("holdout_rmse_before"),
