@@ -53,6 +53,8 @@ pub struct LiftReport {
     pub fit: LiftFit,
     /// Model H at the fitted parameters, m (the fit's last accepted evaluation).
     pub fitted_height_m: Vec<f64>,
+    /// When an effect is named: the plain model's fitted H, m (before), for plots.
+    pub plain_fitted_height_m: Option<Vec<f64>>,
 }
 
 /// The built-in 160EC model, made once per process: its H read-out table (2,000 closed-form
@@ -108,6 +110,7 @@ pub fn fit_lift_trace(
             result,
             fit,
             fitted_height_m,
+            plain_fitted_height_m: None,
         });
     }
     // A model error: try the vocabulary (`lift::effects`); what it cannot name stays as the
@@ -147,6 +150,7 @@ pub fn fit_lift_trace(
                 result: named,
                 fit: found.fit,
                 fitted_height_m: refitted,
+                plain_fitted_height_m: Some(fitted_height_m),
             });
         }
     }
@@ -155,6 +159,7 @@ pub fn fit_lift_trace(
             result,
             fit,
             fitted_height_m,
+            plain_fitted_height_m: None,
         });
     };
     let shifted = LiftTrace {
@@ -169,6 +174,7 @@ pub fn fit_lift_trace(
             result,
             fit,
             fitted_height_m,
+            plain_fitted_height_m: None,
         });
     }
     let refitted = found
@@ -190,11 +196,13 @@ pub fn fit_lift_trace(
         &hold_after,
     );
     // The model's H as the logger would have recorded it (delayed), against the measured H.
+    let plain = fitted_height_m;
     let fitted_height_m = super::effects::advance(channels.t_s, &refitted, -found.delay_s);
     Ok(LiftReport {
         result: named,
         fit: found.fit,
         fitted_height_m,
+        plain_fitted_height_m: Some(plain),
     })
 }
 
@@ -293,6 +301,7 @@ pub fn fit_pooled_lift_traces(
         result,
         fit,
         fitted_height_m,
+        plain_fitted_height_m: None,
     })
 }
 

@@ -22,7 +22,8 @@ pub struct FitArgs {
     /// Draw measured vs fitted motion and the residual to this SVG file.
     #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// Write the residual loop's report (base vs augmented fit, candidates tried) as HTML.
+    /// Write the residual loop's report (base vs augmented fit, candidates tried; for a lift:
+    /// plain vs with the named effect, held-out error, autocorrelation) as HTML.
     #[arg(long)]
     pub report: Option<PathBuf>,
 }
@@ -249,15 +250,16 @@ fn run_quadrangle(
 
 /// `fit` of a lift trace: the table or JSON, and H measured vs fitted as SVG.
 fn run_lift(args: &FitArgs, doc: &TraceDoc, thresholds: &DriftThresholds) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        args.report.is_none(),
-        "--report: the residual loop does not run on lift traces"
-    );
     let rep = crate::fitting::fit_lift(doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&rep.result)?);
     } else {
         print!("{}", table(doc, &rep.result));
+    }
+    if let Some(path) = &args.report {
+        std::fs::write(path, super::report::html_lift(doc, &rep)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("report written to {}", path.display());
     }
     if let Some(path) = &args.plot {
         let t = doc.channel("t_s").unwrap_or_default();

@@ -63,7 +63,8 @@ pub struct SimulateArgs {
     /// `position_friction:linear=0.5,quadratic=1.5` (μ·(1 + a·u + b·u²), u = q/(1 rad or 10 mm)),
     /// `backlash:half_width=0.3` (channel units), `sensor_offset:offset=0.5` (channel units),
     /// `sensor_delay:delay_s=0.008`; outside it: `torsional_spring:k=4` (N·m/rad or N/m),
-    /// `fading_friction:fade=0.5` (share of μ lost over the trace).
+    /// `fading_friction:fade=0.5` (share of μ lost over the trace). A lift (`--kind lift`)
+    /// takes `quadratic_drag:c_a=4` (N/(m/s)² on the head) and `sensor_delay:delay_s=0.02`.
     #[arg(long = "effect")]
     pub effects: Vec<String>,
     /// Slider only: hold the part with this pull (N) and release it at `--release-at` (the
@@ -249,6 +250,34 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     if !stated {
         protocol.sample_hz = a.fs;
     }
+    // Lift effects (issue 16): `quadratic_drag:c_a=…` (N/(m/s)², on the head) is physics and
+    // goes into the model; `sensor_delay:delay_s=…` delays the logged H after the noise.
+    let mut delay_s = 0.0;
+    for spec in &a.effects {
+        let (name, rest) = spec.split_once(':').unwrap_or((spec, ""));
+        let mut value = None;
+        for pair in rest.split(',').filter(|p| !p.is_empty()) {
+            let (k, v) = pair
+                .split_once('=')
+                .ok_or_else(|| anyhow::anyhow!("--effect {spec}: `{pair}` is not key=value"))?;
+            let v: f64 = v
+                .parse()
+                .map_err(|_| anyhow::anyhow!("--effect {spec}: `{v}` is not a number"))?;
+            anyhow::ensure!(
+                v.is_finite() && v >= 0.0,
+                "--effect {spec}: `{k}` must be finite and >= 0"
+            );
+            value = Some((k.to_string(), v));
+        }
+        match (name, value) {
+            ("quadratic_drag", Some((k, v))) if k == "c_a" => model.head_drag_ns2_per_m2 = v,
+            ("sensor_delay", Some((k, v))) if k == "delay_s" => delay_s = v,
+            _ => anyhow::bail!(
+                "--effect {spec}: a lift takes `quadratic_drag:c_a=<N/(m/s)²>` or \
+                 `sensor_delay:delay_s=<s>` (unknown effect or key for a lift)"
+            ),
+        }
+    }
     let mut rec = record(&model, &protocol, &SimOptions::default()).context("lift simulation")?;
     if a.sensor_noise > 0.0 {
         // Its own stream (seed offset), so `--h-noise-mm`'s draws stay those of the same seed.
@@ -260,6 +289,13 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     let mut rng = pantowatch_models::noise::Noise::new(a.seed);
     for h in &mut rec.strip_height_m {
         *h += a.h_noise_mm * 1e-3 * rng.normal();
+    }
+    if delay_s > 0.0 {
+        let lag = (delay_s * protocol.sample_hz).round() as usize;
+        let h = rec.strip_height_m.clone();
+        for (i, v) in rec.strip_height_m.iter_mut().enumerate() {
+            *v = h[i.saturating_sub(lag)];
+        }
     }
     let mut test = json!({"kind": "lift", "rig": {}});
     if stated {
