@@ -1,5 +1,6 @@
 //! Alerts raised after each fit: a joint at `watch`/`alarm`, or forecast to reach its alarm band
 //! within the horizon, opens or escalates its one live alert; a later test back in band resolves it.
+//! A lift that names a fault of its H channel opens a sensor finding instead (`H sensor`).
 //!
 //! A joint's state is the one fleet health shows (`Store::joint_states`: each parameter from the
 //! latest test that informed it, the joint at the worst of them); only the test that decides it
@@ -165,5 +166,107 @@ pub async fn after_fit(
             }
         }
     }
+    if meta.kind == "lift" {
+        actions.extend(lift_sensor_finding(store, &meta, serial, trace_id, fit_id, result).await?);
+    }
     Ok(actions)
+}
+
+/// The alert name of a lift's height-channel finding (one live alert per pantograph).
+pub const LIFT_H_SENSOR: &str = "H sensor";
+
+/// A named fault of a lift's H channel (issue 16, point 4: `sensor_delay`) is a finding about
+/// the measuring chain, not about a joint: it opens (or updates) one `watch` alert named
+/// [`LIFT_H_SENSOR`], which joint health does not show; the joints of that fit come from the
+/// fit with the delay taken out. The next lift of the pantograph that names no sensor fault,
+/// with a residual the model explains, resolves it. Only lifts: a single-joint test's fitted
+/// zero is routine (the contract reports a significant one as `sensor_offset`), and its channel
+/// is another sensor.
+async fn lift_sensor_finding(
+    store: &Store,
+    meta: &crate::store::TraceMeta,
+    serial: &str,
+    trace_id: &str,
+    fit_id: i64,
+    result: &serde_json::Value,
+) -> Result<Vec<AlertAction>, StoreError> {
+    let residual = result.get("residual");
+    let named: Vec<&serde_json::Value> = residual
+        .and_then(|r| r.get("effects"))
+        .and_then(serde_json::Value::as_array)
+        .map(|a| {
+            a.iter()
+                .filter(|e| {
+                    e.get("name").and_then(serde_json::Value::as_str) == Some("sensor_delay")
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    if let Some(e) = named.first() {
+        let params = e.get("params");
+        let num = |k: &str| {
+            params
+                .and_then(|p| p.get(k))
+                .and_then(serde_json::Value::as_f64)
+        };
+        let ci = params
+            .and_then(|p| p.get("delay_s_ci95"))
+            .and_then(serde_json::Value::as_array)
+            .map(|a| {
+                a.iter()
+                    .filter_map(serde_json::Value::as_f64)
+                    .collect::<Vec<_>>()
+            })
+            .unwrap_or_default();
+        let reason = match (num("delay_s"), ci.as_slice()) {
+            (Some(d), [lo, hi]) => format!(
+                "sensor_delay: H lags the drive inputs by {:.1} ms [{:.1}, {:.1}] — check the height \
+                 sensor and logger; not a joint finding",
+                d * 1e3,
+                lo * 1e3,
+                hi * 1e3
+            ),
+            _ => "sensor_delay: H lags the drive inputs — check the height sensor and logger; \
+                  not a joint finding"
+                .to_owned(),
+        };
+        let evidence = json!({
+            "model_version": result.pointer("/fit/model_version"),
+            "fit_id": fit_id,
+            "trace_id": trace_id,
+            "recorded_at": meta.recorded_at,
+            "effect": e,
+            "residual": residual,
+        });
+        let out = store
+            .raise_alert(&NewAlert {
+                serial: serial.to_owned(),
+                joint: LIFT_H_SENSOR.to_owned(),
+                vehicle_id: Some(meta.vehicle_id.clone()),
+                severity: Severity::Watch,
+                reason,
+                evidence,
+                trace_id: trace_id.to_owned(),
+            })
+            .await?;
+        if !matches!(out, RaiseOutcome::Updated(_)) {
+            let a = out.alert();
+            tracing::info!(alert = a.id, serial, "H sensor finding raised");
+        }
+        return Ok(vec![AlertAction::Raised(Box::new(out))]);
+    }
+    let explained = residual
+        .and_then(|r| r.get("verdict"))
+        .is_none_or(serde_json::Value::is_null);
+    if explained {
+        let note = format!("no sensor fault in lift {trace_id}");
+        if let Some(a) = store
+            .resolve_joint_alert(serial, LIFT_H_SENSOR, trace_id, &note)
+            .await?
+        {
+            tracing::info!(alert = a.id, serial, "H sensor finding resolved");
+            return Ok(vec![AlertAction::Resolved { alert_id: a.id }]);
+        }
+    }
+    Ok(Vec::new())
 }

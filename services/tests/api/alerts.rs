@@ -29,7 +29,11 @@ async fn post_json(app: &TestApp, path: &str, key: &str, body: Value) -> reqwest
 }
 
 /// Polls `GET /v1/alerts?{query}` until `pred` holds.
-async fn wait_alerts(app: &TestApp, query: &str, pred: impl Fn(&[Value]) -> bool) -> Vec<Value> {
+pub(crate) async fn wait_alerts(
+    app: &TestApp,
+    query: &str,
+    pred: impl Fn(&[Value]) -> bool,
+) -> Vec<Value> {
     let t0 = Instant::now();
     loop {
         let (s, v) = app.get_json(&format!("/v1/alerts?{query}")).await;

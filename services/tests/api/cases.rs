@@ -19,6 +19,7 @@ pub use crate::corpus::{
 use crate::harness::*;
 pub use crate::lift::{
     a_designed_lift_is_accepted_and_fitted, a_model_error_raises_no_wear_alarm,
+    a_sensor_delay_is_a_sensor_finding_not_a_joint_alarm,
     bad_lift_inputs_are_refused_naming_the_sample, lift_trace_is_fitted_with_every_joint,
     recent_lifts_are_pooled,
 };

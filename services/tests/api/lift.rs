@@ -403,3 +403,81 @@ pub async fn a_model_error_raises_no_wear_alarm(b: Backend) {
     }
     app.stop().await;
 }
+
+/// Issue 16, point 4, over HTTP: a realistic-noise lift of an unworn pantograph whose H channel
+/// lags the inputs by 20 ms (`simulate --effect sensor_delay:delay_s=0.02`). The fit names
+/// `sensor_delay` (the truth in its interval), flags no joint, and the service opens one
+/// `watch` alert named `H sensor` — a sensor finding, no joint alert — while fleet health shows
+/// nothing drifted. The next lift of the pantograph, without the delay, resolves it.
+pub async fn a_sensor_delay_is_a_sensor_finding_not_a_joint_alarm(b: Backend) {
+    let app = spawn_app(b).await;
+    let defaults = pantowatch::cli::bench::fits::simulate_defaults().expect("defaults");
+    let lift = |seed: u64, id: &str, at: &str, effects: Vec<String>| {
+        pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
+            kind: "lift".into(),
+            protocol: "raise-and-lower".into(),
+            sensor_noise: 1.0,
+            h_noise_mm: 0.0,
+            seed,
+            vehicle: "EN57-LAG".into(),
+            serial: "160EC-LAG".into(),
+            trace_id: Some(id.into()),
+            recorded_at: at.into(),
+            effects,
+            ..defaults.clone()
+        })
+        .expect("lift")
+    };
+    let late = lift(
+        31,
+        "lag-h",
+        "2026-03-02T07:00:00Z",
+        vec!["sensor_delay:delay_s=0.02".into()],
+    );
+    let r = app
+        .upload_json(&serde_json::to_vec(&late.to_value()).unwrap())
+        .await;
+    assert_eq!(r.status(), StatusCode::ACCEPTED);
+    let fit = app.wait_for_fit("lag-h").await;
+    let res = &fit["residual"];
+    assert_eq!(res["effects"][0]["name"], "sensor_delay", "{res}");
+    let ci = &res["effects"][0]["params"]["delay_s_ci95"];
+    let (lo, hi) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+    assert!(lo <= 0.02 && 0.02 <= hi, "{res}");
+    for j in fit["joints"].as_array().expect("joints") {
+        assert!(
+            !matches!(j["status"].as_str(), Some("watch" | "alarm")),
+            "{j}"
+        );
+    }
+    // Alerts are raised after the fit is stored: wait for the finding.
+    let rows =
+        crate::alerts::wait_alerts(&app, "vehicle=EN57-LAG", |l: &[Value]| !l.is_empty()).await;
+    assert_eq!(rows.len(), 1, "{rows:?}");
+    assert_eq!(rows[0]["joint"], pantowatch::alerts::LIFT_H_SENSOR);
+    assert_eq!(rows[0]["severity"], "watch");
+    assert_eq!(rows[0]["state"], "open");
+    assert!(rows[0]["reason"].as_str().unwrap().contains("sensor_delay"));
+    let (s, h) = app.get_json("/v1/fleet/health?vehicle=EN57-LAG").await;
+    assert_eq!(s, StatusCode::OK, "{h}");
+    for row in h["rows"].as_array().unwrap() {
+        assert!(
+            !matches!(row["worst_status"].as_str(), Some("watch" | "alarm")),
+            "{row}"
+        );
+    }
+    // A month later, the sensor fixed: the finding is resolved.
+    let fixed = lift(32, "lag-fixed", "2026-04-02T07:00:00Z", Vec::new());
+    let r = app
+        .upload_json(&serde_json::to_vec(&fixed.to_value()).unwrap())
+        .await;
+    assert_eq!(r.status(), StatusCode::ACCEPTED);
+    let fit = app.wait_for_fit("lag-fixed").await;
+    assert_eq!(fit["residual"]["effects"], json!([]), "{}", fit["residual"]);
+    let resolved =
+        crate::alerts::wait_alerts(&app, "vehicle=EN57-LAG&state=resolved", |l| l.len() == 1).await;
+    assert_eq!(resolved[0]["joint"], pantowatch::alerts::LIFT_H_SENSOR);
+    let (_, alerts) = app.get_json("/v1/alerts?vehicle=EN57-LAG&state=live").await;
+    assert_eq!(alerts["alerts"], json!([]), "{alerts}");
+    app.stop().await;
+}

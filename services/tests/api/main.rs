@@ -50,6 +50,7 @@ suite!(
     recent_lifts_are_pooled,
     a_designed_lift_is_accepted_and_fitted,
     a_model_error_raises_no_wear_alarm,
+    a_sensor_delay_is_a_sensor_finding_not_a_joint_alarm,
     keys_created_and_revoked_over_http,
     readiness_and_metrics,
     alert_lifecycle_over_http,
