@@ -18,9 +18,12 @@
 //!   by [`super::residual::MODEL_ERROR_RATIO`] the model is missing something a friction refit
 //!   has absorbed: the verdict is `unexplained` with what the residual correlates with, and
 //!   every joint (combinations included) is withheld — not identified, `unknown` — so the fit
-//!   raises no alert and changes no joint's health. No effect vocabulary is tried on lift traces
-//!   yet, so `effects` is empty and `rmse_before = rmse_after`. The `holdout_` pair is **not** a held-out refit (that would
-//!   double the fit time): it equals the fitted values.
+//!   raises no alert and changes no joint's health. Above [`super::residual::EFFECT_TRY_RATIO`]
+//!   the lift vocabulary is tried ([`super::effects`]: `quadratic_drag`, then `sensor_delay`);
+//!   a named effect's fit replaces the plain one (joints from it; `rmse_before` the plain fit's,
+//!   `rmse_after` the augmented one's). The `holdout_` pair comes from [`super::holdout`]: every
+//!   fourth 0.5 s block left out of a refit, its error there (`holdout_note` when the record is
+//!   too short for it).
 
 use std::sync::OnceLock;
 
@@ -115,7 +118,7 @@ pub fn fit_lift_trace(
     }
     // A model error: try the vocabulary (`lift::effects`); what it cannot name stays as the
     // plain fit left it (withheld above the gate). `quadratic_drag` first (one fit), then
-    // `sensor_delay` (a profile of 8–15 refits). Each must also do better on the held-out
+    // `sensor_delay` (a profile of 12–19 refits). Each must also do better on the held-out
     // segment by the stated margin (`holdout::MAX_HOLDOUT_RATIO`).
     let before = result.rmse.value;
     if let Some(found) = super::effects::try_quadratic_drag(model, &trace, &fit, &opts)? {
