@@ -11,6 +11,8 @@
 //!   model. Interleaved blocks keep the fit anchored on both sides of each held-out block.
 //! - A record with fewer than [`MIN_HELD_OUT_BLOCKS`] held-out blocks (under 3.5 s) gets no
 //!   held-out figure, and the residual says why ([`Holdout::Short`]).
+//! - When: `report::fit_lift_trace` runs it only where an effect is tried (it judges the
+//!   effect); run on every lift it doubled the fit's cost.
 //! - The refit without the held-out blocks starts at the whole-trace fit's MAP
 //!   (`LiftFitOptions::start`): a few evaluations instead of ~25. The start carries nothing of
 //!   the held-out data but where to begin; the LM converges to the masked problem's own optimum
