@@ -242,9 +242,9 @@ impl SensSys<'_> {
         // reactions linearly; the normal-force feedback through Φ).
         let mut per_strip_n = None;
         for (i, p) in self.params.iter().enumerate() {
-            let sv = &y[4 + 4 * i..8 + 4 * i];
-            let o = &mut dy[4 + 4 * i..8 + 4 * i];
-            if *p == LiftParam::HeadDrag {
+            // Direct change of the accelerations per unit parameter: through one generalised
+            // friction input (Φ's column), or for the drag through the strip load.
+            let direct: [f64; 2] = if *p == LiftParam::HeadDrag {
                 let d = match per_strip_n {
                     Some(d) => d,
                     None => {
@@ -261,41 +261,37 @@ impl SensSys<'_> {
                     }
                 };
                 let v = head.strip_d_alpha.y * s.alpha_dot_rad_s + head.u.y * hd;
-                let dq = v * v.abs();
-                o[0] = sv[2];
-                o[1] = sv[3];
-                for r in 0..2 {
-                    o[2 + r] = jy[r][0] * sv[0]
-                        + jy[r][1] * sv[1]
-                        + jy[r][2] * sv[2]
-                        + jy[r][3] * sv[3]
-                        + d[r] * dq;
-                }
-                continue;
-            }
-            // Direct change of one generalised friction input per unit parameter.
-            let (q, dq) = match *p {
-                LiftParam::Viscous(j) => (j.index(), e.rel_rate_rad_s[j.index()]),
-                LiftParam::Dry(j) => {
-                    let k = j.index();
-                    let mu = f.dry_mu[k];
-                    // T_dry = μ·R·N·σ: per unit μ, R·N·σ (from the torque when μ ≠ 0).
-                    let per_mu = if mu != 0.0 {
-                        e.dry_torque_nm[k] / mu
-                    } else {
-                        m.pin_radius_m[k] * e.normal_n[k] * m.sign_law_revolute(e.rel_rate_rad_s[k])
-                    };
-                    (k, per_mu)
-                }
-                LiftParam::J8Viscous => (Q_SLIDE, -m.j8_count * hd),
-                LiftParam::J8Dry => (
-                    Q_SLIDE,
-                    -m.j8_count * m.j8_normal_n_each * m.sign_law_slide(hd),
-                ),
-                LiftParam::J9Damping => (Q_SLIDE, -m.j9_count * hd),
-                LiftParam::TorqueOffset => (Q_DRIVE, -1.0),
-                LiftParam::HeadDrag => unreachable!("handled above"),
+                [d[0] * v * v.abs(), d[1] * v * v.abs()]
+            } else {
+                let (q, dq) = match *p {
+                    LiftParam::Viscous(j) => (j.index(), e.rel_rate_rad_s[j.index()]),
+                    LiftParam::Dry(j) => {
+                        let k = j.index();
+                        let mu = f.dry_mu[k];
+                        // T_dry = μ·R·N·σ: per unit μ, R·N·σ (from the torque when μ ≠ 0).
+                        let per_mu = if mu != 0.0 {
+                            e.dry_torque_nm[k] / mu
+                        } else {
+                            m.pin_radius_m[k]
+                                * e.normal_n[k]
+                                * m.sign_law_revolute(e.rel_rate_rad_s[k])
+                        };
+                        (k, per_mu)
+                    }
+                    LiftParam::J8Viscous => (Q_SLIDE, -m.j8_count * hd),
+                    LiftParam::J8Dry => (
+                        Q_SLIDE,
+                        -m.j8_count * m.j8_normal_n_each * m.sign_law_slide(hd),
+                    ),
+                    LiftParam::J9Damping => (Q_SLIDE, -m.j9_count * hd),
+                    LiftParam::TorqueOffset => (Q_DRIVE, -1.0),
+                    // Not reached (the strip-load branch above): no generalised input.
+                    LiftParam::HeadDrag => (Q_DRIVE, 0.0),
+                };
+                [phi[0][q] * dq, phi[1][q] * dq]
             };
+            let sv = &y[4 + 4 * i..8 + 4 * i];
+            let o = &mut dy[4 + 4 * i..8 + 4 * i];
             o[0] = sv[2];
             o[1] = sv[3];
             for r in 0..2 {
@@ -303,7 +299,7 @@ impl SensSys<'_> {
                     + jy[r][1] * sv[1]
                     + jy[r][2] * sv[2]
                     + jy[r][3] * sv[3]
-                    + phi[r][q] * dq;
+                    + direct[r];
             }
         }
         Ok(())

@@ -254,27 +254,15 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     // goes into the model; `sensor_delay:delay_s=…` delays the logged H after the noise.
     let mut delay_s = 0.0;
     for spec in &a.effects {
-        let (name, rest) = spec.split_once(':').unwrap_or((spec, ""));
-        let mut value = None;
-        for pair in rest.split(',').filter(|p| !p.is_empty()) {
-            let (k, v) = pair
-                .split_once('=')
-                .ok_or_else(|| anyhow::anyhow!("--effect {spec}: `{pair}` is not key=value"))?;
-            let v: f64 = v
-                .parse()
-                .map_err(|_| anyhow::anyhow!("--effect {spec}: `{v}` is not a number"))?;
-            anyhow::ensure!(
-                v.is_finite() && v >= 0.0,
-                "--effect {spec}: `{k}` must be finite and >= 0"
-            );
-            value = Some((k.to_string(), v));
-        }
-        match (name, value) {
-            ("quadratic_drag", Some((k, v))) if k == "c_a" => model.head_drag_ns2_per_m2 = v,
-            ("sensor_delay", Some((k, v))) if k == "delay_s" => delay_s = v,
+        let (name, kv) = parse_effect(spec)?;
+        let only =
+            |key: &str| -> Option<f64> { (kv.len() == 1).then(|| kv.get(key).copied()).flatten() };
+        match (name, only("c_a"), only("delay_s")) {
+            ("quadratic_drag", Some(v), _) if v >= 0.0 => model.head_drag_ns2_per_m2 = v,
+            ("sensor_delay", _, Some(v)) if v >= 0.0 => delay_s = v,
             _ => anyhow::bail!(
-                "--effect {spec}: a lift takes `quadratic_drag:c_a=<N/(m/s)²>` or \
-                 `sensor_delay:delay_s=<s>` (unknown effect or key for a lift)"
+                "--effect {spec}: a lift takes `quadratic_drag:c_a=<N/(m/s)², >= 0>` or \
+                 `sensor_delay:delay_s=<s, >= 0>` (unknown effect or key for a lift)"
             ),
         }
     }
@@ -388,14 +376,8 @@ fn simulate_quadrangle(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     TraceDoc::from_value(&doc).map_err(|e| anyhow::anyhow!("{e}"))
 }
 
-/// Apply one `--effect NAME:key=value,…` to the truth.
-fn apply_effect(
-    truth: &mut Truth,
-    torsion: &mut f64,
-    spec: &str,
-    scale: f64,
-    slider: bool,
-) -> anyhow::Result<()> {
+/// Parse `--effect NAME:key=value,…`: the name and its finite values.
+fn parse_effect(spec: &str) -> anyhow::Result<(&str, std::collections::BTreeMap<String, f64>)> {
     let (name, rest) = spec.split_once(':').unwrap_or((spec, ""));
     let mut kv = std::collections::BTreeMap::new();
     for pair in rest.split(',').filter(|p| !p.is_empty()) {
@@ -408,6 +390,18 @@ fn apply_effect(
         anyhow::ensure!(v.is_finite(), "--effect {spec}: `{k}` must be finite");
         kv.insert(k.to_string(), v);
     }
+    Ok((name, kv))
+}
+
+/// Apply one `--effect NAME:key=value,…` to the truth.
+fn apply_effect(
+    truth: &mut Truth,
+    torsion: &mut f64,
+    spec: &str,
+    scale: f64,
+    slider: bool,
+) -> anyhow::Result<()> {
+    let (name, kv) = parse_effect(spec)?;
     let get = |k: &str| {
         kv.get(k)
             .copied()
