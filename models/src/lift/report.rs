@@ -130,29 +130,19 @@ pub fn fit_lift_trace(
         let drag_opts = super::effects::drag_options(&opts);
         let hold_after = super::holdout::blocks(model, &trace, &found.fit, &drag_opts)?;
         if super::holdout::improves(&hold, &hold_after) {
-            let refitted = found
-                .fit
-                .fitted_height_m
-                .first()
-                .cloned()
-                .unwrap_or_default();
-            let mut named = fit_result(model, &found.fit, &trace, &refitted, &opts, trace_id);
-            let mut params = serde_json::Map::new();
-            params.insert(
-                "c_a_ns2_per_m2".into(),
-                serde_json::json!(found.c_a_ns2_per_m2),
-            );
-            params.insert(
-                "c_a_ns2_per_m2_ci95".into(),
-                serde_json::json!(found.c_a_ci95),
-            );
-            name_effect(
-                &mut named,
+            let (named, refitted) = named_result(
+                model,
+                &found.fit,
+                &trace,
+                &opts,
+                trace_id,
                 "quadratic_drag",
-                params,
+                [
+                    ("c_a_ns2_per_m2", serde_json::json!(found.c_a_ns2_per_m2)),
+                    ("c_a_ns2_per_m2_ci95", serde_json::json!(found.c_a_ci95)),
+                ],
                 before,
-                &hold,
-                &hold_after,
+                (&hold, &hold_after),
             );
             return Ok(LiftReport {
                 result: named,
@@ -185,23 +175,19 @@ pub fn fit_lift_trace(
             plain_fitted_height_m: None,
         });
     }
-    let refitted = found
-        .fit
-        .fitted_height_m
-        .first()
-        .cloned()
-        .unwrap_or_default();
-    let mut named = fit_result(model, &found.fit, &shifted, &refitted, &opts, trace_id);
-    let mut params = serde_json::Map::new();
-    params.insert("delay_s".into(), serde_json::json!(found.delay_s));
-    params.insert("delay_s_ci95".into(), serde_json::json!(found.delay_ci95_s));
-    name_effect(
-        &mut named,
+    let (named, refitted) = named_result(
+        model,
+        &found.fit,
+        &shifted,
+        &opts,
+        trace_id,
         "sensor_delay",
-        params,
+        [
+            ("delay_s", serde_json::json!(found.delay_s)),
+            ("delay_s_ci95", serde_json::json!(found.delay_ci95_s)),
+        ],
         before,
-        &hold,
-        &hold_after,
+        (&hold, &hold_after),
     );
     // The model's H as the logger would have recorded it (delayed), against the measured H.
     let plain = fitted_height_m;
@@ -234,25 +220,36 @@ fn set_holdout(
     });
 }
 
-/// Marks `named` (the augmented fit's result) as explained by one effect: joints come from the
-/// augmented fit; the residual block tells the error before (`rmse_before_m`, the plain fit's)
-/// and after, on the whole trace and on the held-out segment.
-fn name_effect(
-    named: &mut FitResult,
+/// The result of `fit` (the fit with one named effect, on `trace`, the record it fitted) and
+/// its fitted H: joints from that fit; the residual block names the effect with `params` and
+/// tells the error before (`rmse_before_m`, the plain fit's) and after, on the whole trace and on
+/// the held-out blocks (`holds`: the plain model's test, the augmented one's).
+#[allow(clippy::too_many_arguments)]
+fn named_result(
+    model: &LiftModel,
+    fit: &LiftFit,
+    trace: &LiftTrace,
+    opts: &LiftFitOptions,
+    trace_id: &str,
     name: &str,
-    params: serde_json::Map<String, serde_json::Value>,
+    params: [(&str, serde_json::Value); 2],
     rmse_before_m: f64,
-    hold_before: &super::holdout::Holdout,
-    hold_after: &super::holdout::Holdout,
-) {
+    holds: (&super::holdout::Holdout, &super::holdout::Holdout),
+) -> (FitResult, Vec<f64>) {
+    let refitted = fit.fitted_height_m.first().cloned().unwrap_or_default();
+    let mut named = fit_result(model, fit, trace, &refitted, opts, trace_id);
     let after = named.rmse.value;
     named.residual.effects = vec![crate::report::EffectResult {
         name: name.into(),
-        params,
+        params: params
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v))
+            .collect(),
     }];
     named.residual.rmse_before = rmse_before_m;
     named.residual.rmse_after = after;
-    set_holdout(named, hold_before, hold_after);
+    set_holdout(&mut named, holds.0, holds.1);
+    (named, refitted)
 }
 
 /// Fit several lift traces of one pantograph together (friction shared, one torque offset per
