@@ -208,6 +208,12 @@ pub struct LiftModel {
     /// horizontal motion in a lift, a few cm over the whole stroke, is left out); the frame's
     /// own drag is lumped into the head's c_a.
     pub head_drag_ns2_per_m2: f64,
+    /// `sensor_delay` (issue 16, a lift effect; 0 in the paper's model): the logger's H is the
+    /// strip's height this long before, s, H_meas(t) = H(t − τ). An output effect: the
+    /// dynamics never read it; a fit compares the model's H read τ late with the record
+    /// (`identify`). The simulator never applies it (`simulate --effect sensor_delay` delays
+    /// the recorded channel).
+    pub h_sensor_delay_s: f64,
     /// Lower-arm range searched for static states (`[range]`), rad.
     pub alpha_range_rad: (f64, f64),
     /// H and its partials tabulated over α (geometry only; shared by the clones a fit makes).
@@ -269,6 +275,7 @@ impl LiftModel {
             friction: FrictionParams::baseline(g),
             sign_law: SignLaw::REFERENCE,
             head_drag_ns2_per_m2: 0.0,
+            h_sensor_delay_s: 0.0,
             alpha_range_rad,
         }
     }

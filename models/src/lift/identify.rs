@@ -272,6 +272,14 @@ pub fn effect_prior(p: LiftParam) -> Option<EffectPrior> {
             lower: 0.0,
             upper: 50.0,
         }),
+        // `sensor_delay` τ: sd 0.1 s in [0, 0.2] s, nearly flat over the range (a logger's H lag
+        // is tens of ms; 0.2 s is a slow filter, not a lag: `effects::MAX_DELAY_S`), and a lag
+        // is never negative.
+        LiftParam::SensorDelay => Some(EffectPrior {
+            sd: 0.1,
+            lower: 0.0,
+            upper: super::effects::MAX_DELAY_S,
+        }),
         _ => None,
     }
 }
@@ -356,10 +364,16 @@ impl Problem for MapProblem<'_, '_> {
     }
     fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
         let pf = self.fric.len();
-        let ne = self.effect_priors.len();
         let e0 = pf + self.traces.len();
         let m = self.model_at(x);
         let sigma = self.opts.h_noise_m;
+        // The H delay, if fitted: its index among the effects and its value, s.
+        let delay = self
+            .opts
+            .effect_params
+            .iter()
+            .position(|p| p.is_output())
+            .map(|e| (e, x[e0 + e]));
         jac.fill(0.0);
         let mut row = 0;
         for (ti, tr) in self.traces.iter().enumerate() {
@@ -374,19 +388,54 @@ impl Problem for MapProblem<'_, '_> {
             .map_err(|e| e.to_string())?;
             let p = self.with_offset.len();
             let mask = self.opts.holdout_mask.as_deref().filter(|_| ti == 0);
+            // `sensor_delay`: the model's H read τ late, H(t_k − τ), linear between samples
+            // (the record starts at rest: before its first sample, the first), ∂/∂τ = −Ḣ.
+            let t_s = tr.inputs.t_s;
+            let mut j = 0;
             for k in 0..tr.strip_height_m.len() {
                 if mask.is_some_and(|m| m.get(k) == Some(&true)) {
                     r[row] = 0.0;
                     row += 1;
                     continue;
                 }
-                r[row] = (run.strip_height_m[k] - tr.strip_height_m[k]) / sigma;
+                // Sample j and its weight w toward j + 1 (w = 0: sample k itself).
+                let (jk, w, slope) = match delay {
+                    None => (k, 0.0, 0.0),
+                    Some((_, tau)) => {
+                        let t = t_s[k] - tau;
+                        while j + 1 < k && t_s[j + 1] <= t {
+                            j += 1;
+                        }
+                        if t <= t_s[0] {
+                            (0, 0.0, 0.0)
+                        } else {
+                            let dt = t_s[j + 1] - t_s[j];
+                            let w = ((t - t_s[j]) / dt).clamp(0.0, 1.0);
+                            let dh = run.strip_height_m[j + 1] - run.strip_height_m[j];
+                            (j, w, dh / dt)
+                        }
+                    }
+                };
+                let at = |v: &dyn Fn(usize) -> f64| {
+                    if w == 0.0 {
+                        v(jk)
+                    } else {
+                        v(jk) + w * (v(jk + 1) - v(jk))
+                    }
+                };
+                r[row] = (at(&|q| run.strip_height_m[q]) - tr.strip_height_m[k]) / sigma;
                 for i in 0..pf {
-                    jac[(row, i)] = run.d_height[k * p + i] * self.baseline[i] / sigma;
+                    jac[(row, i)] = at(&|q| run.d_height[q * p + i]) * self.baseline[i] / sigma;
                 }
-                jac[(row, pf + ti)] = run.d_height[k * p + pf] / sigma;
-                for e in 0..ne {
-                    jac[(row, e0 + e)] = run.d_height[k * p + pf + 1 + e] / sigma;
+                jac[(row, pf + ti)] = at(&|q| run.d_height[q * p + pf]) / sigma;
+                let mut col = pf + 1;
+                for (e, ep) in self.opts.effect_params.iter().enumerate() {
+                    jac[(row, e0 + e)] = if ep.is_output() {
+                        -slope / sigma
+                    } else {
+                        col += 1;
+                        at(&|q| run.d_height[q * p + col - 1]) / sigma
+                    };
                 }
                 row += 1;
             }
@@ -668,7 +717,13 @@ pub fn fit_map_in(
     let ne = effect_priors.len();
     let mut with_offset = fric.clone();
     with_offset.push(LiftParam::TorqueOffset);
-    with_offset.extend(opts.effect_params.iter().copied());
+    // Output effects (the H delay) are applied to the read-out, not simulated.
+    with_offset.extend(
+        opts.effect_params
+            .iter()
+            .copied()
+            .filter(|p| !p.is_output()),
+    );
     let mut problem = MapProblem {
         ws,
         base: model,
@@ -1009,6 +1064,81 @@ mod tests {
     use crate::lift::geometry::builtin_160ec;
     use crate::lift::protocol::{LiftProtocol, LiftRecord, record};
     use crate::noise::Noise;
+
+    /// The `sensor_delay` column of the fit's Jacobian is the derivative of the delayed read-out
+    /// (central differences of whole evaluations, τ between samples), and τ = 0 reads the model
+    /// as the plain fit does.
+    #[test]
+    fn the_delay_column_is_the_derivative_of_the_delayed_read_out() {
+        let rec = drifted_trace(1.0, 3);
+        let trace = [LiftTrace {
+            inputs: rec.inputs(),
+            strip_height_m: &rec.strip_height_m,
+        }];
+        let model = LiftModel::new(builtin_160ec());
+        let opts = LiftFitOptions {
+            effect_params: vec![LiftParam::SensorDelay],
+            ..LiftFitOptions::default()
+        };
+        let fric = opts.friction_params.clone();
+        let baseline = baseline_of(&model, &fric).unwrap();
+        let priors = [effect_prior(LiftParam::SensorDelay).unwrap()];
+        let mut with_offset = fric.clone();
+        with_offset.push(LiftParam::TorqueOffset);
+        let mut ws = SensWorkspace::default();
+        let n_data = rec.strip_height_m.len();
+        let mut problem = MapProblem {
+            ws: &mut ws,
+            base: &model,
+            traces: &trace,
+            fric: &fric,
+            baseline: &baseline,
+            opts: &opts,
+            with_offset,
+            effect_priors: &priors,
+            n_data,
+        };
+        let (np, nr) = (problem.n_params(), problem.n_residuals());
+        let pf = fric.len();
+        let eval = |p: &mut MapProblem, tau: f64| {
+            let mut x = vec![1.0; pf];
+            x.extend([0.0, tau]);
+            let (mut r, mut j) = (vec![0.0; nr], DMatrix::zeros(nr, np));
+            p.eval(&x, &mut r, &mut j).unwrap();
+            (r, j)
+        };
+        let (tau, h) = (0.0201, 1e-5);
+        let (_, jac) = eval(&mut problem, tau);
+        let (rp, _) = eval(&mut problem, tau + h);
+        let (rm, _) = eval(&mut problem, tau - h);
+        let scale = (0..n_data)
+            .map(|k| jac[(k, pf + 1)].abs())
+            .fold(0.0, f64::max);
+        assert!(scale > 100.0, "H moves with τ: {scale}");
+        for k in 0..n_data {
+            let fd = (rp[k] - rm[k]) / (2.0 * h);
+            assert!(
+                (fd - jac[(k, pf + 1)]).abs() <= 1e-6 * scale,
+                "sample {k}: {fd} vs {}",
+                jac[(k, pf + 1)]
+            );
+        }
+        // τ = 0: the plain fit's residuals, sample for sample.
+        let (r0, _) = eval(&mut problem, 0.0);
+        let plain_opts = LiftFitOptions::default();
+        let mut plain = MapProblem {
+            effect_priors: &[],
+            opts: &plain_opts,
+            ..problem
+        };
+        let mut x = vec![1.0; pf];
+        x.push(0.0);
+        let (mut r, mut j) = (vec![0.0; nr - 1], DMatrix::zeros(nr - 1, np - 1));
+        plain.eval(&x, &mut r, &mut j).unwrap();
+        for k in 0..n_data {
+            assert!((r[k] - r0[k]).abs() < 1e-12, "sample {k}");
+        }
+    }
 
     /// The paper's lift protocol on a model whose J3 dry friction has drifted, H with 1 mm noise.
     fn drifted_trace(j3_factor: f64, seed: u64) -> LiftRecord {

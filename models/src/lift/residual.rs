@@ -61,6 +61,9 @@ pub struct LiftResidual {
     pub trusted: bool,
 }
 
+/// The name of the strip-speed correlate in [`LiftResidual::correlates_with`].
+pub const SPEED: &str = "strip speed";
+
 /// Diagnose `residual_m` (measured − fitted H, m) of a lift sampled at `t_s`, with the fitted
 /// height and drive torque to correlate against; `floor_m` is the least noise assumed (the
 /// fit's σ_H). Empty input: trusted, NaN stats.
@@ -96,7 +99,7 @@ pub fn diagnose(
     // force as one ∝ the height or torque.
     let speed = speed(t_s, fitted_height_m);
     let mut correlates_with: Vec<(String, f64)> = [
-        ("strip speed", speed.as_slice()),
+        (SPEED, speed.as_slice()),
         ("strip height", fitted_height_m),
         ("drive torque", torque_nm),
         ("time", t_s),

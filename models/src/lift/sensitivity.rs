@@ -37,9 +37,18 @@ pub enum LiftParam {
     /// effect, not a friction parameter (not in [`LiftParam::all`]; fitted only when a fit's
     /// `effect_params` name it).
     HeadDrag,
+    /// `sensor_delay` of the H channel, τ in s ([`LiftModel::h_sensor_delay_s`]): a lift effect
+    /// on the output, not in the dynamics (no sensitivity run carries it: a fit differentiates
+    /// the delayed read-out, −Ḣ(t − τ), itself).
+    SensorDelay,
 }
 
 impl LiftParam {
+    /// An effect on the H read-out rather than on the dynamics (`sensor_delay`).
+    pub fn is_output(self) -> bool {
+        self == LiftParam::SensorDelay
+    }
+
     /// Every friction parameter a lift can touch (J6 is locked: it cannot) and the offset.
     pub fn all() -> Vec<LiftParam> {
         let mut v = Vec::new();
@@ -75,16 +84,18 @@ impl LiftParam {
             LiftParam::J9Damping => "J9",
             LiftParam::TorqueOffset => "T",
             LiftParam::HeadDrag => "head",
+            LiftParam::SensorDelay => "H",
         }
     }
 
-    /// `viscous`, `dry`, `offset` or `drag`.
+    /// `viscous`, `dry`, `offset`, `drag` or `delay`.
     pub fn kind(self) -> &'static str {
         match self {
             LiftParam::Viscous(_) | LiftParam::J8Viscous | LiftParam::J9Damping => "viscous",
             LiftParam::Dry(_) | LiftParam::J8Dry => "dry",
             LiftParam::TorqueOffset => "offset",
             LiftParam::HeadDrag => "drag",
+            LiftParam::SensorDelay => "delay",
         }
     }
 
@@ -98,6 +109,7 @@ impl LiftParam {
             LiftParam::J9Damping => f.j9_damping_ns_per_m_each,
             LiftParam::TorqueOffset => offset_nm,
             LiftParam::HeadDrag => model.head_drag_ns2_per_m2,
+            LiftParam::SensorDelay => model.h_sensor_delay_s,
         }
     }
 
@@ -111,6 +123,7 @@ impl LiftParam {
             LiftParam::J9Damping => f.j9_damping_ns_per_m_each = v,
             LiftParam::TorqueOffset => *offset_nm = v,
             LiftParam::HeadDrag => model.head_drag_ns2_per_m2 = v,
+            LiftParam::SensorDelay => model.h_sensor_delay_s = v,
         }
     }
 }
@@ -285,8 +298,9 @@ impl SensSys<'_> {
                     ),
                     LiftParam::J9Damping => (Q_SLIDE, -m.j9_count * hd),
                     LiftParam::TorqueOffset => (Q_DRIVE, -1.0),
-                    // Not reached (the strip-load branch above): no generalised input.
-                    LiftParam::HeadDrag => (Q_DRIVE, 0.0),
+                    // Not reached (the strip-load branch above; a delay is never a
+                    // sensitivity run's parameter): no generalised input.
+                    LiftParam::HeadDrag | LiftParam::SensorDelay => (Q_DRIVE, 0.0),
                 };
                 [phi[0][q] * dq, phi[1][q] * dq]
             };
