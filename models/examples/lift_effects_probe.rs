@@ -4,7 +4,8 @@
 //! Prints per lift the verdict, the named effects, RMSE before/after and any flagged joint.
 //!
 //! `cargo run --release -p pantowatch-models --example lift_effects_probe -- [SEEDS] [CASE…]`
-//! (cases: `clean`, `drag:<c_a N/(m/s)²>`, `delay:<ms>`, `offset:<mm>`, `gain:<%>`)
+//! (cases: `clean`, `drag:<c_a N/(m/s)²>`, `delay:<ms>`, `offset:<mm>`, `gain:<%>`,
+//! `stribeck:<μs/μk − 1>` at `$STRIBECK_JOINT` (J3) with `$STRIBECK_VS` rad/s)
 use pantowatch_models::drift::{DriftThresholds, Status};
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
@@ -60,6 +61,21 @@ fn main() {
             }
             if name == "drag" {
                 m.head_drag_ns2_per_m2 = size;
+            }
+            if name == "stribeck" {
+                // At joint $STRIBECK_JOINT (default J3), Stribeck speed $STRIBECK_VS rad/s.
+                let j = std::env::var("STRIBECK_JOINT").unwrap_or_else(|_| "J3".into());
+                let j = pantowatch_models::lift::topology::RevJoint::ALL
+                    .into_iter()
+                    .find(|r| r.name() == j)
+                    .unwrap();
+                m.stribeck_excess[j.index()] = size;
+                if let Some(vs) = std::env::var("STRIBECK_VS")
+                    .ok()
+                    .and_then(|v| v.parse().ok())
+                {
+                    m.stribeck_speed_rad_s[j.index()] = vs;
+                }
             }
             let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
             let mut rec = LiftSensorNoise::realistic()

@@ -14,6 +14,11 @@ use super::readout::StripTable;
 use super::topology::{BodyId, N_REV, RevJoint};
 use super::vec2::V2;
 
+/// The Stribeck speed a model starts with, rad/s (only read where a joint has a Stribeck excess):
+/// a lift's lower-arm joints turn at ~0.05–0.3 rad/s, so 0.05 rad/s puts the Stribeck band in
+/// the starts and reversals, where joints pass through rest.
+pub const DEFAULT_STRIBECK_SPEED_RAD_S: f64 = 0.05;
+
 /// How dry friction's sign(v) is evaluated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SignLaw {
@@ -155,7 +160,8 @@ pub struct Eval {
     /// J9 spring force on the head along the slide (preload − k·h) and its damping, N.
     pub j9_spring_n: f64,
     pub j9_damping_n: f64,
-    /// Revolute joints: the sign law's value σ at the relative rate (0 for J6, locked).
+    /// Revolute joints: the sign law's value σ at the relative rate times the joint's Stribeck
+    /// factor ([`LiftModel::stribeck_factor`], 1 without one); 0 for J6, locked.
     pub sign: [f64; N_REV],
     /// Fixed-point iterations taken to make friction and reactions consistent.
     pub iterations: u32,
@@ -214,6 +220,12 @@ pub struct LiftModel {
     /// (`identify`). The simulator never applies it (`simulate --effect sensor_delay` delays
     /// the recorded channel).
     pub h_sensor_delay_s: f64,
+    /// `stribeck` (issue 16, a lift effect; 0 in the paper's model): per revolute joint, the
+    /// static friction's excess over the kinetic, e = μ_s/μ_k − 1 ([`LiftModel::stribeck_factor`]).
+    pub stribeck_excess: [f64; N_REV],
+    /// The Stribeck speed v_s of each revolute joint, rad/s: where the excess has fallen to
+    /// 1/e of itself. Read only where the joint's excess is not 0.
+    pub stribeck_speed_rad_s: [f64; N_REV],
     /// Lower-arm range searched for static states (`[range]`), rad.
     pub alpha_range_rad: (f64, f64),
     /// H and its partials tabulated over α (geometry only; shared by the clones a fit makes).
@@ -276,6 +288,8 @@ impl LiftModel {
             sign_law: SignLaw::REFERENCE,
             head_drag_ns2_per_m2: 0.0,
             h_sensor_delay_s: 0.0,
+            stribeck_excess: [0.0; N_REV],
+            stribeck_speed_rad_s: [DEFAULT_STRIBECK_SPEED_RAD_S; N_REV],
             alpha_range_rad,
         }
     }
@@ -310,12 +324,42 @@ impl LiftModel {
         Ok((head.strip.y, head.strip_d_alpha.y, head.u.y))
     }
 
-    /// The sign law's value for a revolute joint at relative rate `w` (0 for exact statics).
-    pub(super) fn sign_law_revolute(&self, w: f64) -> f64 {
+    /// The sign law's value for revolute joint `i` at relative rate `w` (0 for exact statics),
+    /// times its Stribeck factor.
+    pub(super) fn sign_law_revolute(&self, i: usize, w: f64) -> f64 {
+        self.sign_law_plain(w) * self.stribeck_factor(i, w)
+    }
+
+    /// The sign law's value for a revolute joint at relative rate `w`, without a Stribeck factor.
+    pub(super) fn sign_law_plain(&self, w: f64) -> f64 {
         match self.sign_law {
             SignLaw::Exact { .. } => sign0(w),
             law => law.revolute(w, 0.0),
         }
+    }
+
+    /// ∂s/∂e and ∂s/∂v_s of joint `i`'s Stribeck factor at relative rate `w`
+    /// ([`LiftModel::stribeck_factor`]).
+    pub fn stribeck_partials(&self, i: usize, w: f64) -> (f64, f64) {
+        let (e, vs) = (self.stribeck_excess[i], self.stribeck_speed_rad_s[i]);
+        let u = w / vs;
+        let g = (-u * u).exp();
+        (g, e * g * 2.0 * u * u / vs)
+    }
+
+    /// `stribeck` at revolute joint `i` (issue 16, a lift effect): the dry friction's factor
+    /// s(w) = 1 + e·exp(−(w/v_s)²) at relative rate `w`, e = μ_s/μ_k − 1
+    /// ([`LiftModel::stribeck_excess`]), v_s = [`LiftModel::stribeck_speed_rad_s`]; 1 where
+    /// e = 0 (the paper's model). Assumptions: the Gaussian Stribeck curve (exponent 2), the
+    /// same static-to-kinetic ratio in both directions, the kinetic μ the joint's `dry_mu`.
+    /// Quasi-static statics (`statics`) keep the kinetic μ.
+    pub fn stribeck_factor(&self, i: usize, w: f64) -> f64 {
+        let e = self.stribeck_excess[i];
+        if e == 0.0 {
+            return 1.0;
+        }
+        let vs = self.stribeck_speed_rad_s[i];
+        1.0 + e * (-(w / vs) * (w / vs)).exp()
     }
 
     /// The sign law's value for the slide at rate `v`.
@@ -397,7 +441,8 @@ impl LiftModel {
                 continue;
             }
             e.viscous_torque_nm[i] = f.viscous_nms_per_rad[i] * e.rel_rate_rad_s[i];
-            sgn[i] = self.sign_law.revolute(e.rel_rate_rad_s[i], rate[i]);
+            sgn[i] = self.sign_law.revolute(e.rel_rate_rad_s[i], rate[i])
+                * self.stribeck_factor(i, e.rel_rate_rad_s[i]);
         }
         let mut torque = match guess {
             Some(g) => *g,
@@ -726,7 +771,7 @@ impl LiftModel {
             let w = rate[i] * ad;
             let sg = match sign {
                 Some(sg) => sg[i],
-                None => self.sign_law.revolute(w, rate[i]),
+                None => self.sign_law.revolute(w, rate[i]) * self.stribeck_factor(i, w),
             };
             let t = f.viscous_nms_per_rad[i] * w
                 + f.dry_mu[i] * self.pin_radius_m[i] * r.force_n[i].norm() * sg;

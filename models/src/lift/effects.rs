@@ -1,5 +1,6 @@
 //! Effects a lift fit can name when its residual shows a model error (issue 16, point 2 in part):
-//! so far `quadratic_drag` on the head and `sensor_delay` of H; anything else stays `unexplained`.
+//! `quadratic_drag` on the head, `sensor_delay` of H and `stribeck` at J3; anything else stays
+//! `unexplained`.
 //!
 //! `quadratic_drag` (contract vocabulary): the air's force c_a·v|v| against the strip's
 //! vertical velocity ([`LiftModel::head_drag_n`]; parameter `c_a_ns2_per_m2`, N/(m/s)², prior
@@ -16,6 +17,18 @@
 //! ∂H/∂τ = −Ḣ (`identify`); prior sd 0.1 s in [0, [`MAX_DELAY_S`]], nearly flat. Its interval
 //! is the posterior's, widened by [`DELAY_INTERVAL_SCALE`] as the drag's.
 //!
+//! `stribeck` (contract vocabulary) at [`STRIBECK_JOINT`]: the dry friction's factor
+//! s(w) = 1 + e·exp(−(w/v_s)²) at the joint's relative rate w ([`LiftModel::stribeck_factor`]);
+//! parameters e = μ_s/μ_k − 1 (prior N(0, 1²) in [0, 3]) and v_s (rad/s, prior N(0.05, 0.05²)
+//! in [0.005, 0.5]); reported as `ratio` = 1 + e and `stribeck_speed_rad_s`. Where it shows:
+//! the starts and the slow end of the lowering, where the joint passes through rest and
+//! sticks longer than the kinetic friction lets it. Estimation: one fit with both among the
+//! parameters; intervals the posterior's × [`STRIBECK_INTERVAL_SCALE`]. Limits: a large
+//! excess with a wide band (e ≥ 1, or e = 0.3 with v_s = 0.2 rad/s) makes the lowering's
+//! end stick-slip, which the simulator's explicit integrator cannot step through (step-size
+//! underflow): such lifts are not simulated here, and a fit whose trial reaches them rejects
+//! that step.
+//!
 //! Acceptance, the same for every effect (stated choices): the refit's residual back under
 //! `residual::MODEL_ERROR_RATIO`, its RMS at most half the base fit's ([`MIN_IMPROVEMENT`]),
 //! the parameter's 95 % interval excluding 0, and the parameter within its range (a delay in
@@ -26,6 +39,7 @@
 use super::dynamics::LiftModel;
 use super::identify::{LiftFit, LiftFitError, LiftFitOptions, LiftTrace, effect_prior, fit_map};
 use super::sensitivity::LiftParam;
+use super::topology::RevJoint;
 
 /// Longest delay tried, s: a logger's H lag is tens of ms; 0.2 s is a slow filter, not a lag.
 pub const MAX_DELAY_S: f64 = 0.2;
@@ -77,19 +91,45 @@ pub fn try_quadratic_drag(
     base: &LiftFit,
     opts: &LiftFitOptions,
 ) -> Result<Option<DragFinding>, LiftFitError> {
+    let Some(refit) = refit_with(model, trace, base, &drag_options(opts))? else {
+        return Ok(None);
+    };
+    let est = &refit.fit.effects[0];
+    let upper = effect_prior(LiftParam::HeadDrag).map_or(f64::INFINITY, |p| p.upper);
+    let named = refit.explains && est.value - 1.96 * est.posterior_sd > 0.0 && est.ci95[1] < upper;
+    Ok(named.then(|| DragFinding {
+        c_a_ns2_per_m2: est.value,
+        c_a_ci95: est.ci95,
+        fit: refit.fit.clone(),
+    }))
+}
+
+/// A refit with effect parameters and whether it explains the record by the margins every
+/// effect shares: its residual back under `residual::MODEL_ERROR_RATIO` and its RMS at most
+/// [`MIN_IMPROVEMENT`] of the base fit's.
+struct Refit {
+    fit: LiftFit,
+    explains: bool,
+}
+
+/// Refit `trace` with `with_effect` (the effect's parameters among the friction's); `Ok(None)`
+/// where the refit fails or reads out no effect.
+fn refit_with(
+    model: &LiftModel,
+    trace: &LiftTrace,
+    base: &LiftFit,
+    with_effect: &LiftFitOptions,
+) -> Result<Option<Refit>, LiftFitError> {
     let n = trace.strip_height_m.len();
     let base_rms = base.rmse_m.first().copied().unwrap_or(f64::NAN);
-    let with_drag = drag_options(opts);
-    let fit = match fit_map(model, std::slice::from_ref(trace), &with_drag) {
+    let fit = match fit_map(model, std::slice::from_ref(trace), with_effect) {
         Ok(f) => f,
         Err(LiftFitError::Failed(_)) => return Ok(None),
         Err(e) => return Err(e),
     };
-    let Some(est) = fit.effects.first().cloned() else {
-        return Ok(None);
-    };
+    // The model's H as the logger records it (delayed, for `sensor_delay`).
     let fitted = fit.fitted_height_m.first().cloned().unwrap_or_default();
-    if fitted.len() != n {
+    if fit.effects.is_empty() || fitted.len() != n {
         return Ok(None);
     }
     let r: Vec<f64> = trace
@@ -104,16 +144,10 @@ pub fn try_quadratic_drag(
         &r,
         &fitted,
         trace.inputs.torque_nm,
-        opts.h_noise_m,
+        with_effect.h_noise_m,
     );
-    let upper = effect_prior(LiftParam::HeadDrag).map_or(f64::INFINITY, |p| p.upper);
-    let named = diag.trusted
-        && after <= MIN_IMPROVEMENT * base_rms
-        && est.value - 1.96 * est.posterior_sd > 0.0
-        && est.ci95[1] < upper;
-    Ok(named.then_some(DragFinding {
-        c_a_ns2_per_m2: est.value,
-        c_a_ci95: est.ci95,
+    Ok(Some(Refit {
+        explains: diag.trusted && after <= MIN_IMPROVEMENT * base_rms,
         fit,
     }))
 }
@@ -161,35 +195,10 @@ pub fn try_sensor_delay(
     base: &LiftFit,
     opts: &LiftFitOptions,
 ) -> Result<Option<DelayFinding>, LiftFitError> {
-    let n = trace.strip_height_m.len();
-    let base_rms = base.rmse_m.first().copied().unwrap_or(f64::NAN);
-    let fit = match fit_map(model, std::slice::from_ref(trace), &delay_options(opts)) {
-        Ok(f) => f,
-        Err(LiftFitError::Failed(_)) => return Ok(None),
-        Err(e) => return Err(e),
-    };
-    let Some(est) = fit.effects.first().cloned() else {
+    let Some(refit) = refit_with(model, trace, base, &delay_options(opts))? else {
         return Ok(None);
     };
-    // The delayed model's H: what the logger would have recorded.
-    let fitted = fit.fitted_height_m.first().cloned().unwrap_or_default();
-    if fitted.len() != n {
-        return Ok(None);
-    }
-    let r: Vec<f64> = trace
-        .strip_height_m
-        .iter()
-        .zip(&fitted)
-        .map(|(m, f)| m - f)
-        .collect();
-    let after = (r.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
-    let diag = super::residual::diagnose(
-        trace.inputs.t_s,
-        &r,
-        &fitted,
-        trace.inputs.torque_nm,
-        opts.h_noise_m,
-    );
+    let est = &refit.fit.effects[0];
     let tau = est.value;
     // The interval: the posterior's sd (× DELAY_INTERVAL_SCALE) and a quarter of the sampling
     // interval in quadrature, for the timing error the posterior does not see: the inputs'
@@ -200,14 +209,77 @@ pub fn try_sensor_delay(
     let dt_s = (t[t.len() - 1] - t[0]) / (t.len() - 1).max(1) as f64;
     let sd = (est.posterior_sd.powi(2) + (dt_s / 4.0).powi(2)).sqrt();
     let ci = [tau - 1.96 * sd, tau + 1.96 * sd];
-    let named = diag.trusted
-        && after <= MIN_IMPROVEMENT * base_rms
-        && (MIN_DELAY_S..MAX_DELAY_S).contains(&tau)
-        && ci[0] > 0.0;
-    Ok(named.then_some(DelayFinding {
+    let named = refit.explains && (MIN_DELAY_S..MAX_DELAY_S).contains(&tau) && ci[0] > 0.0;
+    Ok(named.then(|| DelayFinding {
         delay_s: tau,
         delay_ci95_s: ci,
-        fit,
+        fit: refit.fit.clone(),
+    }))
+}
+
+/// The joint a lift's `stribeck` is tried at: J3, the lower arm's upper pin, whose dry friction
+/// a raise and lower informs most (with J1's: `lift::attribution`). Measured
+/// (`examples/lift_effects_probe`, realistic noise): e = 0.1 at J3 leaves the plain fit 2.3–2.4 mm
+/// (ratio 3.4), e = 0.3 at J1 only 1.2 mm (ratio 1.7: no joint but J3 shows it strongly).
+pub const STRIBECK_JOINT: RevJoint = RevJoint::J3;
+
+/// The joints a named `stribeck` is reported at: the lower arm's pins, J1 and J3, which a lift
+/// cannot tell apart. Measured (`examples/lift_effects_probe`, realistic noise, seeds 0–3): a
+/// Stribeck excess of 0.3 or 0.6 at J1 is named on 8 of 8 lifts, fitted at J3 as a ratio of
+/// 1.04–1.11 (J1's pin carries a smaller friction torque than J3's).
+pub const STRIBECK_JOINTS: &str = "J1+J3";
+
+/// The posterior sd of a fit with `stribeck` is multiplied by this (every parameter's), as
+/// [`DRAG_INTERVAL_SCALE`]. Measured: see the README's lift-effects score.
+pub const STRIBECK_INTERVAL_SCALE: f64 = 3.0;
+
+/// `opts` with [`STRIBECK_JOINT`]'s Stribeck excess and speed fitted, intervals scaled by
+/// [`STRIBECK_INTERVAL_SCALE`].
+pub fn stribeck_options(opts: &LiftFitOptions) -> LiftFitOptions {
+    LiftFitOptions {
+        effect_params: vec![
+            LiftParam::StribeckExcess(STRIBECK_JOINT),
+            LiftParam::StribeckSpeed(STRIBECK_JOINT),
+        ],
+        interval_scale: STRIBECK_INTERVAL_SCALE,
+        ..opts.clone()
+    }
+}
+
+/// A named Stribeck friction at a joint and the fit with it.
+#[derive(Debug, Clone)]
+pub struct StribeckFinding {
+    pub joint: RevJoint,
+    /// Static over kinetic friction, μ_s/μ_k = 1 + e, and its interval.
+    pub ratio: f64,
+    pub ratio_ci95: [f64; 2],
+    pub speed_rad_s: f64,
+    pub speed_ci95_rad_s: [f64; 2],
+    pub fit: LiftFit,
+}
+
+/// Tries `stribeck` at [`STRIBECK_JOINT`] on a trace whose base fit `base` left a model error:
+/// one fit with the joint's excess e and speed v_s among the parameters. Named when, besides the
+/// shared margins, e's interval excludes 0 and stays under its prior's bound.
+pub fn try_stribeck(
+    model: &LiftModel,
+    trace: &LiftTrace,
+    base: &LiftFit,
+    opts: &LiftFitOptions,
+) -> Result<Option<StribeckFinding>, LiftFitError> {
+    let Some(refit) = refit_with(model, trace, base, &stribeck_options(opts))? else {
+        return Ok(None);
+    };
+    let (e, vs) = (&refit.fit.effects[0], &refit.fit.effects[1]);
+    let upper = effect_prior(e.param).map_or(f64::INFINITY, |p| p.upper);
+    let named = refit.explains && e.value - 1.96 * e.posterior_sd > 0.0 && e.ci95[1] < upper;
+    Ok(named.then(|| StribeckFinding {
+        joint: STRIBECK_JOINT,
+        ratio: 1.0 + e.value,
+        ratio_ci95: [1.0 + e.ci95[0], 1.0 + e.ci95[1]],
+        speed_rad_s: vs.value,
+        speed_ci95_rad_s: vs.ci95,
+        fit: refit.fit.clone(),
     }))
 }
 

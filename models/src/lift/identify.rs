@@ -260,7 +260,7 @@ const MAX_STEPS_PER_S: f64 = 1000.0;
 /// Upper bound of a friction coefficient as a multiple of its baseline.
 const MAX_MULTIPLE: f64 = 10.0;
 
-/// The prior of a lift effect's parameter: zero-mean normal with this sd, within these bounds
+/// The prior of a lift effect's parameter: normal with this mean and sd, within these bounds
 /// (physical units). `quadratic_drag` c_a: sd 5 N/(m/s)², in [0, 50]: still air gives
 /// c_a = ½ρC_dA ≈ 0.6·1.2·A, a few N/(m/s)² for a head and upper frame of ~1–3 m² frontal
 /// area (issue 16); the prior only keeps an uninformative lift near 0, and a drag is
@@ -268,6 +268,7 @@ const MAX_MULTIPLE: f64 = 10.0;
 pub fn effect_prior(p: LiftParam) -> Option<EffectPrior> {
     match p {
         LiftParam::HeadDrag => Some(EffectPrior {
+            mean: 0.0,
             sd: 5.0,
             lower: 0.0,
             upper: 50.0,
@@ -276,9 +277,27 @@ pub fn effect_prior(p: LiftParam) -> Option<EffectPrior> {
         // is tens of ms; 0.2 s is a slow filter, not a lag: `effects::MAX_DELAY_S`), and a lag
         // is never negative.
         LiftParam::SensorDelay => Some(EffectPrior {
+            mean: 0.0,
             sd: 0.1,
             lower: 0.0,
             upper: super::effects::MAX_DELAY_S,
+        }),
+        // `stribeck` e = μ_s/μ_k − 1: N(0, 1²) in [0, 3] (static friction 1–4× the kinetic;
+        // a joint's static friction is not below its kinetic).
+        LiftParam::StribeckExcess(_) => Some(EffectPrior {
+            mean: 0.0,
+            sd: 1.0,
+            lower: 0.0,
+            upper: 3.0,
+        }),
+        // `stribeck` v_s: N(0.05, 0.05²) rad/s in [0.005, 0.5] (`DEFAULT_STRIBECK_SPEED_RAD_S`:
+        // the lower-arm joints turn at ~0.05–0.3 rad/s in a lift; below 0.005 rad/s the band
+        // is inside the sign law's own smoothing, 10⁻³ rad/s).
+        LiftParam::StribeckSpeed(_) => Some(EffectPrior {
+            mean: super::dynamics::DEFAULT_STRIBECK_SPEED_RAD_S,
+            sd: 0.05,
+            lower: 0.005,
+            upper: 0.5,
         }),
         _ => None,
     }
@@ -287,6 +306,7 @@ pub fn effect_prior(p: LiftParam) -> Option<EffectPrior> {
 /// Prior of one effect parameter ([`effect_prior`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EffectPrior {
+    pub mean: f64,
     pub sd: f64,
     pub lower: f64,
     pub upper: f64,
@@ -453,7 +473,7 @@ impl Problem for MapProblem<'_, '_> {
             row += 1;
         }
         for (e, pr) in self.effect_priors.iter().enumerate() {
-            r[row] = x[e0 + e] / pr.sd;
+            r[row] = (x[e0 + e] - pr.mean) / pr.sd;
             jac[(row, e0 + e)] = 1.0 / pr.sd;
             row += 1;
         }

@@ -165,9 +165,9 @@ pub fn fit_lift_trace(
     .first()
     .is_some_and(|(name, _)| name == super::residual::SPEED);
     let order = if delay_first {
-        [Candidate::Delay, Candidate::Drag]
+        [Candidate::Delay, Candidate::Drag, Candidate::Stribeck]
     } else {
-        [Candidate::Drag, Candidate::Delay]
+        [Candidate::Drag, Candidate::Delay, Candidate::Stribeck]
     };
     for candidate in order {
         let found =
@@ -177,7 +177,7 @@ pub fn fit_lift_trace(
                         (
                             f.fit,
                             "quadratic_drag",
-                            [
+                            vec![
                                 ("c_a_ns2_per_m2", serde_json::json!(f.c_a_ns2_per_m2)),
                                 ("c_a_ns2_per_m2_ci95", serde_json::json!(f.c_a_ci95)),
                             ],
@@ -189,11 +189,33 @@ pub fn fit_lift_trace(
                         (
                             f.fit,
                             "sensor_delay",
-                            [
+                            vec![
                                 ("delay_s", serde_json::json!(f.delay_s)),
                                 ("delay_s_ci95", serde_json::json!(f.delay_ci95_s)),
                             ],
                             super::effects::delay_options(&opts),
+                        )
+                    }),
+                Candidate::Stribeck => super::effects::try_stribeck(model, &trace, &fit, &opts)?
+                    .map(|f| {
+                        (
+                            f.fit,
+                            "stribeck",
+                            vec![
+                                // A lift cannot tell the lower arm's pins apart (their dry
+                                // friction is one combination, `lift::attribution`): measured,
+                                // a Stribeck at J1 is named as well, fitted at J3.
+                                ("joint", serde_json::json!(super::effects::STRIBECK_JOINTS)),
+                                ("fitted_at", serde_json::json!(f.joint.name())),
+                                ("ratio", serde_json::json!(f.ratio)),
+                                ("ratio_ci95", serde_json::json!(f.ratio_ci95)),
+                                ("stribeck_speed_rad_s", serde_json::json!(f.speed_rad_s)),
+                                (
+                                    "stribeck_speed_rad_s_ci95",
+                                    serde_json::json!(f.speed_ci95_rad_s),
+                                ),
+                            ],
+                            super::effects::stribeck_options(&opts),
                         )
                     }),
             };
@@ -236,6 +258,7 @@ pub fn fit_lift_trace(
 enum Candidate {
     Drag,
     Delay,
+    Stribeck,
 }
 
 /// The `holdout_note` of a lift whose plain model explains the record (no effect tried).
@@ -270,7 +293,7 @@ fn named_result(
     opts: &LiftFitOptions,
     trace_id: &str,
     name: &str,
-    params: [(&str, serde_json::Value); 2],
+    params: Vec<(&str, serde_json::Value)>,
     rmse_before_m: f64,
     holds: (&super::holdout::Holdout, &super::holdout::Holdout),
 ) -> (FitResult, Vec<f64>) {

@@ -41,6 +41,11 @@ pub enum LiftParam {
     /// on the output, not in the dynamics (no sensitivity run carries it: a fit differentiates
     /// the delayed read-out, −Ḣ(t − τ), itself).
     SensorDelay,
+    /// `stribeck` at a revolute joint: the static friction's excess over the kinetic,
+    /// e = μ_s/μ_k − 1 ([`LiftModel::stribeck_factor`]). A lift effect, as `HeadDrag`.
+    StribeckExcess(RevJoint),
+    /// `stribeck` at a revolute joint: its Stribeck speed v_s, rad/s.
+    StribeckSpeed(RevJoint),
 }
 
 impl LiftParam {
@@ -85,10 +90,11 @@ impl LiftParam {
             LiftParam::TorqueOffset => "T",
             LiftParam::HeadDrag => "head",
             LiftParam::SensorDelay => "H",
+            LiftParam::StribeckExcess(j) | LiftParam::StribeckSpeed(j) => j.name(),
         }
     }
 
-    /// `viscous`, `dry`, `offset`, `drag` or `delay`.
+    /// `viscous`, `dry`, `offset`, `drag`, `delay`, `stribeck_excess` or `stribeck_speed`.
     pub fn kind(self) -> &'static str {
         match self {
             LiftParam::Viscous(_) | LiftParam::J8Viscous | LiftParam::J9Damping => "viscous",
@@ -96,6 +102,8 @@ impl LiftParam {
             LiftParam::TorqueOffset => "offset",
             LiftParam::HeadDrag => "drag",
             LiftParam::SensorDelay => "delay",
+            LiftParam::StribeckExcess(_) => "stribeck_excess",
+            LiftParam::StribeckSpeed(_) => "stribeck_speed",
         }
     }
 
@@ -110,6 +118,8 @@ impl LiftParam {
             LiftParam::TorqueOffset => offset_nm,
             LiftParam::HeadDrag => model.head_drag_ns2_per_m2,
             LiftParam::SensorDelay => model.h_sensor_delay_s,
+            LiftParam::StribeckExcess(j) => model.stribeck_excess[j.index()],
+            LiftParam::StribeckSpeed(j) => model.stribeck_speed_rad_s[j.index()],
         }
     }
 
@@ -124,6 +134,8 @@ impl LiftParam {
             LiftParam::TorqueOffset => *offset_nm = v,
             LiftParam::HeadDrag => model.head_drag_ns2_per_m2 = v,
             LiftParam::SensorDelay => model.h_sensor_delay_s = v,
+            LiftParam::StribeckExcess(j) => model.stribeck_excess[j.index()] = v,
+            LiftParam::StribeckSpeed(j) => model.stribeck_speed_rad_s[j.index()] = v,
         }
     }
 }
@@ -287,9 +299,23 @@ impl SensSys<'_> {
                         } else {
                             m.pin_radius_m[k]
                                 * e.normal_n[k]
-                                * m.sign_law_revolute(e.rel_rate_rad_s[k])
+                                * m.sign_law_revolute(k, e.rel_rate_rad_s[k])
                         };
                         (k, per_mu)
+                    }
+                    LiftParam::StribeckExcess(j) | LiftParam::StribeckSpeed(j) => {
+                        // T_dry = μ·R·N·σ·s(w): per unit parameter, μ·R·N·σ·∂s/∂p.
+                        let k = j.index();
+                        let w = e.rel_rate_rad_s[k];
+                        let (ds_de, ds_dvs) = m.stribeck_partials(k, w);
+                        let ds = if matches!(p, LiftParam::StribeckExcess(_)) {
+                            ds_de
+                        } else {
+                            ds_dvs
+                        };
+                        let per =
+                            f.dry_mu[k] * m.pin_radius_m[k] * e.normal_n[k] * m.sign_law_plain(w);
+                        (k, per * ds)
                     }
                     LiftParam::J8Viscous => (Q_SLIDE, -m.j8_count * hd),
                     LiftParam::J8Dry => (
@@ -586,6 +612,7 @@ mod tests {
     fn sensitivities_match_finite_differences_of_whole_runs() {
         let mut base = LiftModel::new(builtin_160ec());
         base.head_drag_ns2_per_m2 = 3.0;
+        base.stribeck_excess[RevJoint::J3.index()] = 0.2;
         let (t, tq, fs, fm) = short_lift();
         let inputs = LiftInputs {
             t_s: &t,
@@ -599,7 +626,11 @@ mod tests {
             ..Default::default()
         };
         let mut params = LiftParam::all();
-        params.push(LiftParam::HeadDrag);
+        params.extend([
+            LiftParam::HeadDrag,
+            LiftParam::StribeckExcess(RevJoint::J3),
+            LiftParam::StribeckSpeed(RevJoint::J3),
+        ]);
         let offset = 2.0;
         // Sensitivities are error-controlled with the state: 10⁻⁹ suffices against 10⁻⁴.
         let sens_opts = SimOptions {
@@ -611,7 +642,14 @@ mod tests {
         let p = params.len();
         for (i, prm) in params.iter().enumerate() {
             let v = prm.get(&base, offset);
-            let d = 1e-2 * v.abs().max(1e-1);
+            // 1 % of the value (of 0.1 for the small ones); the Stribeck speed (0.05 rad/s)
+            // at 1 % of itself, where the Gaussian's curvature keeps the difference's error
+            // under the tolerance.
+            let d = if matches!(prm, LiftParam::StribeckSpeed(_)) {
+                1e-2 * v.abs()
+            } else {
+                1e-2 * v.abs().max(1e-1)
+            };
             let run_at = |x: f64| {
                 let (mut m, mut o) = (base.clone(), offset);
                 prm.set(&mut m, &mut o, x);

@@ -64,7 +64,8 @@ pub struct SimulateArgs {
     /// `backlash:half_width=0.3` (channel units), `sensor_offset:offset=0.5` (channel units),
     /// `sensor_delay:delay_s=0.008`; outside it: `torsional_spring:k=4` (N·m/rad or N/m),
     /// `fading_friction:fade=0.5` (share of μ lost over the trace). A lift (`--kind lift`)
-    /// takes `quadratic_drag:c_a=4` (N/(m/s)² on the head) and `sensor_delay:delay_s=0.02`.
+    /// takes `quadratic_drag:c_a=4` (N/(m/s)² on the head), `sensor_delay:delay_s=0.02` and
+    /// `stribeck:ratio=1.2,speed=0.05` (at J3, v_s in rad/s).
     #[arg(long = "effect")]
     pub effects: Vec<String>,
     /// Slider only: hold the part with this pull (N) and release it at `--release-at` (the
@@ -250,19 +251,35 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     if !stated {
         protocol.sample_hz = a.fs;
     }
-    // Lift effects (issue 16): `quadratic_drag:c_a=…` (N/(m/s)², on the head) is physics and
-    // goes into the model; `sensor_delay:delay_s=…` delays the logged H after the noise.
+    // Lift effects (issue 16): `quadratic_drag:c_a=…` (N/(m/s)², on the head) and
+    // `stribeck:ratio=…[,speed=…]` (μs/μk ≥ 1 and v_s in rad/s at J3, the joint the lift's
+    // vocabulary tries) are physics and go into the model; `sensor_delay:delay_s=…` delays the
+    // logged H after the noise.
     let mut delay_s = 0.0;
     for spec in &a.effects {
         let (name, kv) = parse_effect(spec)?;
         let only =
             |key: &str| -> Option<f64> { (kv.len() == 1).then(|| kv.get(key).copied()).flatten() };
-        match (name, only("c_a"), only("delay_s")) {
-            ("quadratic_drag", Some(v), _) if v >= 0.0 => model.head_drag_ns2_per_m2 = v,
-            ("sensor_delay", _, Some(v)) if v >= 0.0 => delay_s = v,
+        let stribeck = (name == "stribeck" && kv.keys().all(|k| k == "ratio" || k == "speed"))
+            .then(|| kv.get("ratio").copied())
+            .flatten()
+            .filter(|r| *r >= 1.0)
+            .zip(Some(kv.get("speed").copied().unwrap_or(
+                pantowatch_models::lift::dynamics::DEFAULT_STRIBECK_SPEED_RAD_S,
+            )))
+            .filter(|(_, vs)| *vs > 0.0);
+        match (name, only("c_a"), only("delay_s"), stribeck) {
+            ("quadratic_drag", Some(v), _, _) if v >= 0.0 => model.head_drag_ns2_per_m2 = v,
+            ("sensor_delay", _, Some(v), _) if v >= 0.0 => delay_s = v,
+            ("stribeck", _, _, Some((ratio, vs))) => {
+                let j = pantowatch_models::lift::effects::STRIBECK_JOINT.index();
+                model.stribeck_excess[j] = ratio - 1.0;
+                model.stribeck_speed_rad_s[j] = vs;
+            }
             _ => anyhow::bail!(
-                "--effect {spec}: a lift takes `quadratic_drag:c_a=<N/(m/s)², >= 0>` or \
-                 `sensor_delay:delay_s=<s, >= 0>` (unknown effect or key for a lift)"
+                "--effect {spec}: a lift takes `quadratic_drag:c_a=<N/(m/s)², >= 0>`, \
+                 `sensor_delay:delay_s=<s, >= 0>` or `stribeck:ratio=<μs/μk, >= 1>[,speed=<rad/s, \
+                 > 0>]` (at J3) (unknown effect or key for a lift)"
             ),
         }
     }
