@@ -175,7 +175,8 @@ pub async fn after_fit(
 /// The alert name of a lift's height-channel finding (one live alert per pantograph).
 pub const LIFT_H_SENSOR: &str = "H sensor";
 
-/// A named fault of a lift's H channel (issue 16, point 4: `sensor_delay`) is a finding about
+/// A named fault of a lift's H channel (issue 16, point 4: `sensor_delay`, `sensor_offset`) is a
+/// finding about
 /// the measuring chain, not about a joint: it opens (or updates) one `watch` alert named
 /// [`LIFT_H_SENSOR`], which joint health does not show; the joints of that fit come from the
 /// fit with the delay taken out. The next lift of the pantograph that names no sensor fault,
@@ -197,7 +198,10 @@ async fn lift_sensor_finding(
         .map(|a| {
             a.iter()
                 .filter(|e| {
-                    e.get("name").and_then(serde_json::Value::as_str) == Some("sensor_delay")
+                    matches!(
+                        e.get("name").and_then(serde_json::Value::as_str),
+                        Some("sensor_delay" | "sensor_offset")
+                    )
                 })
                 .collect()
         })
@@ -209,8 +213,15 @@ async fn lift_sensor_finding(
                 .and_then(|p| p.get(k))
                 .and_then(serde_json::Value::as_f64)
         };
+        let is_offset = e.get("name").and_then(serde_json::Value::as_str) == Some("sensor_offset");
         let ci = params
-            .and_then(|p| p.get("delay_s_ci95"))
+            .and_then(|p| {
+                p.get(if is_offset {
+                    "offset_m_ci95"
+                } else {
+                    "delay_s_ci95"
+                })
+            })
             .and_then(serde_json::Value::as_array)
             .map(|a| {
                 a.iter()
@@ -218,8 +229,18 @@ async fn lift_sensor_finding(
                     .collect::<Vec<_>>()
             })
             .unwrap_or_default();
-        let reason = match (num("delay_s"), ci.as_slice()) {
-            (Some(d), [lo, hi]) => format!(
+        let reason = match (num("delay_s"), num("offset_m"), ci.as_slice()) {
+            (_, Some(b), [lo, hi]) if is_offset => format!(
+                "sensor_offset: H reads {:+.1} mm [{:+.1}, {:+.1}] from the static start — check the \
+                 height sensor's zero; not a joint finding",
+                b * 1e3,
+                lo * 1e3,
+                hi * 1e3
+            ),
+            _ if is_offset => "sensor_offset: H's zero is off — check the height sensor's zero; \
+                               not a joint finding"
+                .to_owned(),
+            (Some(d), _, [lo, hi]) => format!(
                 "sensor_delay: H lags the drive inputs by {:.1} ms [{:.1}, {:.1}] — check the height \
                  sensor and logger; not a joint finding",
                 d * 1e3,

@@ -304,6 +304,7 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
         "| fit: lift, clean inputs (3 raise-and-lower lifts, one core)",
         "| fit: lift, realistic sensor noise (3 raise-and-lower lifts, one core)",
         "| fit: lift, 2× sensor noise (3 raise-and-lower lifts, one core)",
+        "| fit: lift with an undeclared effect, whole residual loop (3 lifts, realistic noise, one core)",
         "| fleet re-processing (3 lift traces, projected to 12,000)",
         "| ingest: API into PostgreSQL",
         "| storage",
@@ -315,12 +316,24 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
     assert!(!stdout.contains("not measured"), "{stdout}");
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let rows = v["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 10, "{v}");
+    assert_eq!(rows.len(), 11, "{v}");
     let row = |prefix: &str| {
         rows.iter()
             .find(|r| r["measure"].as_str().unwrap().starts_with(prefix))
             .unwrap_or_else(|| panic!("{prefix}"))
     };
+    // The residual loop's row: its cost against the same lifts' plain fits, and what it named.
+    let lp = row("fit: lift with an undeclared effect");
+    assert!(lp["value"].as_f64().is_some_and(|r| r > 1.0), "{lp}");
+    assert_eq!(
+        lp["detail"]["lifts"].as_array().map(Vec::len),
+        Some(3),
+        "{lp}"
+    );
+    assert!(
+        lp["detail"]["named_right"].as_u64().is_some_and(|n| n >= 2),
+        "{lp}"
+    );
     // Without the peer the single-joint ratio is not judged, and says why.
     assert!(row("fit: pendulum")["pass"].is_null());
     assert!(

@@ -220,6 +220,12 @@ pub struct LiftModel {
     /// (`identify`). The simulator never applies it (`simulate --effect sensor_delay` delays
     /// the recorded channel).
     pub h_sensor_delay_s: f64,
+    /// `sensor_offset` (issue 16, a lift effect; 0 in the paper's model): the logger's H zero is
+    /// off by this, m, H_meas = H + b. An output effect as the delay. Detectable only because
+    /// a fit's start is pinned to the static equilibrium under the first sample's loads
+    /// (`simulate::initial_state`), never to the measured H: an offset then shows as a
+    /// constant gap from the first sample on.
+    pub h_sensor_offset_m: f64,
     /// `stribeck` (issue 16, a lift effect; 0 in the paper's model): per revolute joint, the
     /// static friction's excess over the kinetic, e = μ_s/μ_k − 1 ([`LiftModel::stribeck_factor`]).
     pub stribeck_excess: [f64; N_REV],
@@ -288,6 +294,7 @@ impl LiftModel {
             sign_law: SignLaw::REFERENCE,
             head_drag_ns2_per_m2: 0.0,
             h_sensor_delay_s: 0.0,
+            h_sensor_offset_m: 0.0,
             stribeck_excess: [0.0; N_REV],
             stribeck_speed_rad_s: [DEFAULT_STRIBECK_SPEED_RAD_S; N_REV],
             alpha_range_rad,

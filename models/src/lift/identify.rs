@@ -282,6 +282,14 @@ pub fn effect_prior(p: LiftParam) -> Option<EffectPrior> {
             lower: 0.0,
             upper: super::effects::MAX_DELAY_S,
         }),
+        // `sensor_offset` b of H: N(0, (10 mm)²) in [−50, 50] mm: a logger's zero can be off by
+        // millimetres to centimetres after a sensor swap; 5 cm is a mounting error, not a zero.
+        LiftParam::SensorOffset => Some(EffectPrior {
+            mean: 0.0,
+            sd: 0.01,
+            lower: -0.05,
+            upper: 0.05,
+        }),
         // `stribeck` e = μ_s/μ_k − 1: N(0, 1²) in [0, 3] (static friction 1–4× the kinetic;
         // a joint's static friction is not below its kinetic).
         LiftParam::StribeckExcess(_) => Some(EffectPrior {
@@ -392,8 +400,15 @@ impl Problem for MapProblem<'_, '_> {
             .opts
             .effect_params
             .iter()
-            .position(|p| p.is_output())
+            .position(|p| *p == LiftParam::SensorDelay)
             .map(|e| (e, x[e0 + e]));
+        // The H zero offset, if fitted, m (`sensor_offset`: H_meas = H + b).
+        let h_offset_m = self
+            .opts
+            .effect_params
+            .iter()
+            .position(|p| *p == LiftParam::SensorOffset)
+            .map_or(0.0, |e| x[e0 + e]);
         jac.fill(0.0);
         let mut row = 0;
         for (ti, tr) in self.traces.iter().enumerate() {
@@ -443,15 +458,18 @@ impl Problem for MapProblem<'_, '_> {
                         v(jk) + w * (v(jk + 1) - v(jk))
                     }
                 };
-                r[row] = (at(&|q| run.strip_height_m[q]) - tr.strip_height_m[k]) / sigma;
+                r[row] =
+                    (at(&|q| run.strip_height_m[q]) + h_offset_m - tr.strip_height_m[k]) / sigma;
                 for i in 0..pf {
                     jac[(row, i)] = at(&|q| run.d_height[q * p + i]) * self.baseline[i] / sigma;
                 }
                 jac[(row, pf + ti)] = at(&|q| run.d_height[q * p + pf]) / sigma;
                 let mut col = pf + 1;
                 for (e, ep) in self.opts.effect_params.iter().enumerate() {
-                    jac[(row, e0 + e)] = if ep.is_output() {
+                    jac[(row, e0 + e)] = if *ep == LiftParam::SensorDelay {
                         -slope / sigma
+                    } else if *ep == LiftParam::SensorOffset {
+                        1.0 / sigma
                     } else {
                         col += 1;
                         at(&|q| run.d_height[q * p + col - 1]) / sigma

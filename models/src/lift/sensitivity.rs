@@ -41,6 +41,9 @@ pub enum LiftParam {
     /// on the output, not in the dynamics (no sensitivity run carries it: a fit differentiates
     /// the delayed read-out, −Ḣ(t − τ), itself).
     SensorDelay,
+    /// `sensor_offset` of the H channel, b in m ([`LiftModel::h_sensor_offset_m`]): an output
+    /// effect as the delay, H_meas = H + b.
+    SensorOffset,
     /// `stribeck` at a revolute joint: the static friction's excess over the kinetic,
     /// e = μ_s/μ_k − 1 ([`LiftModel::stribeck_factor`]). A lift effect, as `HeadDrag`.
     StribeckExcess(RevJoint),
@@ -51,7 +54,7 @@ pub enum LiftParam {
 impl LiftParam {
     /// An effect on the H read-out rather than on the dynamics (`sensor_delay`).
     pub fn is_output(self) -> bool {
-        self == LiftParam::SensorDelay
+        matches!(self, LiftParam::SensorDelay | LiftParam::SensorOffset)
     }
 
     /// Every friction parameter a lift can touch (J6 is locked: it cannot) and the offset.
@@ -89,12 +92,13 @@ impl LiftParam {
             LiftParam::J9Damping => "J9",
             LiftParam::TorqueOffset => "T",
             LiftParam::HeadDrag => "head",
-            LiftParam::SensorDelay => "H",
+            LiftParam::SensorDelay | LiftParam::SensorOffset => "H",
             LiftParam::StribeckExcess(j) | LiftParam::StribeckSpeed(j) => j.name(),
         }
     }
 
-    /// `viscous`, `dry`, `offset`, `drag`, `delay`, `stribeck_excess` or `stribeck_speed`.
+    /// `viscous`, `dry`, `offset`, `drag`, `delay`, `zero`, `stribeck_excess` or
+    /// `stribeck_speed`.
     pub fn kind(self) -> &'static str {
         match self {
             LiftParam::Viscous(_) | LiftParam::J8Viscous | LiftParam::J9Damping => "viscous",
@@ -102,6 +106,7 @@ impl LiftParam {
             LiftParam::TorqueOffset => "offset",
             LiftParam::HeadDrag => "drag",
             LiftParam::SensorDelay => "delay",
+            LiftParam::SensorOffset => "zero",
             LiftParam::StribeckExcess(_) => "stribeck_excess",
             LiftParam::StribeckSpeed(_) => "stribeck_speed",
         }
@@ -118,6 +123,7 @@ impl LiftParam {
             LiftParam::TorqueOffset => offset_nm,
             LiftParam::HeadDrag => model.head_drag_ns2_per_m2,
             LiftParam::SensorDelay => model.h_sensor_delay_s,
+            LiftParam::SensorOffset => model.h_sensor_offset_m,
             LiftParam::StribeckExcess(j) => model.stribeck_excess[j.index()],
             LiftParam::StribeckSpeed(j) => model.stribeck_speed_rad_s[j.index()],
         }
@@ -134,6 +140,7 @@ impl LiftParam {
             LiftParam::TorqueOffset => *offset_nm = v,
             LiftParam::HeadDrag => model.head_drag_ns2_per_m2 = v,
             LiftParam::SensorDelay => model.h_sensor_delay_s = v,
+            LiftParam::SensorOffset => model.h_sensor_offset_m = v,
             LiftParam::StribeckExcess(j) => model.stribeck_excess[j.index()] = v,
             LiftParam::StribeckSpeed(j) => model.stribeck_speed_rad_s[j.index()] = v,
         }
@@ -326,7 +333,9 @@ impl SensSys<'_> {
                     LiftParam::TorqueOffset => (Q_DRIVE, -1.0),
                     // Not reached (the strip-load branch above; a delay is never a
                     // sensitivity run's parameter): no generalised input.
-                    LiftParam::HeadDrag | LiftParam::SensorDelay => (Q_DRIVE, 0.0),
+                    LiftParam::HeadDrag | LiftParam::SensorDelay | LiftParam::SensorOffset => {
+                        (Q_DRIVE, 0.0)
+                    }
                 };
                 [phi[0][q] * dq, phi[1][q] * dq]
             };

@@ -64,8 +64,9 @@ pub struct SimulateArgs {
     /// `backlash:half_width=0.3` (channel units), `sensor_offset:offset=0.5` (channel units),
     /// `sensor_delay:delay_s=0.008`; outside it: `torsional_spring:k=4` (N·m/rad or N/m),
     /// `fading_friction:fade=0.5` (share of μ lost over the trace). A lift (`--kind lift`)
-    /// takes `quadratic_drag:c_a=4` (N/(m/s)² on the head), `sensor_delay:delay_s=0.02` and
-    /// `stribeck:ratio=1.2,speed=0.05` (at J3, v_s in rad/s).
+    /// takes `quadratic_drag:c_a=4` (N/(m/s)² on the head), `sensor_delay:delay_s=0.02`,
+    /// `sensor_offset:offset=0.02` (m, on H) and `stribeck:ratio=1.2,speed=0.05` (at J3, v_s in
+    /// rad/s).
     #[arg(long = "effect")]
     pub effects: Vec<String>,
     /// Slider only: hold the part with this pull (N) and release it at `--release-at` (the
@@ -254,8 +255,8 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     // Lift effects (issue 16): `quadratic_drag:c_a=…` (N/(m/s)², on the head) and
     // `stribeck:ratio=…[,speed=…]` (μs/μk ≥ 1 and v_s in rad/s at J3, the joint the lift's
     // vocabulary tries) are physics and go into the model; `sensor_delay:delay_s=…` delays the
-    // logged H after the noise.
-    let mut delay_s = 0.0;
+    // logged H after the noise, `sensor_offset:offset=…` (m) shifts it.
+    let (mut delay_s, mut h_offset_m) = (0.0, 0.0);
     for spec in &a.effects {
         let (name, kv) = parse_effect(spec)?;
         let only =
@@ -271,6 +272,9 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
         match (name, only("c_a"), only("delay_s"), stribeck) {
             ("quadratic_drag", Some(v), _, _) if v >= 0.0 => model.head_drag_ns2_per_m2 = v,
             ("sensor_delay", _, Some(v), _) if v >= 0.0 => delay_s = v,
+            ("sensor_offset", _, _, _) if only("offset").is_some() => {
+                h_offset_m = only("offset").unwrap_or(0.0);
+            }
             ("stribeck", _, _, Some((ratio, vs))) => {
                 let j = pantowatch_models::lift::effects::STRIBECK_JOINT.index();
                 model.stribeck_excess[j] = ratio - 1.0;
@@ -278,8 +282,9 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
             }
             _ => anyhow::bail!(
                 "--effect {spec}: a lift takes `quadratic_drag:c_a=<N/(m/s)², >= 0>`, \
-                 `sensor_delay:delay_s=<s, >= 0>` or `stribeck:ratio=<μs/μk, >= 1>[,speed=<rad/s, \
-                 > 0>]` (at J3) (unknown effect or key for a lift)"
+                 `sensor_delay:delay_s=<s, >= 0>`, `sensor_offset:offset=<m>` or \
+                 `stribeck:ratio=<μs/μk, >= 1>[,speed=<rad/s, > 0>]` (at J3) (unknown effect or \
+                 key for a lift)"
             ),
         }
     }
@@ -294,6 +299,9 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     let mut rng = pantowatch_models::noise::Noise::new(a.seed);
     for h in &mut rec.strip_height_m {
         *h += a.h_noise_mm * 1e-3 * rng.normal();
+    }
+    for h in &mut rec.strip_height_m {
+        *h += h_offset_m;
     }
     if delay_s > 0.0 {
         let lag = (delay_s * protocol.sample_hz).round() as usize;

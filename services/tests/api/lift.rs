@@ -479,5 +479,37 @@ pub async fn a_sensor_delay_is_a_sensor_finding_not_a_joint_alarm(b: Backend) {
     assert_eq!(resolved[0]["joint"], pantowatch::alerts::LIFT_H_SENSOR);
     let (_, alerts) = app.get_json("/v1/alerts?vehicle=EN57-LAG&state=live").await;
     assert_eq!(alerts["alerts"], json!([]), "{alerts}");
+    // Another month, the sensor's zero 20 mm off: `sensor_offset`, a sensor finding again.
+    let off = lift(
+        33,
+        "zero-h",
+        "2026-05-02T07:00:00Z",
+        vec!["sensor_offset:offset=0.02".into()],
+    );
+    let r = app
+        .upload_json(&serde_json::to_vec(&off.to_value()).unwrap())
+        .await;
+    assert_eq!(r.status(), StatusCode::ACCEPTED);
+    let fit = app.wait_for_fit("zero-h").await;
+    let res = &fit["residual"];
+    assert_eq!(res["effects"][0]["name"], "sensor_offset", "{res}");
+    let ci = &res["effects"][0]["params"]["offset_m_ci95"];
+    let (lo, hi) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+    assert!(lo <= 0.02 && 0.02 <= hi, "{res}");
+    for j in fit["joints"].as_array().expect("joints") {
+        assert!(
+            !matches!(j["status"].as_str(), Some("watch" | "alarm")),
+            "{j}"
+        );
+    }
+    let live =
+        crate::alerts::wait_alerts(&app, "vehicle=EN57-LAG&state=live", |l| l.len() == 1).await;
+    assert_eq!(live[0]["joint"], pantowatch::alerts::LIFT_H_SENSOR);
+    assert!(
+        live[0]["reason"]
+            .as_str()
+            .unwrap()
+            .contains("sensor_offset")
+    );
     app.stop().await;
 }

@@ -78,11 +78,13 @@ const LOOP_TARGET: &str = "≤ 3× the plain fit of the same lift (p50, realisti
 
 /// Lifts of the residual loop's row: an effect the plain model lacks (`simulate --effect`),
 /// one with a joint drifted too; cycled over the row's lifts.
-const LOOP_CASES: [(&str, &[&str]); 4] = [
+const LOOP_CASES: [(&str, &[&str]); 6] = [
     ("quadratic_drag:c_a=4", &[]),
     ("quadratic_drag:c_a=8", &["J3:dry=1.8"]),
     ("sensor_delay:delay_s=0.02", &[]),
     ("sensor_delay:delay_s=0.04", &[]),
+    ("sensor_offset:offset=0.02", &[]),
+    ("stribeck:ratio=1.2", &[]),
 ];
 
 /// The residual loop's cost (issue 16, point 6): `n` lifts with the stand's realistic noise, each
@@ -144,6 +146,7 @@ fn loop_row(n: usize, plain_p50_s: Option<f64>) -> anyhow::Result<Row> {
         )
     };
     let (drag, delay) = (by_effect("quadratic_drag"), by_effect("sensor_delay"));
+    let (offset, stribeck) = (by_effect("sensor_offset"), by_effect("stribeck"));
     let named = per
         .iter()
         .filter(|p| {
@@ -161,7 +164,8 @@ fn loop_row(n: usize, plain_p50_s: Option<f64>) -> anyhow::Result<Row> {
         measure: format!("{LOOP_MEASURE} ({n} lifts, realistic noise, one core)"),
         measured: format!(
             "**{ratio:.1}×** the same trace's plain fit (p50; max {ratio_max:.1}×); loop p50 \
-             {p50:.3} s (drag {drag:.3} s, delay {delay:.3} s){clean}; {named}/{n} named right"
+             {p50:.3} s (drag {drag:.3} s, delay {delay:.3} s, offset {offset:.3} s, stribeck \
+             {stribeck:.3} s){clean}; {named}/{n} named right"
         ),
         target: LOOP_TARGET.into(),
         pass: Some(ratio <= LOOP_TARGET_RATIO),
@@ -169,7 +173,8 @@ fn loop_row(n: usize, plain_p50_s: Option<f64>) -> anyhow::Result<Row> {
         unit: "×".into(),
         detail: json!({"ratio_p50": ratio, "ratio_max": ratio_max, "p50_s": p50,
                        "clean_plain_p50_s": plain_p50_s, "drag_p50_s": drag,
-                       "delay_p50_s": delay, "named_right": named, "lifts": per}),
+                       "delay_p50_s": delay, "offset_p50_s": offset, "stribeck_p50_s": stribeck,
+                       "named_right": named, "lifts": per}),
     })
 }
 
