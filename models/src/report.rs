@@ -97,6 +97,13 @@ pub struct ResidualResult {
     /// reason, in words; the `holdout_` pair then repeats the fitted RMSE.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub holdout_note: Option<String>,
+    /// Lift fits (issue 16, point 5): the final residual's autocorrelation, (lag s, ρ) at
+    /// `lift::residual::ACF_LAGS_S`; white noise reads ≈ 0 at every lag.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub autocorrelation: Vec<(f64, f64)>,
+    /// With a named lift effect: the plain model's residual autocorrelation, the same lags.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub autocorrelation_before: Vec<(f64, f64)>,
 }
 
 /// How the fit was made: the release, the fitted start and sensor zero, the optimiser's end.

@@ -209,7 +209,7 @@ pub fn fit_lift_trace(
         });
     };
     // A delay's or an offset's refitted H is the sensor's: what the logger would have recorded.
-    let (named, refitted) = named_result(
+    let (mut named, refitted) = named_result(
         model,
         &found.fit,
         &trace,
@@ -220,6 +220,7 @@ pub fn fit_lift_trace(
         before,
         (&hold, &hold_after),
     );
+    named.residual.autocorrelation_before = result.residual.autocorrelation;
     Ok(LiftReport {
         result: named,
         fit: found.fit,
@@ -652,6 +653,8 @@ fn build_result(
                 )
             }),
             holdout_note: None,
+            autocorrelation: super::residual::autocorrelation(trace.inputs.t_s, &residual),
+            autocorrelation_before: Vec::new(),
         },
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),

@@ -135,6 +135,46 @@ pub fn speed(t_s: &[f64], h: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// The lags a lift's residual autocorrelation is reported at, s: one sample at 500 Hz, the
+/// inputs' smoothing (10 Hz: ~0.05 s), and the motion's own scales up to 1 s.
+pub const ACF_LAGS_S: [f64; 6] = [0.002, 0.01, 0.05, 0.1, 0.5, 1.0];
+
+/// Autocorrelation of `r` at `lag` samples (0 when undefined: lag past the end, constant `r`).
+pub fn acf(r: &[f64], lag: usize) -> f64 {
+    let n = r.len();
+    if lag >= n {
+        return 0.0;
+    }
+    let m = r.iter().sum::<f64>() / n as f64;
+    let var: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
+    if var <= 0.0 {
+        return 0.0;
+    }
+    (0..n - lag)
+        .map(|k| (r[k] - m) * (r[k + lag] - m))
+        .sum::<f64>()
+        / var
+}
+
+/// (lag s, ρ) of `r`, sampled at `t_s`, at [`ACF_LAGS_S`] (each at least one sample; lags past
+/// the record left out). Empty for fewer than 3 samples.
+pub fn autocorrelation(t_s: &[f64], r: &[f64]) -> Vec<(f64, f64)> {
+    let n = r.len().min(t_s.len());
+    if n < 3 {
+        return Vec::new();
+    }
+    let dt = (t_s[n - 1] - t_s[0]) / (n - 1) as f64;
+    if dt <= 0.0 || !dt.is_finite() {
+        return Vec::new();
+    }
+    ACF_LAGS_S
+        .iter()
+        .map(|&lag_s| (lag_s, ((lag_s / dt).round() as usize).max(1)))
+        .filter(|(_, k)| *k < n)
+        .map(|(lag_s, k)| (lag_s, acf(&r[..n], k)))
+        .collect()
+}
+
 /// Lag-1 autocorrelation of a residual (NaN when it is empty or constant).
 pub fn rho1(r: &[f64]) -> f64 {
     if r.len() < 3 {

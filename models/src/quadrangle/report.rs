@@ -192,6 +192,8 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
             excess_ratio: None,
             joints_withheld: None,
             holdout_note: None,
+            autocorrelation: Vec::new(),
+            autocorrelation_before: Vec::new(),
         },
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),

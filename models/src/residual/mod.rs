@@ -398,6 +398,8 @@ pub fn analyse(
         excess_ratio: None,
         joints_withheld: None,
         holdout_note: None,
+        autocorrelation: Vec::new(),
+        autocorrelation_before: Vec::new(),
     };
     Ok(Finding {
         residual,

@@ -167,23 +167,6 @@ pub fn html(doc: &TraceDoc, result: &FitResult, f: &Finding) -> anyhow::Result<S
     Ok(h)
 }
 
-/// Autocorrelation of `r` at `lag` samples (0 when undefined).
-fn acf(r: &[f64], lag: usize) -> f64 {
-    let n = r.len();
-    if lag >= n {
-        return 0.0;
-    }
-    let m = r.iter().sum::<f64>() / n as f64;
-    let var: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
-    if var <= 0.0 {
-        return 0.0;
-    }
-    (0..n - lag)
-        .map(|k| (r[k] - m) * (r[k + lag] - m))
-        .sum::<f64>()
-        / var
-}
-
 /// The lift's residual report (issue 16, point 5): measured H, the plain model and, when an
 /// effect is named, the model with it; the residual of each; its autocorrelation and what it
 /// follows; the error before and after on the whole trace and on the held-out blocks; the
@@ -328,13 +311,13 @@ pub fn html_lift(
         1.0
     };
     s += "<table><tr><th>lag (s)</th><th>autocorrelation, plain</th><th>autocorrelation, with effect</th></tr>";
-    for lag_s in [0.002, 0.01, 0.05, 0.1, 0.5, 1.0] {
+    for lag_s in residual::ACF_LAGS_S {
         let k = ((lag_s / dt).round() as usize).max(1);
         s += &format!(
             "<tr><td>{lag_s}</td><td>{:+.3}</td><td>{}</td></tr>",
-            acf(&plain_res, k),
+            residual::acf(&plain_res, k),
             if named {
-                format!("{:+.3}", acf(&aug_res, k))
+                format!("{:+.3}", residual::acf(&aug_res, k))
             } else {
                 "—".into()
             }

@@ -676,12 +676,38 @@ fn residual_finding(result: &serde_json::Value) -> String {
             .and_then(|v| v.as_f64())
             .map_or("—".into(), fmt_num)
     };
+    // Each named effect with its parameters (a value and its `_ci95` as "v [lo, hi]").
     let effects: Vec<String> = r
         .get("effects")
         .and_then(|v| v.as_array())
         .into_iter()
         .flatten()
-        .filter_map(|e| e.get("name").and_then(|n| n.as_str()).map(esc))
+        .filter_map(|e| {
+            let name = esc(e.get("name")?.as_str()?);
+            let params = e.get("params").and_then(|p| p.as_object());
+            let shown: Vec<String> = params
+                .into_iter()
+                .flatten()
+                .filter(|(k, _)| !k.ends_with("_ci95"))
+                .map(|(k, v)| {
+                    let ci = params
+                        .and_then(|p| p.get(&format!("{k}_ci95")))
+                        .and_then(|c| Some((c.get(0)?.as_f64()?, c.get(1)?.as_f64()?)))
+                        .map_or(String::new(), |(lo, hi)| {
+                            format!(" [{}, {}]", fmt_num(lo), fmt_num(hi))
+                        });
+                    let v = v
+                        .as_f64()
+                        .map_or_else(|| esc(v.as_str().unwrap_or("")), fmt_num);
+                    format!("{} {v}{ci}", esc(k))
+                })
+                .collect();
+            Some(if shown.is_empty() {
+                name
+            } else {
+                format!("{name} ({})", shown.join(", "))
+            })
+        })
         .collect();
     let finding = if !effects.is_empty() {
         format!("effects found: {}", effects.join(", "))
@@ -728,8 +754,37 @@ fn residual_finding(result: &serde_json::Value) -> String {
         .map_or(String::new(), |w| {
             format!(r#"<p id="holdout-note">{}.</p>"#, esc(w))
         });
+    // The residual's autocorrelation (lift fits): after, and before where an effect was named.
+    let acf = |k: &str| -> Vec<(f64, f64)> {
+        r.get(k)
+            .and_then(|v| v.as_array())
+            .into_iter()
+            .flatten()
+            .filter_map(|p| Some((p.get(0)?.as_f64()?, p.get(1)?.as_f64()?)))
+            .collect()
+    };
+    let (after, before) = (acf("autocorrelation"), acf("autocorrelation_before"));
+    let acf_table = if after.is_empty() {
+        String::new()
+    } else {
+        let mut t =
+            String::from(r#"<table id="acf"><thead><tr><th>lag (s)</th><th>autocorrelation</th>"#);
+        if !before.is_empty() {
+            t.push_str("<th>before the effect</th>");
+        }
+        t.push_str("</tr></thead><tbody>");
+        for (i, (lag, a)) in after.iter().enumerate() {
+            let _ = write!(t, "<tr><td>{}</td><td>{a:+.3}</td>", fmt_num(*lag));
+            if let Some((_, b)) = before.get(i) {
+                let _ = write!(t, "<td>{b:+.3}</td>");
+            }
+            t.push_str("</tr>");
+        }
+        t.push_str("</tbody></table>");
+        t
+    };
     format!(
-        r#"<h2>Residual finding</h2><p id="finding">{finding}. RMSE before {} / after {}; held-out {} / {}.{excess}{follows}</p>{withheld}{holdout_note}"#,
+        r#"<h2>Residual finding</h2><p id="finding">{finding}. RMSE before {} / after {}; held-out {} / {}.{excess}{follows}</p>{withheld}{holdout_note}{acf_table}"#,
         num("rmse_before"),
         num("rmse_after"),
         num("holdout_rmse_before"),

@@ -450,6 +450,25 @@ pub async fn a_sensor_delay_is_a_sensor_finding_not_a_joint_alarm(b: Backend) {
             "{j}"
         );
     }
+    // The residual's autocorrelation before and after (issue 16, point 5): the lag left by the
+    // delay correlates the plain residual over 50 ms; the refit's is near white there.
+    let acf = |k: &str| -> Vec<(f64, f64)> {
+        res[k]
+            .as_array()
+            .unwrap_or_else(|| panic!("{k}: {res}"))
+            .iter()
+            .map(|p| (p[0].as_f64().unwrap(), p[1].as_f64().unwrap()))
+            .collect()
+    };
+    let (after, before) = (acf("autocorrelation"), acf("autocorrelation_before"));
+    assert_eq!(after.len(), 6, "{res}");
+    assert_eq!(before.len(), 6, "{res}");
+    let at_50ms = |v: &[(f64, f64)]| v.iter().find(|p| p.0 == 0.05).unwrap().1;
+    assert!(at_50ms(&before) > 0.5 && at_50ms(&after) < 0.5, "{res}");
+    // The web trace page shows the effect with its interval and the autocorrelation table.
+    let page = app.web_page("/traces/lag-h").await;
+    assert!(page.contains("sensor_delay (delay_s "), "{page}");
+    assert!(page.contains(r#"<table id="acf">"#) && page.contains("before the effect"));
     // Alerts are raised after the fit is stored: wait for the finding.
     let rows =
         crate::alerts::wait_alerts(&app, "vehicle=EN57-LAG", |l: &[Value]| !l.is_empty()).await;
