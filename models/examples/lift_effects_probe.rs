@@ -5,7 +5,8 @@
 //!
 //! `cargo run --release -p pantowatch-models --example lift_effects_probe -- [SEEDS] [CASE…]`
 //! (cases: `clean`, `drag:<c_a N/(m/s)²>`, `delay:<ms>`, `offset:<mm>`, `gain:<%>`,
-//! `stribeck:<μs/μk − 1>` at `$STRIBECK_JOINT` (J3) with `$STRIBECK_VS` rad/s)
+//! `stribeck:<μs/μk − 1>` at `$STRIBECK_JOINT` (J3) with `$STRIBECK_VS` rad/s, `band:<factor>`:
+//! J3 dry friction × factor over the middle third of the lift's α range, outside the vocabulary)
 use pantowatch_models::drift::{DriftThresholds, Status};
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
@@ -34,6 +35,21 @@ fn main() {
     let g = builtin_160ec();
     let base = LiftModel::new(g);
     let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
+    // The α range a clean raise and lower sweeps (for `band`).
+    let protocol_alpha = {
+        let rec = record(&base, &protocol, &SimOptions::default()).unwrap();
+        let (hmin, hmax) = rec
+            .strip_height_m
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), h| {
+                (a.min(*h), b.max(*h))
+            });
+        let a = |h: f64| {
+            pantowatch_models::lift::statics::alpha_at_height(&base, h, 0.0, base.alpha_range_rad)
+                .unwrap_or(0.0)
+        };
+        (a(hmin), a(hmax))
+    };
     for case in &cases {
         // `<effect>[:size][@J3.dry*2]`: an effect, optionally with one joint drifted.
         let (case_effect, drift) = match case.split_once('@') {
@@ -61,6 +77,20 @@ fn main() {
             }
             if name == "drag" {
                 m.head_drag_ns2_per_m2 = size;
+            }
+            if name == "band" {
+                // J3 dry friction × size over the middle third of the lift's α range (outside
+                // the vocabulary).
+                let (lo, hi) = (
+                    protocol_alpha.0 + (protocol_alpha.1 - protocol_alpha.0) / 3.0,
+                    protocol_alpha.0 + 2.0 * (protocol_alpha.1 - protocol_alpha.0) / 3.0,
+                );
+                m.friction_band = Some(pantowatch_models::lift::dynamics::FrictionBand {
+                    joint_index: 3,
+                    alpha_lo_rad: lo,
+                    alpha_hi_rad: hi,
+                    factor: size,
+                });
             }
             if name == "stribeck" {
                 // At joint $STRIBECK_JOINT (default J3), Stribeck speed $STRIBECK_VS rad/s.

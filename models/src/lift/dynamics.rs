@@ -19,6 +19,17 @@ use super::vec2::V2;
 /// the starts and reversals, where joints pass through rest.
 pub const DEFAULT_STRIBECK_SPEED_RAD_S: f64 = 0.05;
 
+/// A band of the lower arm's angle over which one joint's dry friction is `factor` × its own
+/// ([`LiftModel::friction_band`]); a step at the band's edges (the smoothed sign law carries
+/// the simulator through them at small steps).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrictionBand {
+    pub joint_index: usize,
+    pub alpha_lo_rad: f64,
+    pub alpha_hi_rad: f64,
+    pub factor: f64,
+}
+
 /// How dry friction's sign(v) is evaluated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SignLaw {
@@ -232,6 +243,10 @@ pub struct LiftModel {
     /// The Stribeck speed v_s of each revolute joint, rad/s: where the excess has fallen to
     /// 1/e of itself. Read only where the joint's excess is not 0.
     pub stribeck_speed_rad_s: [f64; N_REV],
+    /// An effect **outside** the lift vocabulary, for tests that it is never named (issue 16):
+    /// dry friction at one joint multiplied by a factor over a band of the lower arm's angle (a
+    /// scored or dirty stretch of a pin). `None` in the paper's model; no fit estimates it.
+    pub friction_band: Option<FrictionBand>,
     /// Lower-arm range searched for static states (`[range]`), rad.
     pub alpha_range_rad: (f64, f64),
     /// H and its partials tabulated over α (geometry only; shared by the clones a fit makes).
@@ -297,6 +312,7 @@ impl LiftModel {
             h_sensor_offset_m: 0.0,
             stribeck_excess: [0.0; N_REV],
             stribeck_speed_rad_s: [DEFAULT_STRIBECK_SPEED_RAD_S; N_REV],
+            friction_band: None,
             alpha_range_rad,
         }
     }
@@ -352,6 +368,19 @@ impl LiftModel {
         let u = w / vs;
         let g = (-u * u).exp();
         (g, e * g * 2.0 * u * u / vs)
+    }
+
+    /// The out-of-vocabulary friction band's factor on joint `i` at lower-arm angle `alpha_rad`
+    /// ([`LiftModel::friction_band`]); 1 outside it or without one.
+    pub fn band_factor(&self, i: usize, alpha_rad: f64) -> f64 {
+        match &self.friction_band {
+            Some(b)
+                if b.joint_index == i && (b.alpha_lo_rad..=b.alpha_hi_rad).contains(&alpha_rad) =>
+            {
+                b.factor
+            }
+            _ => 1.0,
+        }
     }
 
     /// `stribeck` at revolute joint `i` (issue 16, a lift effect): the dry friction's factor
@@ -449,7 +478,8 @@ impl LiftModel {
             }
             e.viscous_torque_nm[i] = f.viscous_nms_per_rad[i] * e.rel_rate_rad_s[i];
             sgn[i] = self.sign_law.revolute(e.rel_rate_rad_s[i], rate[i])
-                * self.stribeck_factor(i, e.rel_rate_rad_s[i]);
+                * self.stribeck_factor(i, e.rel_rate_rad_s[i])
+                * self.band_factor(i, s.alpha_rad);
         }
         let mut torque = match guess {
             Some(g) => *g,
@@ -778,7 +808,11 @@ impl LiftModel {
             let w = rate[i] * ad;
             let sg = match sign {
                 Some(sg) => sg[i],
-                None => self.sign_law.revolute(w, rate[i]) * self.stribeck_factor(i, w),
+                None => {
+                    self.sign_law.revolute(w, rate[i])
+                        * self.stribeck_factor(i, w)
+                        * self.band_factor(i, s.alpha_rad)
+                }
             };
             let t = f.viscous_nms_per_rad[i] * w
                 + f.dry_mu[i] * self.pin_radius_m[i] * r.force_n[i].norm() * sg;
