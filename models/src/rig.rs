@@ -68,6 +68,49 @@ impl PendulumRig {
         pin_radius_m: f64,
         gravity_m_s2: f64,
     ) -> Result<Self, RigError> {
+        // Each part checked where it was stated, so a refusal names its exact contract path
+        // (`body.inertia_kgm2`, `attachments[1].mass_kg`), not the lumped rig's field.
+        let positive = |f: String, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(rig_err(&f, format!("must be > 0, got {v}")))
+            }
+        };
+        positive("body.mass_kg".into(), body.mass_kg)?;
+        positive("body.inertia_kgm2".into(), body.inertia_kgm2)?;
+        if !(body.com_distance_m.is_finite() && body.com_distance_m >= 0.0) {
+            return Err(rig_err(
+                "body.com_distance_m",
+                format!("must be >= 0, got {}", body.com_distance_m),
+            ));
+        }
+        let md2 = body.mass_kg * body.com_distance_m.powi(2);
+        if body.inertia_kgm2 < md2 * (1.0 - 1e-9) {
+            return Err(rig_err(
+                "body.inertia_kgm2",
+                format!(
+                    "{} kg·m² is below m·d² = {md2} (parallel-axis theorem)",
+                    body.inertia_kgm2
+                ),
+            ));
+        }
+        for (i, a) in attachments.iter().enumerate() {
+            let (mass_kg, (k, v)) = match *a {
+                Attachment::Point {
+                    mass_kg,
+                    distance_m,
+                } => (mass_kg, ("distance_m", distance_m)),
+                Attachment::Rod { mass_kg, length_m } => (mass_kg, ("length_m", length_m)),
+            };
+            positive(format!("attachments[{i}].mass_kg"), mass_kg)?;
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(rig_err(
+                    &format!("attachments[{i}].{k}"),
+                    format!("must be >= 0, got {v}"),
+                ));
+            }
+        }
         let (mut m, mut j, mut md) = (
             body.mass_kg,
             body.inertia_kgm2,
@@ -201,6 +244,37 @@ mod tests {
     use super::*;
     use crate::data::builtin_160ec;
 
+    /// A refusal names the part where the bad value was stated (issue 17, point 5): the body's
+    /// field under `body.`, an attachment's under `attachments[i].`.
+    #[test]
+    fn a_bad_part_is_named_by_its_own_path() {
+        let body = BodySpec {
+            mass_kg: 2.0,
+            inertia_kgm2: 0.1,
+            com_distance_m: 0.5,
+        };
+        let e = PendulumRig::compose(body, &[], 0.01, 9.81).unwrap_err();
+        assert_eq!(e.field, "body.inertia_kgm2", "{e:?}");
+        assert!(e.message.contains("parallel-axis"), "{e:?}");
+        let ok = BodySpec {
+            inertia_kgm2: 0.6,
+            ..body
+        };
+        let rod = Attachment::Rod {
+            mass_kg: -1.0,
+            length_m: 0.3,
+        };
+        let point = Attachment::Point {
+            mass_kg: 0.5,
+            distance_m: 0.2,
+        };
+        let e = PendulumRig::compose(ok, &[point.clone(), rod], 0.01, 9.81).unwrap_err();
+        assert_eq!(e.field, "attachments[1].mass_kg", "{e:?}");
+        let e = PendulumRig::compose(ok, &[], -0.01, 9.81).unwrap_err();
+        assert_eq!(e.field, "pin_radius_m", "{e:?}");
+        assert!(PendulumRig::compose(ok, &[point], 0.01, 9.81).is_ok());
+    }
+
     #[test]
     fn j5_rig_lumps_rod_and_weight_as_the_examples_state() {
         // ../shared/data/examples/README.md: J5 m_tot 7.415, J_tot 4.645, d_tot 0.6685.
@@ -233,6 +307,6 @@ mod tests {
             9.81,
         )
         .unwrap_err();
-        assert_eq!(e.field, "inertia_kgm2");
+        assert_eq!(e.field, "body.inertia_kgm2");
     }
 }
