@@ -104,16 +104,27 @@ fn slider_test(truth: &Truth, seed: u64) -> (JointTest, Baseline) {
     )
 }
 
+/// The fit's result; every fit also checks the one-verdict rule (issue 17, point 5): the
+/// candidates reported `accepted` are exactly the named effects, none beside `unexplained`.
 fn fit(test: &JointTest, b: &Baseline) -> FitResult {
-    pantowatch_models::fit_joint_test(
+    let (r, _, finding) = pantowatch_models::fit_joint_test_with_finding(
         test,
         b,
         &DriftThresholds::default(),
         "t",
         &FitOptions::default(),
     )
-    .unwrap()
-    .0
+    .unwrap();
+    let named = names(&r);
+    for c in finding.candidates.iter().filter(|c| c.accepted) {
+        let effects: Vec<String> = c.effects.iter().map(|e| e.name().to_string()).collect();
+        assert!(
+            r.residual.verdict.is_none() && named.iter().take(effects.len()).eq(effects.iter()),
+            "candidate {effects:?} accepted beside verdict {:?}, named {named:?}",
+            r.residual.verdict
+        );
+    }
+    r
 }
 
 fn names(r: &FitResult) -> Vec<String> {

@@ -370,6 +370,24 @@ pub fn analyse(
         }
         None => (Vec::new(), None, None),
     };
+    // One verdict (issue 17, point 5): a candidate reads `accepted` only if it is what the
+    // result names. One that passed its own tests but is not named says why, so no report
+    // can show "accepted" beside an `unexplained` verdict or another effect's name.
+    for c in &mut candidates {
+        if c.accepted && c.effects != effects {
+            c.accepted = false;
+            c.reason = if effects.is_empty() {
+                format!(
+                    "{}; not named: the effects that passed explain under {:.0} % of the held-out \
+                     excess over the noise",
+                    c.reason,
+                    100.0 * EXPLAINED_SHARE
+                )
+            } else {
+                format!("{}; not named: a candidate with a lower BIC was", c.reason)
+            };
+        }
+    }
     let mut report_effects: Vec<EffectResult> = Vec::new();
     let reported = augmented.as_ref().unwrap_or(full);
     for e in &effects {
