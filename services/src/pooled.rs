@@ -6,7 +6,7 @@
 //! several. The pooled result is a contract fit result with a `pooled` block naming the tests,
 //! written with the model version [`pooled_version`] (so once per set of tests), and it feeds
 //! health and alerts like any fit. A lift whose own fit withheld its joints (issue 16: the
-//! residual showed a model error) neither pools nor is pooled. No physics here:
+//! residual showed a model error) or named an effect neither pools nor is pooled. No physics here:
 //! `models::lift::report` fits.
 
 use chrono::TimeDelta;
@@ -57,10 +57,18 @@ pub async fn after_lift(
     ids.dedup();
     // A lift whose own fit withheld its joints (the model missed something: a sensor fault, an
     // unmodelled effect) is not pooled, nor pools others: its error would spread to the pool.
+    // Nor one whose fit named an effect (a drag, an H delay or offset, a Stribeck friction):
+    // the pooled fit is the plain model, so the effect would land in the shared friction —
+    // measured, an H delay lift and an H offset lift pooled with a clean one raised a J1+J3
+    // watch alert (`api a_sensor_delay_is_a_sensor_finding_not_a_joint_alarm`).
     let withheld = |f: &crate::store::FitRecord| {
         f.result
             .pointer("/residual/joints_withheld")
             .is_some_and(|w| !w.is_null())
+            || f.result
+                .pointer("/residual/effects")
+                .and_then(|e| e.as_array())
+                .is_some_and(|e| !e.is_empty())
     };
     if store.get_fit(trace_id).await?.is_some_and(|f| withheld(&f)) {
         return Ok(None);

@@ -186,10 +186,11 @@ pub fn fit_lift_trace(
             continue;
         };
         let hold_after = super::holdout::blocks(model, &trace, &found.fit, &found.opts)?;
-        if !super::holdout::improves(&hold, &hold_after) {
+        let rmse = found.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
+        let noise_m = rmse / found.excess_ratio;
+        if !super::holdout::improves(&hold, &hold_after, noise_m) {
             continue;
         }
-        let rmse = found.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
         let k = found.fit.effects.len() as f64;
         let bic = n * (rmse * rmse).ln() + k * n.ln();
         let at_noise = found.excess_ratio <= STOP_RATIO;

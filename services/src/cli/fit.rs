@@ -122,7 +122,7 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
         s += &format!(
             "informed by this trace: {}; the others are reported at baseline, not identified\n\
              RMSE {:.3} mm of H; torque-sensor offset {:.3} N·m [{:.3}, {:.3}]; {} after {} \
-             iterations (no residual loop on lift traces)\n",
+             iterations\n",
             informed.join(", "),
             r.rmse.value * 1e3,
             r.fit.sensor_offset.value,
@@ -131,6 +131,35 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
             r.fit.termination,
             r.fit.iterations
         );
+        // The residual loop's finding, from the result itself (one verdict, issue 16 point 5):
+        // each named effect with its parameters, or the verdict, the error before and after.
+        let effects: Vec<String> = r
+            .residual
+            .effects
+            .iter()
+            .map(|e| format!("{} {}", e.name, serde_json::Value::Object(e.params.clone())))
+            .collect();
+        s += &format!(
+            "residual: {}; {:.2}× the noise; RMSE {:.3} -> {:.3} mm, held-out {:.3} -> {:.3} mm\n",
+            if !effects.is_empty() {
+                format!("named {}", effects.join("; "))
+            } else if let Some(v) = &r.residual.verdict {
+                v.clone()
+            } else {
+                "no effect to name".to_owned()
+            },
+            r.residual.excess_ratio.unwrap_or(f64::NAN),
+            r.residual.rmse_before * 1e3,
+            r.residual.rmse_after * 1e3,
+            r.residual.holdout_rmse_before * 1e3,
+            r.residual.holdout_rmse_after * 1e3,
+        );
+        if let Some(w) = &r.residual.joints_withheld {
+            s += &format!("joint statuses withheld: {w}\n");
+        }
+        if let Some(w) = &r.residual.holdout_note {
+            s += &format!("{w}\n");
+        }
         return s;
     }
     s += &format!(

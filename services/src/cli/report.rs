@@ -328,12 +328,13 @@ pub fn html_lift(
         s += &format!("<tr><td class=\"l\">{}</td><td>{c:+.3}</td></tr>", esc(n));
     }
     s += &format!(
-        "</table><h2>Acceptance</h2><p>An effect (<code>sensor_delay</code> first where the plain residual follows the strip speed most, else <code>quadratic_drag</code> first, then <code>stribeck</code> at J3; one fit each) is named when its refit is back under {:.0}× the noise, its RMSE at most {:.0} % of the plain fit's, its held-out RMSE (every {}th {} s block left out of a refit) at most {:.0} % of the plain model's, and its 95 % interval excludes 0; otherwise the finding stays as the plain fit left it.</p></body></html>",
+        "</table><h2>Acceptance</h2><p>The vocabulary (<code>quadratic_drag</code>, <code>sensor_delay</code>, <code>sensor_offset</code>, <code>stribeck</code> at J1+J3; one fit each, <code>sensor_delay</code> first where the plain residual follows the strip speed most) is tried; a candidate passes when its refit is back under {:.0}× the noise, its RMSE at most {:.0} % of the plain fit's, its held-out RMSE (every {}th {} s block left out of a refit) at most {:.0} % of the plain model's or within {:.2}× the noise and below it, and its 95 % interval excludes 0. Of those that pass the lowest BIC is named; the search stops at one whose refit is at the noise. Otherwise the finding stays as the plain fit left it.</p></body></html>",
         residual::MODEL_ERROR_RATIO,
         effects::MIN_IMPROVEMENT * 100.0,
         holdout::HOLD_EVERY,
         holdout::BLOCK_S,
-        holdout::MAX_HOLDOUT_RATIO * 100.0
+        holdout::MAX_HOLDOUT_RATIO * 100.0,
+        holdout::HOLDOUT_NOISE_RATIO
     );
     Ok(s)
 }
