@@ -53,6 +53,33 @@ pub struct RigError {
     pub message: String,
 }
 
+/// A body's mass properties about the axis: m > 0, J > 0, d ≥ 0 and J ≥ m·d² (parallel-axis
+/// theorem); a refusal names `prefix` + the field.
+fn mass_properties(prefix: &str, m: f64, j: f64, d: f64) -> Result<(), RigError> {
+    for (f, v) in [("mass_kg", m), ("inertia_kgm2", j)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(rig_err(
+                &format!("{prefix}{f}"),
+                format!("must be > 0, got {v}"),
+            ));
+        }
+    }
+    if !(d.is_finite() && d >= 0.0) {
+        return Err(rig_err(
+            &format!("{prefix}com_distance_m"),
+            format!("must be >= 0, got {d}"),
+        ));
+    }
+    let md2 = m * d.powi(2);
+    if j < md2 * (1.0 - 1e-9) {
+        return Err(rig_err(
+            &format!("{prefix}inertia_kgm2"),
+            format!("{j} kg·m² is below m·d² = {md2} (parallel-axis theorem)"),
+        ));
+    }
+    Ok(())
+}
+
 fn rig_err(field: &str, message: impl Into<String>) -> RigError {
     RigError {
         field: field.to_string(),
@@ -70,6 +97,12 @@ impl PendulumRig {
     ) -> Result<Self, RigError> {
         // Each part checked where it was stated, so a refusal names its exact contract path
         // (`body.inertia_kgm2`, `attachments[1].mass_kg`), not the lumped rig's field.
+        mass_properties(
+            "body.",
+            body.mass_kg,
+            body.inertia_kgm2,
+            body.com_distance_m,
+        )?;
         let positive = |f: String, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(())
@@ -77,24 +110,6 @@ impl PendulumRig {
                 Err(rig_err(&f, format!("must be > 0, got {v}")))
             }
         };
-        positive("body.mass_kg".into(), body.mass_kg)?;
-        positive("body.inertia_kgm2".into(), body.inertia_kgm2)?;
-        if !(body.com_distance_m.is_finite() && body.com_distance_m >= 0.0) {
-            return Err(rig_err(
-                "body.com_distance_m",
-                format!("must be >= 0, got {}", body.com_distance_m),
-            ));
-        }
-        let md2 = body.mass_kg * body.com_distance_m.powi(2);
-        if body.inertia_kgm2 < md2 * (1.0 - 1e-9) {
-            return Err(rig_err(
-                "body.inertia_kgm2",
-                format!(
-                    "{} kg·m² is below m·d² = {md2} (parallel-axis theorem)",
-                    body.inertia_kgm2
-                ),
-            ));
-        }
         for (i, a) in attachments.iter().enumerate() {
             let (mass_kg, (k, v)) = match *a {
                 Attachment::Point {
@@ -146,32 +161,14 @@ impl PendulumRig {
 
     /// Physical consistency: positive mass and inertia, J ≥ m·d² (parallel-axis theorem).
     pub fn validate(&self) -> Result<(), RigError> {
-        let pos = |f: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(rig_err(f, format!("must be > 0, got {v}")))
+        mass_properties("", self.mass_kg, self.inertia_kgm2, self.com_distance_m)?;
+        for (f, v) in [
+            ("pin_radius_m", self.pin_radius_m),
+            ("gravity_m_s2", self.gravity_m_s2),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(rig_err(f, format!("must be > 0, got {v}")));
             }
-        };
-        pos("mass_kg", self.mass_kg)?;
-        pos("inertia_kgm2", self.inertia_kgm2)?;
-        pos("pin_radius_m", self.pin_radius_m)?;
-        pos("gravity_m_s2", self.gravity_m_s2)?;
-        if !(self.com_distance_m.is_finite() && self.com_distance_m >= 0.0) {
-            return Err(rig_err(
-                "com_distance_m",
-                format!("must be >= 0, got {}", self.com_distance_m),
-            ));
-        }
-        let md2 = self.mass_kg * self.com_distance_m.powi(2);
-        if self.inertia_kgm2 < md2 * (1.0 - 1e-9) {
-            return Err(rig_err(
-                "inertia_kgm2",
-                format!(
-                    "{} kg·m² is below m·d² = {md2} (parallel-axis theorem)",
-                    self.inertia_kgm2
-                ),
-            ));
         }
         Ok(())
     }

@@ -9,6 +9,26 @@ use crate::lift::sensitivity::LiftParam;
 use crate::lift::sensors::LiftSensorNoise;
 use crate::lift::simulate::SimOptions;
 
+/// The service's entry (`report::fit_lift_trace`, default drift bands) on `rec`'s inputs with
+/// `h` as the H channel.
+fn fit_with_h(rec: &crate::lift::protocol::LiftRecord, h: &[f64]) -> crate::report::FitResult {
+    use crate::lift::report::{LiftChannels, fit_lift_trace};
+    let u = rec.inputs();
+    fit_lift_trace(
+        &LiftChannels {
+            t_s: u.t_s,
+            strip_height_m: h,
+            torque_nm: u.torque_nm,
+            fs_n: u.fs_n,
+            fm_n: u.fm_n,
+        },
+        &crate::drift::DriftThresholds::default(),
+        "t",
+    )
+    .unwrap()
+    .result
+}
+
 #[test]
 fn white_noise_is_trusted_and_a_slow_error_is_not() {
     let n = 4000;
@@ -241,7 +261,6 @@ fn a_delay_is_named_and_other_errors_stay_unexplained() {
 /// ratio, no flag), 25 of 25 intervals holding the truth.
 #[test]
 fn a_head_drag_is_named_with_joints_from_the_augmented_fit() {
-    use crate::lift::report::{LiftChannels, fit_lift_trace};
     let g = builtin_160ec();
     let base = LiftModel::new(g);
     let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
@@ -254,20 +273,7 @@ fn a_head_drag_is_named_with_joints_from_the_augmented_fit() {
         let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
         for seed in 0..2u64 {
             let rec = LiftSensorNoise::realistic().apply(&clean, 7012 + seed);
-            let u = rec.inputs();
-            let r = fit_lift_trace(
-                &LiftChannels {
-                    t_s: u.t_s,
-                    strip_height_m: &rec.strip_height_m,
-                    torque_nm: u.torque_nm,
-                    fs_n: u.fs_n,
-                    fm_n: u.fm_n,
-                },
-                &crate::drift::DriftThresholds::default(),
-                "t",
-            )
-            .unwrap()
-            .result;
+            let r = fit_with_h(&rec, &rec.strip_height_m);
             eprintln!(
                 "c_a {c_a} J3 ×{j3_factor} seed {seed}: effects {:?} rmse {:.3} -> {:.3} mm",
                 r.residual.effects,
@@ -313,7 +319,6 @@ fn a_head_drag_is_named_with_joints_from_the_augmented_fit() {
 /// the truth, the RMSE at least halves, and no joint is flagged but the drifted one's entry.
 #[test]
 fn a_stribeck_friction_is_named_at_its_joint() {
-    use crate::lift::report::{LiftChannels, fit_lift_trace};
     use crate::lift::topology::RevJoint;
     let g = builtin_160ec();
     let base = LiftModel::new(g);
@@ -327,20 +332,7 @@ fn a_stribeck_friction_is_named_at_its_joint() {
         let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
         for seed in 0..2u64 {
             let rec = LiftSensorNoise::realistic().apply(&clean, 7030 + seed);
-            let u = rec.inputs();
-            let r = fit_lift_trace(
-                &LiftChannels {
-                    t_s: u.t_s,
-                    strip_height_m: &rec.strip_height_m,
-                    torque_nm: u.torque_nm,
-                    fs_n: u.fs_n,
-                    fm_n: u.fm_n,
-                },
-                &crate::drift::DriftThresholds::default(),
-                "t",
-            )
-            .unwrap()
-            .result;
+            let r = fit_with_h(&rec, &rec.strip_height_m);
             eprintln!(
                 "ratio {ratio} J3 ×{j3_factor} seed {seed}: effects {:?} rmse {:.3} -> {:.3} mm",
                 r.residual.effects,
@@ -377,7 +369,6 @@ fn a_stribeck_friction_is_named_at_its_joint() {
 /// the first sample's static equilibrium, which is what makes an offset visible at all.
 #[test]
 fn an_h_zero_offset_is_named_not_a_drag() {
-    use crate::lift::report::{LiftChannels, fit_lift_trace};
     let g = builtin_160ec();
     let base = LiftModel::new(g);
     let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
@@ -385,20 +376,7 @@ fn an_h_zero_offset_is_named_not_a_drag() {
     for (offset_m, seed) in [(-0.01, 7001u64), (-0.01, 7002), (0.02, 7000)] {
         let rec = LiftSensorNoise::realistic().apply(&clean, seed);
         let h: Vec<f64> = rec.strip_height_m.iter().map(|h| h + offset_m).collect();
-        let u = rec.inputs();
-        let r = fit_lift_trace(
-            &LiftChannels {
-                t_s: u.t_s,
-                strip_height_m: &h,
-                torque_nm: u.torque_nm,
-                fs_n: u.fs_n,
-                fm_n: u.fm_n,
-            },
-            &crate::drift::DriftThresholds::default(),
-            "t",
-        )
-        .unwrap()
-        .result;
+        let r = fit_with_h(&rec, &h);
         eprintln!(
             "offset {offset_m} seed {seed}: effects {:?} rmse {:.3} -> {:.3} mm",
             r.residual.effects,
@@ -427,7 +405,6 @@ fn an_h_zero_offset_is_named_not_a_drag() {
 #[test]
 fn a_friction_band_outside_the_vocabulary_stays_unexplained() {
     use crate::lift::dynamics::FrictionBand;
-    use crate::lift::report::{LiftChannels, fit_lift_trace};
     use crate::lift::statics::alpha_at_height;
     use crate::lift::topology::RevJoint;
     let g = builtin_160ec();
@@ -451,20 +428,7 @@ fn a_friction_band_outside_the_vocabulary_stays_unexplained() {
     });
     let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
     let rec = LiftSensorNoise::realistic().apply(&clean, 7000);
-    let u = rec.inputs();
-    let r = fit_lift_trace(
-        &LiftChannels {
-            t_s: u.t_s,
-            strip_height_m: &rec.strip_height_m,
-            torque_nm: u.torque_nm,
-            fs_n: u.fs_n,
-            fm_n: u.fm_n,
-        },
-        &crate::drift::DriftThresholds::default(),
-        "t",
-    )
-    .unwrap()
-    .result;
+    let r = fit_with_h(&rec, &rec.strip_height_m);
     assert!(r.residual.effects.is_empty(), "{:?}", r.residual.effects);
     assert_eq!(r.residual.verdict.as_deref(), Some("unexplained"));
     assert!(r.residual.joints_withheld.is_some());
