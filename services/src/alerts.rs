@@ -139,22 +139,16 @@ pub async fn after_fit(
                 "horizon_days": opts.horizon_days,
                 "tests": history.len(),
             });
-            let out = store
-                .raise_alert(&NewAlert {
-                    serial: serial.to_owned(),
-                    joint: joint.to_owned(),
-                    vehicle_id: Some(meta.vehicle_id.clone()),
-                    severity,
-                    reason,
-                    evidence,
-                    trace_id: trace_id.to_owned(),
-                })
-                .await?;
-            if !matches!(out, RaiseOutcome::Updated(_)) {
-                let a = out.alert();
-                tracing::info!(alert = a.id, serial, joint, severity = %a.severity, "alert raised");
-            }
-            actions.push(AlertAction::Raised(Box::new(out)));
+            let new = NewAlert {
+                serial: serial.to_owned(),
+                joint: joint.to_owned(),
+                vehicle_id: Some(meta.vehicle_id.clone()),
+                severity,
+                reason,
+                evidence,
+                trace_id: trace_id.to_owned(),
+            };
+            actions.push(raise_logged(store, &new).await?);
         } else if status == Status::Ok {
             let note = format!("back in band: test {trace_id}");
             if let Some(a) = store
@@ -170,6 +164,16 @@ pub async fn after_fit(
         actions.extend(lift_sensor_finding(store, &meta, serial, trace_id, fit_id, result).await?);
     }
     Ok(actions)
+}
+
+/// Raise (or update) `new`, logging a newly opened or escalated alert.
+async fn raise_logged(store: &Store, new: &NewAlert) -> Result<AlertAction, StoreError> {
+    let out = store.raise_alert(new).await?;
+    if !matches!(out, RaiseOutcome::Updated(_)) {
+        let a = out.alert();
+        tracing::info!(alert = a.id, serial = %new.serial, joint = %new.joint, severity = %a.severity, "alert raised");
+    }
+    Ok(AlertAction::Raised(Box::new(out)))
 }
 
 /// The alert name of a lift's height-channel finding (one live alert per pantograph).
@@ -259,22 +263,16 @@ async fn lift_sensor_finding(
             "effect": e,
             "residual": residual,
         });
-        let out = store
-            .raise_alert(&NewAlert {
-                serial: serial.to_owned(),
-                joint: LIFT_H_SENSOR.to_owned(),
-                vehicle_id: Some(meta.vehicle_id.clone()),
-                severity: Severity::Watch,
-                reason,
-                evidence,
-                trace_id: trace_id.to_owned(),
-            })
-            .await?;
-        if !matches!(out, RaiseOutcome::Updated(_)) {
-            let a = out.alert();
-            tracing::info!(alert = a.id, serial, "H sensor finding raised");
-        }
-        return Ok(vec![AlertAction::Raised(Box::new(out))]);
+        let new = NewAlert {
+            serial: serial.to_owned(),
+            joint: LIFT_H_SENSOR.to_owned(),
+            vehicle_id: Some(meta.vehicle_id.clone()),
+            severity: Severity::Watch,
+            reason,
+            evidence,
+            trace_id: trace_id.to_owned(),
+        };
+        return Ok(vec![raise_logged(store, &new).await?]);
     }
     let explained = residual
         .and_then(|r| r.get("verdict"))

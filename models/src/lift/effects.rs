@@ -74,9 +74,14 @@ pub const DRAG_SECOND_START: f64 = 4.0;
 
 /// `opts` with c_a fitted and the intervals scaled by [`DRAG_INTERVAL_SCALE`].
 pub fn drag_options(opts: &LiftFitOptions) -> LiftFitOptions {
+    with_effect(opts, &[LiftParam::HeadDrag], DRAG_INTERVAL_SCALE)
+}
+
+/// `opts` with `params` fitted among the friction's and every interval scaled by `scale`.
+fn with_effect(opts: &LiftFitOptions, params: &[LiftParam], scale: f64) -> LiftFitOptions {
     LiftFitOptions {
-        effect_params: vec![LiftParam::HeadDrag],
-        interval_scale: DRAG_INTERVAL_SCALE,
+        effect_params: params.to_vec(),
+        interval_scale: scale,
         ..opts.clone()
     }
 }
@@ -208,11 +213,7 @@ pub const DELAY_INTERVAL_SCALE: f64 = 3.0;
 
 /// `opts` with the H delay fitted and the intervals scaled by [`DELAY_INTERVAL_SCALE`].
 pub fn delay_options(opts: &LiftFitOptions) -> LiftFitOptions {
-    LiftFitOptions {
-        effect_params: vec![LiftParam::SensorDelay],
-        interval_scale: DELAY_INTERVAL_SCALE,
-        ..opts.clone()
-    }
+    with_effect(opts, &[LiftParam::SensorDelay], DELAY_INTERVAL_SCALE)
 }
 
 /// Tries the `sensor_delay` effect on a trace whose base fit `base` left a model error: one fit
@@ -265,11 +266,7 @@ pub const OFFSET_INTERVAL_SCALE: f64 = 5.0;
 
 /// `opts` with the H zero offset fitted and the intervals scaled by [`OFFSET_INTERVAL_SCALE`].
 pub fn offset_options(opts: &LiftFitOptions) -> LiftFitOptions {
-    LiftFitOptions {
-        effect_params: vec![LiftParam::SensorOffset],
-        interval_scale: OFFSET_INTERVAL_SCALE,
-        ..opts.clone()
-    }
+    with_effect(opts, &[LiftParam::SensorOffset], OFFSET_INTERVAL_SCALE)
 }
 
 /// A named H zero offset and the fit with it.
@@ -328,14 +325,14 @@ pub const STRIBECK_INTERVAL_SCALE: f64 = 3.0;
 /// `opts` with [`STRIBECK_JOINT`]'s Stribeck excess and speed fitted, intervals scaled by
 /// [`STRIBECK_INTERVAL_SCALE`].
 pub fn stribeck_options(opts: &LiftFitOptions) -> LiftFitOptions {
-    LiftFitOptions {
-        effect_params: vec![
+    with_effect(
+        opts,
+        &[
             LiftParam::StribeckExcess(STRIBECK_JOINT),
             LiftParam::StribeckSpeed(STRIBECK_JOINT),
         ],
-        interval_scale: STRIBECK_INTERVAL_SCALE,
-        ..opts.clone()
-    }
+        STRIBECK_INTERVAL_SCALE,
+    )
 }
 
 /// A named Stribeck friction at a joint and the fit with it.
