@@ -32,6 +32,9 @@ pub enum Termination {
     GradientConverged,
     /// The Gauss–Newton step would move the parameters by less than `dtol` standard errors.
     DecrementConverged,
+    /// A trial step within `noise_sd` standard errors was rejected: the objective's
+    /// evaluation noise, not its minimum, ends the descent there.
+    NoiseFloor,
     /// The damping grew without finding a better point.
     NoProgress,
     MaxIterations,
@@ -60,6 +63,10 @@ pub struct LmOptions {
     /// residual variance s² ≈ 2·cost/m, that step moves the parameters by at most dtol standard
     /// errors (in the norm of JᵀJ/s²). 0 disables the test.
     pub dtol: f64,
+    /// Stop when a rejected trial step is at most this many standard errors long (the norm of
+    /// `dtol`): for objectives whose evaluation carries noise (an adaptive integrator's step
+    /// choice) larger than what such a step changes. 0 (the default) disables the test.
+    pub noise_sd: f64,
 }
 
 impl Default for LmOptions {
@@ -70,6 +77,7 @@ impl Default for LmOptions {
             xtol: 1e-10,
             gtol: 1e-10,
             dtol: 0.0,
+            noise_sd: 0.0,
         }
     }
 }
@@ -258,6 +266,16 @@ pub fn minimize_evaluated<P: Problem>(
                 termination = Termination::CostConverged;
                 break 'outer;
             }
+            // A step no longer than `noise_sd` standard errors (in the norm of the decrement
+            // test) made the cost worse: what it could gain is below the objective's
+            // evaluation noise, and a shorter step would only chase that noise.
+            if ok && opts.noise_sd > 0.0 {
+                let quad = 0.5 * step_v.dot(&(&a * &step_v));
+                if quad <= opts.noise_sd * opts.noise_sd * cost / m as f64 {
+                    termination = Termination::NoiseFloor;
+                    break 'outer;
+                }
+            }
             lambda *= nu;
             nu *= 2.0;
             if lambda > 1e20 {
@@ -322,6 +340,7 @@ mod tests {
                 xtol: 1e-15,
                 gtol: 1e-15,
                 dtol: 0.0,
+                noise_sd: 0.0,
                 max_iter: 500,
             },
         );
@@ -415,5 +434,94 @@ mod tests {
             rep.x,
             rep.termination
         );
+    }
+
+    /// Straight-line fit whose every evaluation adds a pseudo-random offset to the residuals,
+    /// a function of x (as an adaptive integrator's step choice is): the cost is noisy by
+    /// several units where one standard error of the slope changes it by ½.
+    struct NoisyLine {
+        t: Vec<f64>,
+        y: Vec<f64>,
+    }
+    impl Problem for NoisyLine {
+        fn n_params(&self) -> usize {
+            2
+        }
+        fn n_residuals(&self) -> usize {
+            self.t.len()
+        }
+        fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
+            // A hash of x's bits: the same x, the same noise.
+            let h = (x[0].to_bits() ^ x[1].to_bits().rotate_left(17))
+                .wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            let jitter = 0.3 * ((h >> 11) as f64 / (1u64 << 53) as f64 - 0.5);
+            for (k, &t) in self.t.iter().enumerate() {
+                r[k] = x[0] + x[1] * t - self.y[k] + jitter;
+                jac[(k, 0)] = 1.0;
+                jac[(k, 1)] = t;
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_rejected_step_within_the_noise_ends_the_fit_near_the_minimum() {
+        // y = 1 + 2t with unit-variance-like scatter: the exact least-squares line is known.
+        let t: Vec<f64> = (0..200).map(|i| i as f64 / 20.0).collect();
+        let y: Vec<f64> = t
+            .iter()
+            .enumerate()
+            .map(|(k, t)| 1.0 + 2.0 * t + if k % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let opts = |noise_sd: f64| LmOptions {
+            max_iter: 50,
+            ftol: 1e-12,
+            xtol: 1e-12,
+            gtol: 1e-12,
+            dtol: 0.0,
+            noise_sd,
+        };
+        let quiet = minimize(
+            &mut NoisyLine {
+                t: t.clone(),
+                y: y.clone(),
+            },
+            &[0.0, 0.0],
+            &opts(3.0),
+        );
+        let chasing = minimize(
+            &mut NoisyLine {
+                t: t.clone(),
+                y: y.clone(),
+            },
+            &[0.0, 0.0],
+            &opts(0.0),
+        );
+        assert_eq!(quiet.termination, Termination::NoiseFloor);
+        assert!(
+            quiet.evaluations < chasing.evaluations,
+            "{} vs {} evaluations",
+            quiet.evaluations,
+            chasing.evaluations
+        );
+        // Standard errors of intercept and slope with s² = 2·cost/m, from (JᵀJ)⁻¹.
+        let n = t.len() as f64;
+        let (st, stt) = (t.iter().sum::<f64>(), t.iter().map(|v| v * v).sum::<f64>());
+        let det = n * stt - st * st;
+        let s2 = 2.0 * quiet.cost / n;
+        let sd = [(s2 * stt / det).sqrt(), (s2 * n / det).sqrt()];
+        let sy: f64 = y.iter().sum();
+        let sty: f64 = t.iter().zip(&y).map(|(a, b)| a * b).sum();
+        let exact = [(stt * sy - st * sty) / det, (n * sty - st * sy) / det];
+        for i in 0..2 {
+            // The jitter (±0.15) shifts the intercept's optimum by up to 0.15 itself.
+            let off = (quiet.x[i] - exact[i]).abs() - if i == 0 { 0.15 } else { 0.0 };
+            assert!(
+                off <= 3.0 * sd[i],
+                "parameter {i}: {} vs {}",
+                quiet.x[i],
+                exact[i]
+            );
+        }
     }
 }

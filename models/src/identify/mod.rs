@@ -123,6 +123,7 @@ impl Default for FitOptions {
                 // Stop once a step would move the estimate by < 5 % of its standard error (a shift that
                 // changes a 95 % interval's coverage by < 0.1 %).
                 dtol: 0.05,
+                noise_sd: 0.0,
             },
         }
     }

@@ -102,6 +102,7 @@ impl Default for QuadFitOptions {
                 xtol: 1e-6,
                 gtol: 1e-10,
                 dtol: 0.1,
+                noise_sd: 0.0,
             },
         }
     }
