@@ -89,7 +89,13 @@ pub fn fit_joint_test_with_finding(
             unit: test.unit.to_string(),
         },
         residual: finding.residual.clone(),
-        fit: report::details(&reported, test.t_s[reported.start], units, test.unit),
+        fit: report::details(
+            &reported,
+            test.t_s[reported.start],
+            &identify::release_of(test)?,
+            units,
+            test.unit,
+        ),
         pooled: None,
         combinations: Vec::new(),
     };

@@ -112,6 +112,12 @@ pub struct FitDetails {
     pub model_version: String,
     /// Time of the first sample of free motion used in the fit.
     pub release_t_s: f64,
+    /// How the release was decided: `stated` (`test.release_t_s`), `first_sample`,
+    /// `after_hold` or `turning_point` (`identify::release`).
+    pub release_rule: &'static str,
+    /// Why the release may be wrong, when the data do not decide it clearly.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub release_warning: Option<String>,
     pub release_position: Quantity,
     pub release_rate: Quantity,
     pub sensor_offset: Quantity,
@@ -197,6 +203,7 @@ pub fn joint_result(fit: &FitOutcome, b: &Baseline, th: &DriftThresholds) -> Joi
 pub fn details(
     fit: &FitOutcome,
     t_release: f64,
+    release: &crate::identify::release::Release,
     model_unit: (&str, &str),
     channel_unit: &str,
 ) -> FitDetails {
@@ -213,6 +220,8 @@ pub fn details(
     FitDetails {
         model_version: MODEL_VERSION.to_string(),
         release_t_s: t_release,
+        release_rule: release.rule.as_str(),
+        release_warning: release.warning.clone(),
         release_position: Quantity {
             value: fit.q0,
             unit: model_unit.0.into(),

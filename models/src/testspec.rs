@@ -183,6 +183,7 @@ impl PendulumSpec {
             scale: 180.0 / std::f64::consts::PI,
             unit: "deg",
             initial_rate: self.initial_rate_deg_s.map(f64::to_radians),
+            release_t_s: None,
         };
         Ok((test, baseline))
     }
@@ -277,6 +278,7 @@ impl SliderSpec {
             scale: 1000.0,
             unit: "mm",
             initial_rate: None,
+            release_t_s: None,
         };
         Ok((test, baseline))
     }

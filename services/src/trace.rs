@@ -276,7 +276,11 @@ impl TraceDoc {
         }
         let test_v = root.get("test").ok_or_else(|| bad("test", "is required"))?;
         let test = obj(test_v, "test")?;
-        only_keys(test, &["kind", "joint", "rig", "protocol"], "test")?;
+        only_keys(
+            test,
+            &["kind", "joint", "rig", "protocol", "release_t_s"],
+            "test",
+        )?;
         let kind = match string(test, "kind", "test.kind", true)?.as_deref() {
             Some("pendulum") => Kind::Pendulum,
             Some("slider") => Kind::Slider,
@@ -290,6 +294,12 @@ impl TraceDoc {
             }
             None => unreachable!("required"),
         };
+        if kind != Kind::Pendulum && test.get("release_t_s").is_some_and(|v| !v.is_null()) {
+            return Err(bad(
+                "test.release_t_s",
+                "only a pendulum test states its release",
+            ));
+        }
         let joint = string(test, "joint", "test.joint", false)?;
         if let Some(r) = test.get("rig")
             && !r.is_object()
@@ -594,6 +604,29 @@ impl TraceDoc {
         data::builtin(&self.pantograph_model)
     }
 
+    /// `test.release_t_s` (issue 17, point 2): when the body was let go, s, on the trace's
+    /// clock; only a pendulum states it. It must lie within `t` and leave at least 20 samples of
+    /// free motion (what a fit needs).
+    fn release_t_s(&self, t: &[f64]) -> Result<Option<f64>, TraceError> {
+        const FIELD: &str = "test.release_t_s";
+        let test = self.test.as_object().cloned().unwrap_or_default();
+        let Some(r) = number(&test, "release_t_s", FIELD)? else {
+            return Ok(None);
+        };
+        match pantowatch_models::identify::release::stated_release(t, r, 20) {
+            Some(_) => Ok(Some(r)),
+            None => Err(bad(
+                FIELD,
+                format!(
+                    "{r} s lies outside the trace ({} to {} s) or leaves fewer than 20 samples \
+                     after it",
+                    t.first().copied().unwrap_or(f64::NAN),
+                    t.last().copied().unwrap_or(f64::NAN)
+                ),
+            )),
+        }
+    }
+
     /// The models' single-joint test (pendulum or slider) with its Table 4 baseline.
     pub fn joint_test(&self) -> Result<(JointTest, Baseline), TraceError> {
         let rig = self
@@ -703,7 +736,18 @@ impl TraceDoc {
                     )?,
                 };
                 let y = self.channel("alpha_deg").unwrap_or_default().to_vec();
-                spec.joint_test(data, t, y).map_err(rig_err)
+                let release_t_s = self.release_t_s(&t)?;
+                spec.joint_test(data, t, y)
+                    .map(|(test, baseline)| {
+                        (
+                            JointTest {
+                                release_t_s,
+                                ..test
+                            },
+                            baseline,
+                        )
+                    })
+                    .map_err(rig_err)
             }
             Kind::Slider => {
                 if let Some(j) = &self.joint

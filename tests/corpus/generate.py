@@ -126,6 +126,12 @@ doc("rig-body-mass-1e9", "test.rig.body.mass_kg", lambda d: d["test"]["rig"].upd
     body={"mass_kg": 1e9, "inertia_kgm2": 1e9, "com_distance_m": 0.5}))
 doc("rig-gravity-moon", "test.rig.gravity_m_s2", lambda d: d["test"]["rig"].update(gravity_m_s2=1.62))
 doc("alpha-1e308", "channels.alpha_deg[2]", lambda d: d["channels"]["alpha_deg"].__setitem__(2, 1e308))
+# Issue 17, point 7: a stated release (`test.release_t_s`) outside the trace, of the wrong type,
+# or on a test that has no release.
+doc("release-after-end", "test.release_t_s", lambda d: d["test"].update(release_t_s=5.0))
+doc("release-negative", "test.release_t_s", lambda d: d["test"].update(release_t_s=-1.0))
+doc("release-string", "test.release_t_s", lambda d: d["test"].update(release_t_s="0.2 s"))
+doc("release-on-slider", "test.release_t_s", lambda d: d["test"].update(release_t_s=0.0), base=SLIDER)
 
 manifest = []
 for i, (name, ct, body, field) in enumerate(cases, 1):

@@ -45,6 +45,7 @@ fn intervals_cover_the_truth_90_to_98_percent() {
             scale: sensor.scale,
             unit: "deg",
             initial_rate: None,
+            release_t_s: None,
         };
         let fit = fit_base(&test, &FitOptions::default()).unwrap();
         for (p, truth) in [(DynParam::Viscous, law.viscous), (DynParam::Dry, law.dry)] {

@@ -56,6 +56,7 @@ fn pendulum_test(
             scale: DEG,
             unit: "deg",
             initial_rate: None,
+            release_t_s: None,
         },
         b,
     )
@@ -99,6 +100,7 @@ fn slider_test(truth: &Truth, seed: u64) -> (JointTest, Baseline) {
             scale: 1000.0,
             unit: "mm",
             initial_rate: None,
+            release_t_s: None,
         },
         b,
     )

@@ -35,6 +35,9 @@ pub struct JointTest {
     pub unit: &'static str,
     /// Initial rate at the first sample, model units, when the trace declares one.
     pub initial_rate: Option<f64>,
+    /// The release time the trace states (`test.release_t_s`), s; `None`: found from the data
+    /// ([`release::find_release`]).
+    pub release_t_s: Option<f64>,
 }
 
 /// A named entry of the parameter vector.
@@ -136,6 +139,8 @@ pub enum FitError {
     TooShort(usize),
     #[error("the model cannot be simulated at the starting point: {0}")]
     Start(String),
+    #[error("test.release_t_s {0} s lies outside the trace or leaves fewer than 20 samples")]
+    Release(f64),
     #[error(transparent)]
     Sim(#[from] SimError),
 }
@@ -451,14 +456,39 @@ pub fn offset_identifiable(dof: &Dof) -> bool {
     dof.load(0.0, f64::NEG_INFINITY).1 != 0.0
 }
 
+/// The first sample of free motion: stated by the trace (`test.release_t_s`), the first sample
+/// of a trace that declares its initial rate or is driven by a measured input, or found from
+/// the data ([`release::find_release`]).
+pub fn release_of(test: &JointTest) -> Result<release::Release, FitError> {
+    use release::{Release, ReleaseRule};
+    if let Some(t) = test.release_t_s {
+        let index = release::stated_release(&test.t_s, t, 20).ok_or(FitError::Release(t))?;
+        return Ok(Release {
+            index,
+            rule: ReleaseRule::Stated,
+            warning: None,
+        });
+    }
+    // A declared initial rate, or a measured input driving the model (issue 17, point 3: the
+    // model follows the whole record, held part included): the first sample.
+    if test.initial_rate.is_some() || test.dof.input.is_some() || test.t_s.is_empty() {
+        return Ok(Release {
+            index: 0,
+            rule: ReleaseRule::FirstSample,
+            warning: None,
+        });
+    }
+    let span = test.t_s[test.t_s.len() - 1] - test.t_s[0];
+    Ok(release::find_release(
+        &test.t_s,
+        &test.y,
+        test.dof.period_s(span),
+    ))
+}
+
 /// Release detection + first estimate + base fit on all free motion.
 pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitError> {
-    let start = if test.initial_rate.is_some() {
-        0
-    } else {
-        let span = test.t_s[test.t_s.len() - 1] - test.t_s[0];
-        release::detect_release(&test.t_s, &test.y, test.dof.period_s(span))
-    };
+    let start = release_of(test)?.index;
     let n_fit = test.t_s.len() - start;
     if n_fit < 20 {
         return Err(FitError::TooShort(n_fit));

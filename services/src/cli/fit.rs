@@ -60,12 +60,16 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
         );
     } else {
         s += &format!(
-            "trace {id}  vehicle {}  {} test  released at t = {:.3} s, {} samples fitted\n",
+            "trace {id}  vehicle {}  {} test  released at t = {:.3} s ({}), {} samples fitted\n",
             doc.vehicle_id,
             doc.kind.as_str(),
             r.fit.release_t_s,
+            r.fit.release_rule.replace('_', " "),
             r.fit.samples_fitted
         );
+        if let Some(w) = &r.fit.release_warning {
+            s += &format!("warning: {w}\n");
+        }
     }
     s += &format!(
         "{:<6} {:<9} {:>11} {:>25} {:>10} {:>13} {:>8}\n",

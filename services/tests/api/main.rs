@@ -59,6 +59,7 @@ suite!(
     corpus_uploads_are_refused_and_store_nothing,
     edge_dates_never_break_their_vehicle,
     hostile_requests_answer_problems_naming_their_field,
+    a_release_is_found_or_stated_and_reported,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).
