@@ -98,6 +98,22 @@ fn bic(fit: &FitOutcome) -> f64 {
     n * (rss / n).ln() + fit.values.len() as f64 * n.ln()
 }
 
+/// `spec`'s effect parameters set to what `from` fitted for them, where `from` fitted them too
+/// (a refit that adds an effect to a fitted one starts at that one's solution).
+fn warm_effects(spec: &mut FitSpec, from: &FitOutcome) {
+    for p in spec.free.clone() {
+        if from.spec_params.contains(&Param::Dyn(p)) {
+            spec.law.set(p, from.law.get(p));
+        }
+    }
+    if spec.delay.is_some() && from.spec_params.contains(&Param::Delay) {
+        spec.delay = Some(from.readout.delay_s);
+    }
+    if spec.backlash.is_some() && from.spec_params.contains(&Param::Backlash) {
+        spec.backlash = Some(from.readout.backlash);
+    }
+}
+
 fn init_from(f: &FitOutcome) -> InitialEstimate {
     InitialEstimate {
         viscous: f.law.viscous,
@@ -314,8 +330,35 @@ pub fn analyse(
             for e in first.iter().chain([e2]) {
                 e.add_to(&mut spec, &sc, false);
             }
-            if let Ok(sp) = split_fit(test, &best.fit, &spec, opts) {
+            // Issue 17, point 4: from the best single effect's solution (its parameters as it
+            // fitted them), and from the plain fit; the better of the two, and never one that
+            // ends worse than the single effect it adds to.
+            let mut warm = spec.clone();
+            warm_effects(&mut warm, &best.fit);
+            let from_single = split_fit(test, &best.fit, &warm, opts);
+            let from_plain = split_fit(test, &base_split.fit, &spec, opts);
+            let pair = [from_single, from_plain]
+                .into_iter()
+                .flatten()
+                .min_by(|a, b| a.rmse_fit.total_cmp(&b.rmse_fit));
+            if let Some(sp) = pair {
                 let effs = vec![first[0], *e2];
+                if sp.rmse_fit > best.rmse_fit * (1.0 + 1e-9) {
+                    candidates.push(Candidate {
+                        effects: effs,
+                        score: None,
+                        rmse_fit: sp.rmse_fit,
+                        rmse_holdout: sp.rmse_holdout,
+                        bic: bic(&sp.fit),
+                        accepted: false,
+                        reason: format!(
+                            "the pair's refit ended at RMSE {:.4}, above the single effect's {:.4} \
+                             from both starts: kept the single",
+                            sp.rmse_fit, best.rmse_fit
+                        ),
+                    });
+                    continue;
+                }
                 let (ok, reason) = judge(&sp, &best, bic(&best.fit), &effs);
                 candidates.push(Candidate {
                     effects: effs.clone(),
@@ -353,11 +396,7 @@ pub fn analyse(
                 e.add_to(&mut spec, &sc, false);
             }
             // Warm-start the full fit from the split's values of the added parameters.
-            for p in spec.free.clone() {
-                spec.law.set(p, sp.fit.law.get(p));
-            }
-            spec.delay = spec.delay.map(|_| sp.fit.readout.delay_s);
-            spec.backlash = spec.backlash.map(|_| sp.fit.readout.backlash);
+            warm_effects(&mut spec, &sp.fit);
             let aug = fit_window(
                 test,
                 full.start,
