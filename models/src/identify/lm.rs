@@ -64,8 +64,9 @@ pub struct LmOptions {
     /// errors (in the norm of JᵀJ/s²). 0 disables the test.
     pub dtol: f64,
     /// Stop when a rejected trial step is at most this many standard errors long (the norm of
-    /// `dtol`): for objectives whose evaluation carries noise (an adaptive integrator's step
-    /// choice) larger than what such a step changes. 0 (the default) disables the test.
+    /// `dtol`, with s² = 2·cost/m capped at 1: residuals in units of their noise sd): for
+    /// objectives whose evaluation carries noise (an adaptive integrator's step choice) larger
+    /// than what such a step changes. 0 (the default) disables the test.
     pub noise_sd: f64,
 }
 
@@ -266,12 +267,15 @@ pub fn minimize_evaluated<P: Problem>(
                 termination = Termination::CostConverged;
                 break 'outer;
             }
-            // A step no longer than `noise_sd` standard errors (in the norm of the decrement
-            // test) made the cost worse: what it could gain is below the objective's
-            // evaluation noise, and a shorter step would only chase that noise.
+            // A step no longer than `noise_sd` standard errors made the cost worse: what it
+            // could gain is below the objective's evaluation noise, and a shorter step would
+            // only chase that noise. The residuals are in units of their noise sd, so the
+            // norm's s² = 2·cost/m is capped at 1: far from the minimum a large misfit would
+            // otherwise make every rejected step look short (a lift plain fit stopped at 60 mm).
             if ok && opts.noise_sd > 0.0 {
                 let quad = 0.5 * step_v.dot(&(&a * &step_v));
-                if quad <= opts.noise_sd * opts.noise_sd * cost / m as f64 {
+                let half_s2 = (cost / m as f64).min(0.5);
+                if quad <= opts.noise_sd * opts.noise_sd * half_s2 {
                     termination = Termination::NoiseFloor;
                     break 'outer;
                 }
