@@ -66,6 +66,42 @@ fn solve_small(a: &mut [[f64; 4]; 4], b: &mut [f64; 4], m: usize) -> [f64; 4] {
     x
 }
 
+/// The logger's resolution, channel units: the step of the grid every reading lies on, or 0
+/// when the readings are not on one (an unquantised channel). Assumption: the smallest
+/// positive difference between distinct readings is one step, and at least 99 % of readings
+/// lie within 1 % of a step from a multiple of it.
+pub fn resolution(y: &[f64]) -> f64 {
+    let mut v: Vec<f64> = y.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.len() < 10 {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let scale = v
+        .iter()
+        .fold(0.0f64, |m, x| m.max(x.abs()))
+        .max(f64::MIN_POSITIVE);
+    let step = v
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 1e-12 * scale)
+        .fold(f64::INFINITY, f64::min);
+    if !step.is_finite() {
+        return 0.0;
+    }
+    let on_grid = y
+        .iter()
+        .filter(|x| {
+            let q = *x / step;
+            (q - q.round()).abs() <= 0.01
+        })
+        .count();
+    if on_grid as f64 >= 0.99 * y.len() as f64 {
+        step
+    } else {
+        0.0
+    }
+}
+
 /// Half-window (in samples) that spans about `seconds`, from the median sample spacing.
 pub fn half_window(t: &[f64], seconds: f64) -> usize {
     if t.len() < 3 {
@@ -80,6 +116,23 @@ pub fn half_window(t: &[f64], seconds: f64) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_logger_step_is_read_off_the_data_and_continuous_readings_have_none() {
+        let mut rng = crate::noise::Noise::new(3);
+        let raw: Vec<f64> = (0..2000)
+            .map(|k| 40.0 * (k as f64 * 0.01).cos() + 0.05 * rng.normal())
+            .collect();
+        assert_eq!(resolution(&raw), 0.0);
+        let stepped: Vec<f64> = raw.iter().map(|x| (x / 0.01).round() * 0.01).collect();
+        assert!(
+            (resolution(&stepped) - 0.01).abs() < 1e-9,
+            "{}",
+            resolution(&stepped)
+        );
+        let mm: Vec<f64> = raw.iter().map(|x| (x / 0.025).round() * 0.025).collect();
+        assert!((resolution(&mm) - 0.025).abs() < 1e-9);
+    }
 
     #[test]
     fn cubic_derivatives_of_a_sine_on_uneven_samples() {

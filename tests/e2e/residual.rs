@@ -118,6 +118,25 @@ fn fit(test: &JointTest, b: &Baseline) -> FitResult {
     )
     .unwrap();
     let named = names(&r);
+    // Issue 17, point 6: no effect below what the sensor resolves — every trace here is read
+    // with 0.01 (deg or mm) steps, so a named zero is at least that.
+    for e in r
+        .residual
+        .effects
+        .iter()
+        .filter(|e| e.name == "sensor_offset")
+    {
+        let v = e
+            .params
+            .iter()
+            .find(|(k, _)| !k.ends_with("_ci95"))
+            .and_then(|(_, v)| v.as_f64())
+            .unwrap();
+        assert!(
+            v.abs() >= 0.01,
+            "sensor_offset {v} below the 0.01 step named"
+        );
+    }
     for c in finding.candidates.iter().filter(|c| c.accepted) {
         let effects: Vec<String> = c.effects.iter().map(|e| e.name().to_string()).collect();
         assert!(

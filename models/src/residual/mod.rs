@@ -435,7 +435,8 @@ pub fn analyse(
     // A sensor zero is a finding only when the model explains the trace: under an unexplained
     // misfit the fitted zero absorbs part of it.
     if verdict.is_none()
-        && let Some(e) = sensor_offset_effect(reported, test.unit)
+        && let Some(e) =
+            sensor_offset_effect(reported, test.unit, crate::signal::resolution(&test.y))
     {
         report_effects.push(e);
     }
