@@ -24,6 +24,10 @@ pub struct PendulumSpec {
 /// Slider test overrides.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SliderSpec {
+    /// `test.joint` `custom` (pantowatch extension, issue 17 point 3): a slider that is not the
+    /// pantograph's head — every rig value stated, no pantograph defaults, no Table 4 baseline,
+    /// reported as `custom`.
+    pub custom: bool,
     pub moving_mass_kg: Option<f64>,
     pub springs: Option<u32>,
     pub spring_stiffness_n_per_mm: Option<f64>,
@@ -216,6 +220,9 @@ impl SliderSpec {
 
     pub fn rig(&self, data: Option<&PantographType>) -> Result<(SliderRig, Baseline), RigError> {
         self.check_limits(limits(data))?;
+        if self.custom {
+            return self.custom_rig();
+        }
         let sd = data.map(|d| &d.slider);
         let jd = data
             .and_then(|d| d.joints.get(&d.slider.joint))
@@ -247,6 +254,42 @@ impl SliderSpec {
             viscous_unit: "N·s/m",
         };
         Ok((rig, baseline))
+    }
+
+    /// A custom slider's rig from the values the trace states: the moving mass, the spring
+    /// count, the stiffness (when there are springs) and the normal force on the guide are all
+    /// required (the 160EC head's are no default for another axis).
+    fn custom_rig(&self) -> Result<(SliderRig, Baseline), RigError> {
+        let need = |field: &str, v: Option<f64>| {
+            v.ok_or_else(|| err(field, "required for a custom slider (`test.joint`: custom)"))
+        };
+        let m = need("test.rig.moving_mass_kg", self.moving_mass_kg)?;
+        let springs = self.springs.ok_or_else(|| {
+            err(
+                "test.rig.springs",
+                "required for a custom slider (`test.joint`: custom); 0 for none",
+            )
+        })?;
+        let k = if springs == 0 {
+            self.spring_stiffness_n_per_mm.unwrap_or(0.0)
+        } else {
+            need(
+                "test.rig.spring_stiffness_n_per_mm",
+                self.spring_stiffness_n_per_mm,
+            )?
+        };
+        let fnn = need("test.rig.normal_force_n", self.normal_force_n)?;
+        let rig = SliderRig::new(m, springs, k, fnn)
+            .map_err(|e| err(&format!("test.rig.{}", e.field), e.message))?;
+        Ok((
+            rig,
+            Baseline {
+                joint: "custom".into(),
+                viscous: None,
+                dry: None,
+                viscous_unit: "N·s/m",
+            },
+        ))
     }
 
     /// The joint test over measured `h_mm` with the optional input force `F_N`.

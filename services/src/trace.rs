@@ -752,10 +752,11 @@ impl TraceDoc {
             Kind::Slider => {
                 if let Some(j) = &self.joint
                     && j != "J8"
+                    && j != "custom"
                 {
                     return Err(bad(
                         "test.joint",
-                        format!("a slider test is of joint J8, got `{j}`"),
+                        format!("a slider test is of joint J8 (or `custom`), got `{j}`"),
                     ));
                 }
                 only_keys(
@@ -775,6 +776,7 @@ impl TraceDoc {
                     })? as u32),
                 };
                 let spec = SliderSpec {
+                    custom: self.joint.as_deref() == Some("custom"),
                     moving_mass_kg: number(&rig, "moving_mass_kg", "test.rig.moving_mass_kg")?,
                     springs,
                     spring_stiffness_n_per_mm: number(
@@ -838,6 +840,44 @@ mod tests {
 
     fn field_of(v: Value) -> String {
         TraceDoc::from_value(&v).unwrap_err().field
+    }
+
+    /// Issue 17, point 3: a slider that is not the pantograph's head says so (`test.joint`:
+    /// `custom`): it is reported under that label, with no Table 4 baseline to judge it by, the
+    /// same physics fitted; its rig is stated in full, a missing value named.
+    #[test]
+    fn a_custom_slider_is_reported_as_custom_with_its_own_rig() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../shared/data/examples/slider_baseline.json"
+        );
+        let head: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+        let mut custom = head.clone();
+        custom["test"]["joint"] = json!("custom");
+        let thresholds = pantowatch_models::drift::DriftThresholds::default();
+        let fit = |v: &Value| {
+            crate::fitting::fit_document(&TraceDoc::from_value(v).unwrap(), &thresholds).unwrap()
+        };
+        let (j8, mine) = (fit(&head), fit(&custom));
+        assert_eq!(j8.joints[0].joint, "J8");
+        let c = &mine.joints[0];
+        assert_eq!(c.joint, "custom");
+        assert_eq!(c.status, pantowatch_models::drift::Status::Unknown);
+        assert!(c.dry.baseline.is_none() && c.viscous.baseline.is_none());
+        assert!((c.dry.value - j8.joints[0].dry.value).abs() <= 1e-9 * j8.joints[0].dry.value);
+        for key in [
+            "moving_mass_kg",
+            "springs",
+            "spring_stiffness_n_per_mm",
+            "normal_force_n",
+        ] {
+            let mut d = custom.clone();
+            d["test"]["rig"].as_object_mut().unwrap().remove(key);
+            assert_eq!(field_of(d), format!("test.rig.{key}"));
+        }
+        let mut d = custom.clone();
+        d["test"]["joint"] = json!("J3");
+        assert_eq!(field_of(d), "test.joint");
     }
 
     #[test]
