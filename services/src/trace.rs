@@ -609,8 +609,10 @@ impl TraceDoc {
     /// free motion (what a fit needs).
     fn release_t_s(&self, t: &[f64]) -> Result<Option<f64>, TraceError> {
         const FIELD: &str = "test.release_t_s";
-        let test = self.test.as_object().cloned().unwrap_or_default();
-        let Some(r) = number(&test, "release_t_s", FIELD)? else {
+        let Some(test) = self.test.as_object() else {
+            return Ok(None);
+        };
+        let Some(r) = number(test, "release_t_s", FIELD)? else {
             return Ok(None);
         };
         match pantowatch_models::identify::release::stated_release(t, r, 20) {

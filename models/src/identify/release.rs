@@ -188,13 +188,9 @@ fn coarse(t: &[f64], y: &[f64], period_s: f64) -> Release {
         if pause > 0.02 * period_s { idx[k] } else { r1 }
     };
     let next = t[r2] - t[out_start];
-    let carried = |why: String| Release {
-        index: out_start,
-        rule: ReleaseRule::TurningPoint,
-        warning: Some(why).filter(|w| !w.is_empty()),
-    };
+    let mut carried = Release::at(out_start, ReleaseRule::TurningPoint);
     let Some(k_in) = start_in else {
-        return carried(String::new());
+        return carried;
     };
     let into = t[r1] - t[idx[k_in]];
     let ratio = into / next;
@@ -214,17 +210,16 @@ fn coarse(t: &[f64], y: &[f64], period_s: f64) -> Release {
         span_ratio, SPAN_RATIO[0], SPAN_RATIO[1], FREE_RATIO[0], FREE_RATIO[1]
     );
     if !free {
-        let mut r = carried(String::new());
         // Shorter and smaller than a free swing: carried into the turning point, the usual
         // case. Anything else, or near a bound, is said.
         if ambiguous || ratio > FREE_RATIO[0] {
-            r.warning = Some(format!(
+            carried.warning = Some(format!(
                 "{what}: not free; the release is taken at the turning point ({:.3} s); state \
                  test.release_t_s if that is wrong",
                 t[out_start]
             ));
         }
-        return r;
+        return carried;
     }
     let (index, rule) = if idx[k_in] > 0 && t[idx[k_in]] - t[0] > 0.02 * period_s {
         (idx[k_in], ReleaseRule::AfterHold)
