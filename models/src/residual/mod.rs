@@ -343,23 +343,18 @@ pub fn analyse(
                 .min_by(|a, b| a.rmse_fit.total_cmp(&b.rmse_fit));
             if let Some(sp) = pair {
                 let effs = vec![first[0], *e2];
-                if sp.rmse_fit > best.rmse_fit * (1.0 + 1e-9) {
-                    candidates.push(Candidate {
-                        effects: effs,
-                        score: None,
-                        rmse_fit: sp.rmse_fit,
-                        rmse_holdout: sp.rmse_holdout,
-                        bic: bic(&sp.fit),
-                        accepted: false,
-                        reason: format!(
+                let (ok, reason) = if sp.rmse_fit > best.rmse_fit * (1.0 + 1e-9) {
+                    (
+                        false,
+                        format!(
                             "the pair's refit ended at RMSE {:.4}, above the single effect's {:.4} \
                              from both starts: kept the single",
                             sp.rmse_fit, best.rmse_fit
                         ),
-                    });
-                    continue;
-                }
-                let (ok, reason) = judge(&sp, &best, bic(&best.fit), &effs);
+                    )
+                } else {
+                    judge(&sp, &best, bic(&best.fit), &effs)
+                };
                 candidates.push(Candidate {
                     effects: effs.clone(),
                     score: None,
