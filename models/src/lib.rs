@@ -20,6 +20,8 @@
 //! - [`testspec`] — a test described as data, completed with the pantograph type's defaults.
 //! - [`report`] — the contract's fit result.
 //! - [`synth`] — synthetic traces: simulate, add sensor noise and quantisation.
+//! - [`stats`] — shared statistics (a leaf): whiteness, noise from differences, t/χ²/normal
+//!   quantiles.
 //! - [`trend`] — wear trends over a joint's history, forecasts of the alarm-band crossing.
 //! - [`noise`] — a small deterministic random source for synthetic traces.
 
@@ -40,6 +42,7 @@ pub mod residual;
 pub mod rig;
 pub mod signal;
 pub mod simulate;
+pub mod stats;
 pub mod synth;
 pub mod testspec;
 pub mod trend;

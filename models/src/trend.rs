@@ -10,6 +10,7 @@
 //! the band edge, with the interval from the slope's interval (the line pivoting on the weighted
 //! centroid).
 
+use crate::stats::Z95;
 use serde::Serialize;
 
 /// One identified value of a parameter at a time.
@@ -46,20 +47,9 @@ pub struct Forecast {
     pub t_days_ci95: [Option<f64>; 2],
 }
 
-/// Student-t 0.975 quantile for `dof` degrees of freedom (table to 30, then normal).
+/// Student-t 0.975 quantile for `dof` degrees of freedom (`statrs`; +∞ for none).
 fn t975(dof: usize) -> f64 {
-    const T: [f64; 30] = [
-        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
-        2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
-        2.052, 2.048, 2.045, 2.042,
-    ];
-    if dof == 0 {
-        f64::INFINITY
-    } else if dof <= 30 {
-        T[dof - 1]
-    } else {
-        1.96 + 2.4 / dof as f64
-    }
+    crate::stats::student_t_quantile(0.975, dof)
 }
 
 /// Fit the trend; `None` with fewer than 3 usable points.
@@ -68,7 +58,7 @@ pub fn fit(points: &[Point]) -> Option<Trend> {
         .iter()
         .filter(|p| p.t_days.is_finite() && p.value.is_finite())
         .map(|p| {
-            let sigma = ((p.ci95[1] - p.ci95[0]) / (2.0 * 1.96)).abs();
+            let sigma = ((p.ci95[1] - p.ci95[0]) / (2.0 * Z95)).abs();
             (
                 p.t_days,
                 p.value,

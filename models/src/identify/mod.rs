@@ -17,6 +17,7 @@ use crate::dynamics::Dof;
 use crate::friction::{DynParam, FrictionLaw};
 use crate::ode::Tolerances;
 use crate::simulate::{SensParam, SimError, SimOptions, Trajectory, simulate};
+use crate::stats::Z95;
 pub use covariance::Covariance;
 pub use initial::InitialEstimate;
 pub use lm::{LmOptions, Termination};
@@ -375,7 +376,7 @@ pub fn fit_window(
         .iter()
         .zip(&std)
         .zip(&lb)
-        .map(|((x, s), l)| [(x - 1.96 * s).max(*l), (x + 1.96 * s).max(*l)])
+        .map(|((x, s), l)| [(x - Z95 * s).max(*l), (x + Z95 * s).max(*l)])
         .collect();
     let (law, q0, v0, readout) = prob.unpack(&rep.x);
     let offset = readout.offset;
@@ -511,7 +512,7 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
     // Trigger: the residual is structured (Ljung–Box) or its RMS exceeds the sensor noise
     // (from first differences) by more than 8 %.
     let r = &first.residual;
-    if crate::residual::is_white(r) && first.rmse <= 1.08 * crate::residual::noise_sigma(r) {
+    if crate::stats::is_white(r) && first.rmse <= 1.08 * crate::stats::noise_sigma(r) {
         return Ok(first);
     }
     // A small grid around the first estimate (its viscous part is the less certain one).

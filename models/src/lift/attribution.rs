@@ -31,6 +31,7 @@ use super::dynamics::LiftModel;
 use super::identify::{LiftFit, ParamEstimate};
 use super::sensitivity::LiftParam;
 use crate::drift::{DriftThresholds, Status};
+use crate::stats::Z95;
 
 /// Settings of the attribution.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -190,11 +191,11 @@ pub fn attribute(
         let informed = level > 0.0 && post_sd / level < prior / informed_factor;
         let ci95 = if level > 0.0 {
             let rel = post_sd / level;
-            [level * (-1.96 * rel).exp(), level * (1.96 * rel).exp()]
+            [level * (-Z95 * rel).exp(), level * (Z95 * rel).exp()]
         } else {
             // Every member at the zero bound: a level is never negative, so the interval
             // starts at 0 (it is not informed: `level > 0` fails above).
-            [0.0, level.max(0.0) + 1.96 * post_sd]
+            [0.0, level.max(0.0) + Z95 * post_sd]
         };
         let status = if informed {
             thresholds.judge(ci95, level, Some(1.0)).status

@@ -40,6 +40,7 @@ use super::dynamics::LiftModel;
 use super::identify::{LiftFit, LiftFitError, LiftFitOptions, LiftTrace, effect_prior, fit_map};
 use super::sensitivity::LiftParam;
 use super::topology::RevJoint;
+use crate::stats::Z95;
 
 /// Longest delay tried, s: a logger's H lag is tens of ms; 0.2 s is a slow filter, not a lag.
 pub const MAX_DELAY_S: f64 = 0.2;
@@ -126,7 +127,7 @@ pub fn try_quadratic_drag(
     };
     let est = &refit.fit.effects[0];
     let upper = effect_prior(LiftParam::HeadDrag).map_or(f64::INFINITY, |p| p.upper);
-    let named = refit.explains && est.value - 1.96 * est.posterior_sd > 0.0 && est.ci95[1] < upper;
+    let named = refit.explains && est.value - Z95 * est.posterior_sd > 0.0 && est.ci95[1] < upper;
     Ok(named.then(|| DragFinding {
         c_a_ns2_per_m2: est.value,
         c_a_ci95: est.ci95,
@@ -238,7 +239,7 @@ pub fn try_sensor_delay(
     let t = trace.inputs.t_s;
     let dt_s = (t[t.len() - 1] - t[0]) / (t.len() - 1).max(1) as f64;
     let sd = (est.posterior_sd.powi(2) + (dt_s / 4.0).powi(2)).sqrt();
-    let ci = [tau - 1.96 * sd, tau + 1.96 * sd];
+    let ci = [tau - Z95 * sd, tau + Z95 * sd];
     // The whole interval above the detectable delay, not only above 0: measured, a weak drag
     // (c_a 2) at twice the noise was fitted as τ = 2.3 ms [0.5, 4.0] ms and named — a wrong
     // name; an effect smaller than its stated detectability is never named.
@@ -363,7 +364,7 @@ pub fn try_stribeck(
     };
     let (e, vs) = (&refit.fit.effects[0], &refit.fit.effects[1]);
     let upper = effect_prior(e.param).map_or(f64::INFINITY, |p| p.upper);
-    let named = refit.explains && e.value - 1.96 * e.posterior_sd > 0.0 && e.ci95[1] < upper;
+    let named = refit.explains && e.value - Z95 * e.posterior_sd > 0.0 && e.ci95[1] < upper;
     Ok(named.then(|| StribeckFinding {
         joint: STRIBECK_JOINT,
         ratio: 1.0 + e.value,

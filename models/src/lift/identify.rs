@@ -23,6 +23,7 @@ use super::simulate::{LiftInputs, SimError, SimOptions};
 use super::topology::RevJoint;
 use crate::drift::{DriftThresholds, Status};
 use crate::identify::lm::{LmOptions, Problem, Termination, minimize, minimize_evaluated, project};
+use crate::stats::Z95;
 
 /// One recorded lift test: its inputs and the measured strip height.
 #[derive(Debug, Clone, Copy)]
@@ -975,14 +976,14 @@ pub fn fit_map_in(
             // (issue 15); the offset, a signed quantity, keeps the symmetric one.
             let ci = if param == LiftParam::TorqueOffset || map_value <= 0.0 {
                 [
-                    map_value - 1.96 * posterior_sd,
-                    map_value + 1.96 * posterior_sd,
+                    map_value - Z95 * posterior_sd,
+                    map_value + Z95 * posterior_sd,
                 ]
             } else {
                 let rel = posterior_sd / map_value;
                 [
-                    map_value * (-1.96 * rel).exp(),
-                    map_value * (1.96 * rel).exp(),
+                    map_value * (-Z95 * rel).exp(),
+                    map_value * (Z95 * rel).exp(),
                 ]
             };
             let status = if param == LiftParam::TorqueOffset {
@@ -999,10 +1000,10 @@ pub fn fit_map_in(
         } else {
             // The prior's interval, log-normal for a coefficient likewise.
             let (lo, hi) = if param == LiftParam::TorqueOffset {
-                (-1.96 * prior, 1.96 * prior)
+                (-Z95 * prior, Z95 * prior)
             } else {
                 let rel = prior / base;
-                (base * (-1.96 * rel).exp(), base * (1.96 * rel).exp())
+                (base * (-Z95 * rel).exp(), base * (Z95 * rel).exp())
             };
             let b = if param == LiftParam::TorqueOffset {
                 0.0
@@ -1044,8 +1045,8 @@ pub fn fit_map_in(
                 value,
                 posterior_sd: sd,
                 ci95: [
-                    (value - 1.96 * sd).max(pr.lower),
-                    (value + 1.96 * sd).min(pr.upper),
+                    (value - Z95 * sd).max(pr.lower),
+                    (value + Z95 * sd).min(pr.upper),
                 ],
             }
         })

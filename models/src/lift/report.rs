@@ -38,6 +38,7 @@ use crate::report::{
     CombinationMember, CombinationResult, FitDetails, FitResult, JointResult, MODEL_VERSION,
     ParamResult, Quantity, ResidualResult,
 };
+use crate::stats::Z95;
 
 /// The recorded channels of a lift trace (contract `lift` kind).
 #[derive(Debug, Clone, Copy)]
@@ -457,7 +458,7 @@ fn unit_of(joint: &str, kind: &str) -> &'static str {
 /// A parameter the lift does not estimate: at baseline, the prior's interval, not identified.
 fn not_estimated(baseline: Option<f64>, unit: &str, prior_relative_sd: f64) -> ParamResult {
     let b = baseline.unwrap_or(0.0);
-    let half = 1.96 * prior_relative_sd * b;
+    let half = Z95 * prior_relative_sd * b;
     ParamResult {
         value: b,
         ci95: [(b - half).max(0.0), b + half],

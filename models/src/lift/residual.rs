@@ -2,7 +2,7 @@
 //! and whether the fit's joint statuses can be trusted — a model error must not become a wear alarm.
 //!
 //! Protocol (every number a stated choice, measured with `examples/lift_residual_probe`):
-//! - Noise: σ̂ from the residual's first differences (`residual::noise_sigma`): at 500 Hz the
+//! - Noise: σ̂ from the residual's first differences (`stats::noise_sigma`): at 500 Hz the
 //!   H noise is white sample to sample, while what the model misses is slow. Floored at the
 //!   fit's σ_H (`LiftFitOptions::h_noise_m`, 0.7 mm), the noise its intervals assume: a
 //!   noise-free simulated record (σ̂ ~ µm) is not judged against its integrator's error.
@@ -20,7 +20,7 @@
 //!   as the gate: the inputs' smoothed noise makes it fail on every correct lift (Q 34–3,800
 //!   against χ²₂₀(0.001) = 45.3).
 
-use crate::residual::{corr, ljung_box, noise_sigma};
+use crate::stats::{corr, ljung_box, noise_sigma};
 
 /// Residual RMS over the noise above which the model is missing something a friction refit has
 /// absorbed: 3 — about 2× the largest seen on correct lifts (1.60 against σ̂), under a third of

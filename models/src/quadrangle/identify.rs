@@ -25,6 +25,7 @@ use super::simulate::{SwingError, SwingOptions, simulate_swing};
 use crate::drift::{DriftThresholds, Status};
 use crate::identify::lm::{LmOptions, Problem, Termination, minimize};
 use crate::lift::identify::inverse_spd;
+use crate::stats::Z95;
 
 /// A friction parameter of the quadrangle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -413,8 +414,8 @@ pub fn fit_swing(
             let informed = sd(i) < opts.prior_relative_sd / opts.informed_factor;
             let (value, ci95, status) = if informed {
                 let ci = [
-                    map_value - 1.96 * posterior_sd,
-                    map_value + 1.96 * posterior_sd,
+                    map_value - Z95 * posterior_sd,
+                    map_value + Z95 * posterior_sd,
                 ];
                 let v = opts.thresholds.judge(ci, map_value, Some(base));
                 (
@@ -429,7 +430,7 @@ pub fn fit_swing(
             } else {
                 (
                     base,
-                    [(base - 1.96 * prior_sd).max(0.0), base + 1.96 * prior_sd],
+                    [(base - Z95 * prior_sd).max(0.0), base + Z95 * prior_sd],
                     Status::Unknown,
                 )
             };

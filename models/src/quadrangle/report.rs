@@ -20,6 +20,7 @@ use crate::noise::Noise;
 use crate::report::{
     FitDetails, FitResult, JointResult, MODEL_VERSION, ParamResult, Quantity, ResidualResult,
 };
+use crate::stats::Z95;
 
 /// The paper's incline of the frame plane in the Fig 12 test, deg.
 pub const PAPER_INCLINE_DEG: f64 = 70.0;
@@ -212,7 +213,7 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
                 value: deg(z.value),
                 unit: "deg".into(),
             },
-            sensor_offset_ci95: Some([deg(z.value - 1.96 * z.sd), deg(z.value + 1.96 * z.sd)]),
+            sensor_offset_ci95: Some([deg(z.value - Z95 * z.sd), deg(z.value + Z95 * z.sd)]),
             samples_fitted: fit.samples_fitted,
             termination: format!("{:?}", fit.termination),
             iterations: fit.iterations,

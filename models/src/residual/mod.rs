@@ -24,9 +24,8 @@
 mod diagnose;
 mod effects;
 
-pub use diagnose::{
-    Diagnosis, chi2_critical_001, corr, diagnose, is_white, ljung_box, noise_sigma,
-};
+pub use crate::stats::{corr, is_white, ljung_box, noise_sigma};
+pub use diagnose::{Diagnosis, diagnose};
 pub use effects::{Effect, sensor_offset_effect};
 use effects::{Scales, effect_result};
 
@@ -276,7 +275,10 @@ pub fn analyse(
                 continue;
             };
             let k = e.params().len();
-            if i >= MAX_CANDIDATES || score * (k as f64) < chi2_critical_001(k) {
+            if i >= MAX_CANDIDATES
+                || score * (k as f64)
+                    < crate::stats::chi2_upper_quantile(k, crate::stats::WHITENESS_P)
+            {
                 candidates.push(Candidate {
                     effects: vec![*e],
                     score: Some(score),
