@@ -5,6 +5,7 @@
 //! intervals. Pure computation: no I/O, no async, no knowledge of storage or HTTP.
 //!
 //! # Layout
+//! - [`budget`] — a fit's evaluation budget and stop flag, charged by the fitters.
 //! - [`data`] — the pantograph type file (Table 2, Table 4, test rigs), parsed and validated.
 //! - [`rig`] — a test rig's body and attachments lumped into the equation's totals.
 //! - [`friction`] — friction laws and their parameter derivatives.
@@ -28,6 +29,7 @@
 // Numerical kernels index several arrays with one counter; iterator chains would hide that.
 #![allow(clippy::needless_range_loop)]
 
+pub mod budget;
 pub mod data;
 pub mod drift;
 pub mod dynamics;

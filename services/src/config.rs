@@ -139,13 +139,20 @@ pub struct WorkerSettings {
     pub lease_secs: u64,
     /// How often an idle worker looks for jobs queued by other processes, milliseconds.
     pub poll_ms: u64,
-    /// On shutdown a running fit may finish within this many milliseconds; then its job is
-    /// released to the queue (not counted as an attempt) and the process stops.
+    /// On shutdown a running fit may finish within this many milliseconds; then it is stopped
+    /// and its job released to the queue, its attempt counted (a fit that outlasts every
+    /// shutdown fails at the attempt limit instead of looping) and the process stops.
     pub shutdown_grace_ms: u64,
-    /// Longest one fit may run, seconds: past it the job fails with that reason and the worker
-    /// takes the next (issue 18). The fit's own thread ends by the models' step and iteration
-    /// caps; the queue does not wait for it.
+    /// Longest one fit may run, seconds: past it the fit is stopped (`models::budget`, within
+    /// ~1 ms), its job fails with that reason and the worker takes the next (issue 18). The worker
+    /// renews the job's lease every third of `lease_secs` while it fits, so a fit may outlast
+    /// the lease and a dead worker's job is still taken over within one lease.
     pub fit_budget_secs: u64,
+    /// Most model evaluations (simulations of the trace, one per Levenberg–Marquardt step,
+    /// every stage and residual candidate included) one fit may spend; past it the job fails
+    /// with that reason. Default 10,000: ~12× the most a valid trace was measured to need (836,
+    /// a slider held and released; lifts 4–123, pendulums 4–239, quadrangle swings 6–7).
+    pub fit_max_evaluations: u64,
     /// `pantowatch worker` serves `/metrics` and `/healthz` here (none by default: several
     /// workers may share a host; deploy sets `0.0.0.0:9464`).
     pub metrics_listen: Option<std::net::SocketAddr>,
@@ -232,6 +239,7 @@ impl Default for WorkerSettings {
             // A lift fit takes ~0.3 s, a pooled or quadrangle fit a few seconds: 60 s is far
             // beyond any fit that will ever finish well.
             fit_budget_secs: 60,
+            fit_max_evaluations: 10_000,
             metrics_listen: None,
         }
     }
@@ -370,8 +378,8 @@ impl Settings {
         if self.database.url.expose_secret().trim().is_empty() {
             return Err("database.url is empty".into());
         }
-        if self.worker.fit_budget_secs == 0 {
-            return Err("worker.fit_budget_secs must be > 0".into());
+        if self.worker.fit_budget_secs == 0 || self.worker.fit_max_evaluations == 0 {
+            return Err("worker.fit_budget_secs and worker.fit_max_evaluations must be > 0".into());
         }
         if self.database.acquire_timeout_ms == 0 {
             return Err("database.acquire_timeout_ms must be > 0".into());

@@ -1,7 +1,8 @@
 //! The fit of one trace document: the models' identification and the contract's fit result.
 //! Pure CPU work (pendulum and slider 5–30 ms, lift ~0.5 s, quadrangle swing ~1–3 s): async callers run it with
-//! `tokio::task::spawn_blocking`.
+//! `tokio::task::spawn_blocking`, under a budget ([`fit_document_within`]).
 
+use pantowatch_models::budget::{Budget, Exhausted};
 use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::identify::{FitOptions, FitOutcome};
 use pantowatch_models::lift::report::{LiftReport, fit_lift_trace};
@@ -24,6 +25,42 @@ pub enum FitFailure {
     /// The identification itself failed (no free motion, no convergence, …).
     #[error("fit failed: {0}")]
     Model(String),
+    /// The fit spent its budget ([`fit_document_within`]): its result, computed with stages
+    /// cut short, is not used.
+    #[error("{0}")]
+    Budget(Exhausted),
+}
+
+impl FitFailure {
+    /// The label of `pantowatch_jobs_failed_total{reason}` for this failure.
+    pub fn reason(&self) -> &'static str {
+        match self {
+            FitFailure::Unsupported(_) => "unsupported",
+            FitFailure::Invalid(_) => "invalid",
+            FitFailure::Model(_) => "model",
+            FitFailure::Budget(Exhausted::Evaluations(_)) => "evaluations",
+            FitFailure::Budget(Exhausted::Cancelled) => "wall_time",
+        }
+    }
+}
+
+/// The limits of one fit (`worker.fit_max_evaluations`, `worker.fit_budget_secs`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FitLimits {
+    pub max_evaluations: u64,
+    pub wall: std::time::Duration,
+}
+
+/// [`fit_document`] under `budget` (`models::budget`): at most its model evaluations, and
+/// stopped within ~1 ms of its canceller firing (the caller's wall-time limit or a shutdown).
+/// Every fitter charges the same budget, so no document can hold a worker for good.
+pub fn fit_document_within(
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+    budget: &Budget,
+) -> Result<FitResult, FitFailure> {
+    pantowatch_models::budget::run(budget, || fit_document(doc, thresholds))
+        .unwrap_or_else(|e| Err(FitFailure::Budget(e)))
 }
 
 /// Fits a validated document and returns the contract's fit result.
@@ -125,5 +162,71 @@ mod tests {
             fit_with_outcome(&doc, &DriftThresholds::default()),
             Err(FitFailure::Unsupported(_))
         ));
+    }
+
+    /// A raise-and-lower lift with J3 dry friction ×1.8 and the stand's sensor noise on every
+    /// channel (`bench::lift::noisy_lift_doc`): a fit of ~20 evaluations.
+    fn noisy_lift() -> TraceDoc {
+        crate::cli::bench::lift::noisy_lift_doc(3, &["J3:dry=1.8"], 1.0, "160EC-T", "budget")
+            .expect("simulated lift")
+    }
+
+    #[test]
+    fn a_fit_past_its_evaluation_budget_fails_and_says_so() {
+        let doc = noisy_lift();
+        let roomy = Budget::new(10_000);
+        let ok = fit_document_within(&doc, &DriftThresholds::default(), &roomy);
+        assert!(ok.is_ok(), "{ok:?}");
+        let needed = roomy.evaluations();
+        assert!(needed > 3, "{needed} evaluations");
+        let tight = Budget::new(3);
+        let e = fit_document_within(&doc, &DriftThresholds::default(), &tight).unwrap_err();
+        assert_eq!(e, FitFailure::Budget(Exhausted::Evaluations(3)));
+        assert_eq!(e.reason(), "evaluations");
+        // Spent, every later stage stopped at once: a few charges past the limit, not the
+        // whole fit's.
+        assert!(
+            tight.evaluations() < needed,
+            "{} charged under a budget of 3 (the fit needs {needed})",
+            tight.evaluations()
+        );
+    }
+
+    #[test]
+    fn a_cancelled_fit_stops_and_its_result_is_not_used() {
+        let doc = noisy_lift();
+        let b = Budget::new(u64::MAX);
+        let stop = b.canceller();
+        stop.cancel();
+        let e = fit_document_within(&doc, &DriftThresholds::default(), &b).unwrap_err();
+        assert_eq!(e, FitFailure::Budget(Exhausted::Cancelled));
+        assert_eq!(e.reason(), "wall_time");
+        // Cancelled before it started: no evaluation ran past the first charge.
+        assert!(b.evaluations() <= 1, "{}", b.evaluations());
+    }
+
+    #[test]
+    fn a_fit_cancelled_midway_stops_within_its_current_stage() {
+        let doc = noisy_lift();
+        let roomy = Budget::new(10_000);
+        fit_document_within(&doc, &DriftThresholds::default(), &roomy).expect("fits");
+        let needed = roomy.evaluations();
+        let b = Budget::new(u64::MAX);
+        let stop = b.canceller();
+        let watched = b.clone();
+        let fit =
+            std::thread::spawn(move || fit_document_within(&doc, &DriftThresholds::default(), &b));
+        // Cancelled after its second evaluation, long before the ~20 it needs.
+        while watched.evaluations() < 2 {
+            std::thread::yield_now();
+        }
+        stop.cancel();
+        let e = fit.join().expect("no panic").unwrap_err();
+        assert_eq!(e, FitFailure::Budget(Exhausted::Cancelled));
+        assert!(
+            watched.evaluations() < needed,
+            "{} evaluations after the cancel (the whole fit needs {needed})",
+            watched.evaluations()
+        );
     }
 }

@@ -12,8 +12,10 @@
 use chrono::TimeDelta;
 
 use crate::alerts::{self, AlertOptions};
+use crate::fitting::FitLimits;
 use crate::ingest::stored_doc;
 use crate::store::{NewFit, Store, StoreError};
+use pantowatch_models::budget::Budget;
 use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::lift::report::fit_pooled_lift_traces;
 use pantowatch_models::report::MODEL_VERSION;
@@ -30,12 +32,14 @@ pub fn pooled_version(n: usize) -> String {
 
 /// Fit the lifts of `trace_id`'s pantograph in the window ending at it, when there are 2 or
 /// more, and store the result as its fit; then run the alert rules on it. `Ok(None)`: nothing
-/// to pool. CPU work runs off the async runtime.
+/// to pool. CPU work runs off the async runtime, under `limits` like a job's fit: past them
+/// the pooled fit is stopped and dropped (logged; the lift's own fit stands).
 pub async fn after_lift(
     store: &Store,
     trace_id: &str,
     thresholds: DriftThresholds,
     alerts_opts: &AlertOptions,
+    limits: FitLimits,
 ) -> Result<Option<i64>, StoreError> {
     let Some(meta) = store.get_trace(trace_id).await? else {
         return Ok(None);
@@ -112,21 +116,34 @@ pub async fn after_lift(
         .map(|(m, c)| stored_doc(&m, c))
         .collect::<Result<Vec<_>, String>>()
         .map_err(StoreError::Invalid)?;
-    let fitted = tokio::task::spawn_blocking(move || {
+    let budget = Budget::new(limits.max_evaluations);
+    let stop = budget.canceller();
+    let task = tokio::task::spawn_blocking(move || {
         let channels = docs
             .iter()
             .map(|d| d.lift_channels().map_err(|e| e.to_string()))
             .collect::<Result<Vec<_>, String>>()?;
-        fit_pooled_lift_traces(&channels, &ids, WINDOW_DAYS as f64, &thresholds)
-            .map(|r| r.result)
-            .map_err(|e| e.to_string())
-    })
-    .await
-    .map_err(|e| StoreError::Task(e.to_string()))?;
+        pantowatch_models::budget::run(&budget, || {
+            fit_pooled_lift_traces(&channels, &ids, WINDOW_DAYS as f64, &thresholds)
+                .map(|r| r.result)
+                .map_err(|e| e.to_string())
+        })
+        .unwrap_or_else(|e| Err(format!("{e} (the worker's fit limits)")))
+    });
+    let fitted = match tokio::time::timeout(limits.wall, task).await {
+        Ok(joined) => joined.map_err(|e| StoreError::Task(e.to_string()))?,
+        Err(_) => {
+            stop.cancel();
+            Err(format!(
+                "ran past worker.fit_budget_secs ({} s) and was stopped",
+                limits.wall.as_secs_f64()
+            ))
+        }
+    };
     let result = match fitted {
         Ok(r) => r,
         Err(e) => {
-            tracing::info!(trace = %trace_id, error = %e, "pooled lift fit did not converge; the lift's own fit stands");
+            tracing::info!(trace = %trace_id, error = %e, "pooled lift fit did not converge or ran past its limits; the lift's own fit stands");
             return Ok(None);
         }
     };

@@ -25,6 +25,7 @@ pub fn worker_options(settings: &Settings, workers: usize) -> WorkerOptions {
         poll: settings.poll(),
         shutdown_grace: settings.shutdown_grace(),
         fit_budget: settings.fit_budget(),
+        fit_max_evaluations: settings.worker.fit_max_evaluations,
         thresholds: settings.thresholds(),
         alerts: AlertOptions {
             horizon_days: settings.alerts.horizon_days,

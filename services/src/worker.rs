@@ -8,6 +8,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use pantowatch_models::budget::Budget;
 use pantowatch_models::drift::DriftThresholds;
 use tokio::sync::{Notify, watch};
 use tokio::task::JoinSet;
@@ -15,7 +16,7 @@ use tokio::task::JoinSet;
 use crate::alerts::{self, AlertAction, AlertOptions};
 use crate::fitting::{self, FitFailure};
 use crate::ingest::stored_doc;
-use crate::store::{CompleteOutcome, FailOutcome, NewFit, Status, Store, StoreError};
+use crate::store::{CompleteOutcome, FailOutcome, JobState, NewFit, Status, Store, StoreError};
 
 /// How the pool works.
 #[derive(Debug, Clone)]
@@ -28,8 +29,11 @@ pub struct WorkerOptions {
     pub poll: Duration,
     /// After shutdown starts, how long a running fit may take before its job is released.
     pub shutdown_grace: Duration,
-    /// Longest one fit may run; then its job fails with that reason (`worker.fit_budget_secs`).
+    /// Longest one fit may run; then it is stopped and its job fails with that reason
+    /// (`worker.fit_budget_secs`).
     pub fit_budget: Duration,
+    /// Most model evaluations one fit may spend (`worker.fit_max_evaluations`).
+    pub fit_max_evaluations: u64,
     pub thresholds: DriftThresholds,
     /// The alert rules run after each fit written.
     pub alerts: AlertOptions,
@@ -53,6 +57,20 @@ pub enum JobEvent {
     /// Shutdown: the job went back to the queue unfinished (its attempt counted only if its fit
     /// had started).
     Released { trace_id: String },
+}
+
+/// The highest attempt number used as a metric label (`MAX_ATTEMPTS`; a later claim of an
+/// expired lease is labelled with it too, so the label set stays bounded).
+const MAX_ATTEMPT_LABEL: i64 = crate::store::MAX_ATTEMPTS;
+
+impl WorkerOptions {
+    /// The limits of one fit, for the fits this worker runs besides its jobs (pooled lifts).
+    pub fn limits(&self) -> crate::fitting::FitLimits {
+        crate::fitting::FitLimits {
+            max_evaluations: self.fit_max_evaluations,
+            wall: self.fit_budget,
+        }
+    }
 }
 
 /// Called after every job (the demo's progress bar; only the CLI knows about terminals).
@@ -180,6 +198,9 @@ pub async fn process_next(
     let Some(job) = store.claim(worker, opts.lease).await? else {
         return Ok(None);
     };
+    // Attempts by their number (1 = first claim): retries and takeovers show as 2 and 3.
+    metrics::counter!("pantowatch_job_attempts_total", "attempt" => job.attempts.min(MAX_ATTEMPT_LABEL).to_string())
+        .increment(1);
     let trace_id = job.trace_id.clone();
     // Shutdown between the claim and the start of the work: give the job back untouched.
     if *shutdown.borrow() {
@@ -204,46 +225,90 @@ pub async fn process_next(
     };
     let doc = match doc {
         Ok(d) => d,
-        Err(msg) => return fail(store, worker, job.id, trace_id, msg).await.map(Some),
+        Err(msg) => {
+            return fail_because(store, worker, job.id, trace_id, msg, "samples")
+                .await
+                .map(Some);
+        }
     };
     let thresholds = opts.thresholds;
     let kind = doc.kind.as_str();
     let t0 = Instant::now();
-    let mut fit_task =
-        tokio::task::spawn_blocking(move || fitting::fit_document(&doc, &thresholds));
-    let fitted = tokio::select! {
-        r = &mut fit_task => r,
-        () = grace_over(shutdown.clone(), opts.shutdown_grace) => {
-            // The blocking fit cannot be interrupted: it keeps its thread until it returns and
-            // its result is dropped; the process exit ends it. Its attempt stays counted.
-            return release(store, worker, job.id, trace_id, "its fit outlasted the shutdown grace period", true)
-                .await
-                .map(Some);
-        }
-        () = tokio::time::sleep(opts.fit_budget) => {
-            // Past its budget: the job fails with the reason and this worker takes the next;
-            // the fit's thread ends on its own (the models cap steps and iterations).
-            let msg = format!(
-                "the fit ran past its budget of {} s (worker.fit_budget_secs)",
-                opts.fit_budget.as_secs_f64()
-            );
-            return fail_because(store, worker, job.id, trace_id, msg, "budget").await.map(Some);
+    // The fit runs under its evaluation budget; the canceller stops it (within ~1 ms) when
+    // the wall-time budget or the shutdown grace runs out, so its thread is freed too.
+    let budget = Budget::new(opts.fit_max_evaluations);
+    let stop = budget.canceller();
+    let spent = budget.clone();
+    let mut fit_task = tokio::task::spawn_blocking(move || {
+        fitting::fit_document_within(&doc, &thresholds, &budget)
+    });
+    // The lease is renewed every third of its length while the fit runs.
+    let renew_every = (opts.lease / 3).max(Duration::from_millis(100));
+    let wall = tokio::time::sleep(opts.fit_budget);
+    tokio::pin!(wall);
+    let grace = grace_over(shutdown.clone(), opts.shutdown_grace);
+    tokio::pin!(grace);
+    let fitted = loop {
+        tokio::select! {
+            r = &mut fit_task => break r,
+            () = &mut grace => {
+                stop.cancel();
+                // Its attempt stays counted: a fit that outlasts every shutdown fails at the
+                // attempt limit instead of looping.
+                return release(store, worker, job.id, trace_id, "its fit outlasted the shutdown grace period", true)
+                    .await
+                    .map(Some);
+            }
+            () = &mut wall => {
+                stop.cancel();
+                let msg = format!(
+                    "the fit ran past its budget of {} s (worker.fit_budget_secs) and was stopped",
+                    opts.fit_budget.as_secs_f64()
+                );
+                return fail_because(store, worker, job.id, trace_id, msg, "wall_time").await.map(Some);
+            }
+            () = tokio::time::sleep(renew_every) => {
+                match store.renew_lease(job.id, worker, opts.lease).await {
+                    Ok(true) => {}
+                    Ok(false) => {
+                        // Another worker holds the job now: stop fitting it.
+                        stop.cancel();
+                        metrics::counter!("pantowatch_jobs_processed_total", "outcome" => "lease_lost").increment(1);
+                        tracing::warn!(job = job.id, trace = %trace_id, "lease lost while fitting: the fit is stopped");
+                        return Ok(Some(JobEvent::LeaseLost { trace_id }));
+                    }
+                    // The database is away for a moment: the fit goes on; the lease may lapse
+                    // and the job be taken over, which `complete` then reports.
+                    Err(e) => tracing::warn!(job = job.id, error = %e, "could not renew the lease"),
+                }
+            }
         }
     };
     let fit_seconds = t0.elapsed().as_secs_f64();
+    let evaluations = spent.evaluations();
     metrics::histogram!("pantowatch_fit_duration_seconds", "kind" => kind).record(fit_seconds);
+    // What the evaluation budget is measured against (worker.fit_max_evaluations).
+    metrics::histogram!("pantowatch_fit_evaluations", "kind" => kind).record(evaluations as f64);
     let result = match fitted {
         Ok(Ok(r)) => r,
         Ok(Err(f)) => {
             let msg = match &f {
                 FitFailure::Unsupported(m) => m.clone(),
+                FitFailure::Budget(e) => format!(
+                    "{e} (worker.fit_max_evaluations = {}) and was stopped",
+                    opts.fit_max_evaluations
+                ),
                 other => other.to_string(),
             };
-            return fail(store, worker, job.id, trace_id, msg).await.map(Some);
+            return fail_because(store, worker, job.id, trace_id, msg, f.reason())
+                .await
+                .map(Some);
         }
         Err(e) => {
             let msg = format!("the fit panicked or was cancelled: {e}");
-            return fail(store, worker, job.id, trace_id, msg).await.map(Some);
+            return fail_because(store, worker, job.id, trace_id, msg, "panic")
+                .await
+                .map(Some);
         }
     };
     let json = serde_json::to_value(&result)
@@ -251,7 +316,7 @@ pub async fn process_next(
     let fit = match NewFit::from_result(json) {
         Ok(f) => f,
         Err(e) => {
-            return fail(store, worker, job.id, trace_id, e.to_string())
+            return fail_because(store, worker, job.id, trace_id, e.to_string(), "result")
                 .await
                 .map(Some);
         }
@@ -261,7 +326,7 @@ pub async fn process_next(
         CompleteOutcome::Completed(w) => {
             metrics::counter!("pantowatch_jobs_processed_total", "outcome" => "done").increment(1);
             tracing::info!(job = job.id, trace = %trace_id, fit_id = w.fit_id,
-                status = status.map_or("none", Status::as_str), ms = fit_seconds * 1e3, "fit written");
+                status = status.map_or("none", Status::as_str), ms = fit_seconds * 1e3, evaluations, "fit written");
             if w.created {
                 // The fit is durable; an alert-rule failure is logged and the next fit of the
                 // joint decides again.
@@ -286,8 +351,14 @@ pub async fn process_next(
             // A lift also gets the pooled fit of its pantograph's recent lifts (`pooled`); its
             // own fit is durable already, so a failure here is logged, not the job's.
             if kind == "lift"
-                && let Err(e) =
-                    crate::pooled::after_lift(store, &trace_id, opts.thresholds, &opts.alerts).await
+                && let Err(e) = crate::pooled::after_lift(
+                    store,
+                    &trace_id,
+                    opts.thresholds,
+                    &opts.alerts,
+                    opts.limits(),
+                )
+                .await
             {
                 tracing::error!(trace = %trace_id, error = %e, "pooled lift fit failed");
             }
@@ -325,7 +396,18 @@ async fn release(
     fit_started: bool,
 ) -> Result<JobEvent, StoreError> {
     let released = if fit_started {
-        store.release_counted(job_id, worker).await
+        store
+            .release_counted(job_id, worker)
+            .await
+            .map(|s| match s {
+                Some(JobState::Failed) => {
+                    // At the attempt limit the release failed the job for good.
+                    metrics::counter!("pantowatch_jobs_failed_total", "reason" => "attempts")
+                        .increment(1);
+                    true
+                }
+                other => other.is_some(),
+            })
     } else {
         store.release(job_id, worker).await
     };
@@ -357,17 +439,7 @@ async fn load_samples(
     }
 }
 
-async fn fail(
-    store: &Store,
-    worker: &str,
-    job_id: i64,
-    trace_id: String,
-    error: String,
-) -> Result<JobEvent, StoreError> {
-    fail_because(store, worker, job_id, trace_id, error, "fit").await
-}
-
-/// [`fail`], counted in `pantowatch_jobs_failed_total{reason}` under `reason`.
+/// Fails the job for good, counted in `pantowatch_jobs_failed_total{reason}` under `reason`.
 async fn fail_because(
     store: &Store,
     worker: &str,

@@ -40,6 +40,8 @@ pub enum Termination {
     MaxIterations,
     /// The model could not be evaluated at the starting point.
     EvaluationFailed(String),
+    /// The fit's budget ([`crate::budget`]) is spent or the fit was stopped.
+    Budget,
 }
 
 impl Termination {
@@ -111,6 +113,17 @@ pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport
     let x = project(p, x0);
     let mut r = vec![0.0; m];
     let mut jac = DMatrix::zeros(m, n);
+    if let Err(e) = crate::budget::charge() {
+        return LmReport {
+            x,
+            cost: f64::INFINITY,
+            residuals: r,
+            jacobian: jac,
+            iterations: 0,
+            evaluations: 0,
+            termination: Termination::EvaluationFailed(e.to_string()),
+        };
+    }
     if let Err(e) = p.eval(&x, &mut r, &mut jac) {
         return LmReport {
             x,
@@ -216,6 +229,10 @@ pub fn minimize_evaluated<P: Problem>(
                 && pred <= opts.dtol * opts.dtol * cost / m as f64
             {
                 termination = Termination::DecrementConverged;
+                break 'outer;
+            }
+            if crate::budget::charge().is_err() {
+                termination = Termination::Budget;
                 break 'outer;
             }
             evaluations += 1;

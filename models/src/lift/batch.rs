@@ -45,20 +45,24 @@ where
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let slots: Mutex<Vec<Option<R>>> = Mutex::new((0..n).map(|_| None).collect());
+    // The caller's fit budget (if any) holds in every worker thread.
+    let budget = crate::budget::current();
     std::thread::scope(|scope| {
         for _ in 0..workers(threads, n) {
             scope.spawn(|| {
-                loop {
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= n {
-                        break;
+                crate::budget::enter(&budget, || {
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        if i >= n {
+                            break;
+                        }
+                        let r = f(&items[i]);
+                        // A poisoned lock means another worker panicked: keep the result anyway,
+                        // the scope re-raises that panic.
+                        slots.lock().unwrap_or_else(|p| p.into_inner())[i] = Some(r);
+                        progress(done.fetch_add(1, Ordering::Relaxed) + 1);
                     }
-                    let r = f(&items[i]);
-                    // A poisoned lock means another worker panicked: keep the result anyway,
-                    // the scope re-raises that panic.
-                    slots.lock().unwrap_or_else(|p| p.into_inner())[i] = Some(r);
-                    progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-                }
+                })
             });
         }
     });

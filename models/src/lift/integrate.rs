@@ -64,6 +64,8 @@ impl<S: WSystem<B>, const B: usize> Stepper<S> for Rosw<B> {
 pub(super) enum IntegrateError<E> {
     Ode(OdeError),
     TooManySteps(usize),
+    /// The fit's budget was spent or the fit stopped ([`crate::budget::cancelled`]).
+    Cancelled,
     /// The sample callback refused.
     Sample(E),
 }
@@ -131,6 +133,10 @@ pub(super) fn integrate<S: Segmented, O: Stepper<S>, E>(
                     work.steps += 1;
                     if work.steps > max_steps {
                         return Err(IntegrateError::TooManySteps(max_steps));
+                    }
+                    // An atomic load every 256 steps: a stopped fit ends within ~1 ms.
+                    if work.steps.is_multiple_of(256) && crate::budget::cancelled() {
+                        return Err(IntegrateError::Cancelled);
                     }
                 }
                 Step::Rejected { h_next } => h_step = h_next,

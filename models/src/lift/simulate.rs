@@ -34,6 +34,8 @@ pub enum SimError {
     Ode(#[from] OdeError),
     #[error("more than {0} integrator steps")]
     TooManySteps(usize),
+    #[error(transparent)]
+    Budget(#[from] crate::budget::Exhausted),
 }
 
 impl SimError {
@@ -41,6 +43,7 @@ impl SimError {
         match e {
             IntegrateError::Ode(e) => SimError::Ode(e),
             IntegrateError::TooManySteps(n) => SimError::TooManySteps(n),
+            IntegrateError::Cancelled => SimError::Budget(crate::budget::Exhausted::Cancelled),
             IntegrateError::Sample(e) => SimError::Statics(StaticsError::Dynamics(e)),
         }
     }

@@ -39,6 +39,8 @@ pub enum SwingError {
     Ode(#[from] OdeError),
     #[error("more than {0} integration steps")]
     TooManySteps(usize),
+    #[error(transparent)]
+    Budget(#[from] crate::budget::Exhausted),
 }
 
 /// A simulated swing at the record's sample times.
@@ -167,6 +169,10 @@ pub fn simulate_swing(
                 run.steps += 1;
                 if run.steps > opts.max_steps {
                     return Err(SwingError::TooManySteps(opts.max_steps));
+                }
+                // An atomic load every 256 steps: a stopped fit ends within ~1 ms.
+                if run.steps.is_multiple_of(256) && crate::budget::cancelled() {
+                    return Err(SwingError::Budget(crate::budget::Exhausted::Cancelled));
                 }
                 let t_new = if landing { t_end } else { t + h_done };
                 // A reversal inside the step: the rate's zero on the dense output.

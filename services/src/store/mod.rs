@@ -134,6 +134,15 @@ impl Default for PoolOptions {
 /// Attempts after which a job is failed for good (by `fail` or by lease expiry).
 pub const MAX_ATTEMPTS: i64 = 3;
 
+/// Counts jobs a claim failed because their lease ran out at the attempt limit (their workers
+/// died mid-fit), in `pantowatch_jobs_failed_total{reason="lease_expired"}`.
+fn count_lease_expired(jobs: u64) {
+    if jobs > 0 {
+        metrics::counter!("pantowatch_jobs_failed_total", "reason" => "lease_expired")
+            .increment(jobs);
+    }
+}
+
 macro_rules! text_enum {
     ($(#[$m:meta])* $name:ident { $($(#[$vm:meta])* $v:ident = $s:literal),+ $(,)? }) => {
         $(#[$m])*
@@ -728,6 +737,12 @@ pub(crate) trait Backend {
         &self,
         job_id: i64,
         worker: &str,
+    ) -> impl Future<Output = Result<Option<JobState>>> + Send;
+    fn renew_lease(
+        &self,
+        job_id: i64,
+        worker: &str,
+        lease: Duration,
     ) -> impl Future<Output = Result<bool>> + Send;
     fn requeue(
         &self,
@@ -954,9 +969,17 @@ impl Store {
 
     /// Gives back a job whose fit had started (the grace period ran out mid-fit): the attempt
     /// stays counted, and at `MAX_ATTEMPTS` the job fails with the reason, so no job can be
-    /// released at every shutdown for ever. False when `worker` no longer holds it.
-    pub async fn release_counted(&self, job_id: i64, worker: &str) -> Result<bool> {
+    /// released at every shutdown for ever. The job's new state (`Queued`, or `Failed` at the
+    /// limit); `None` when `worker` no longer holds it.
+    pub async fn release_counted(&self, job_id: i64, worker: &str) -> Result<Option<JobState>> {
         dispatch!(self, s => s.release_counted(job_id, worker).await)
+    }
+
+    /// Extends a running job's lease to `lease` from now, while its worker still fits it (so a
+    /// fit may outlast one lease, and a dead worker's job is still taken over within one).
+    /// False when `worker` no longer holds it.
+    pub async fn renew_lease(&self, job_id: i64, worker: &str, lease: Duration) -> Result<bool> {
+        dispatch!(self, s => s.renew_lease(job_id, worker, lease).await)
     }
 
     /// Queues a fit at `model_version` for every trace without one; returns jobs created.

@@ -755,7 +755,7 @@ impl Backend for PgStore {
 
     async fn claim(&self, worker: &str, lease: Duration) -> Result<Option<Job>> {
         let mut tx = self.begin().await?;
-        query(
+        let reaped = query(
             "UPDATE jobs SET state = 'failed', lease_until = NULL, updated_at = now(),
                              last_error = 'lease expired ' || attempts || ' times (worker died?)'
              WHERE id IN (SELECT id FROM jobs
@@ -764,7 +764,8 @@ impl Backend for PgStore {
         )
         .bind(MAX_ATTEMPTS)
         .execute(&mut *tx)
-        .await?;
+        .await?
+        .rows_affected();
         let row = query(concat!(
             "UPDATE jobs SET state = 'running', attempts = attempts + 1, worker = $1,
                              lease_until = now() + make_interval(secs => $2), updated_at = now()
@@ -782,6 +783,7 @@ impl Backend for PgStore {
         .fetch_optional(&mut *tx)
         .await?;
         tx.commit().await?;
+        super::count_lease_expired(reaped);
         row.map(|r| job_from(&r)).transpose()
     }
 
@@ -878,22 +880,35 @@ impl Backend for PgStore {
         Ok(n == 1)
     }
 
-    async fn release_counted(&self, job_id: i64, worker: &str) -> Result<bool> {
+    async fn release_counted(&self, job_id: i64, worker: &str) -> Result<Option<JobState>> {
         // Its fit had started: the attempt the claim counted stays counted, so a fit that
         // outlasts every shutdown cannot loop for ever; at the limit the job fails (issue 18).
-        let n = query(concat!(
+        let state: Option<String> = query_scalar(
             "UPDATE jobs SET state = CASE WHEN attempts >= $3 THEN 'failed' ELSE 'queued' END,
                              last_error = CASE WHEN attempts >= $3
                                  THEN 'stopped by a shutdown during each of its ' || attempts
                                       || ' attempts: its fit outlasts worker.shutdown_grace_ms'
                                  ELSE last_error END,
-                             worker = NULL, lease_until = NULL, updated_at = ",
-            now!(),
-            " WHERE id = $1 AND state = 'running' AND worker = $2"
-        ))
+                             worker = NULL, lease_until = NULL, updated_at = now()
+             WHERE id = $1 AND state = 'running' AND worker = $2
+             RETURNING state",
+        )
         .bind(job_id)
         .bind(worker)
         .bind(MAX_ATTEMPTS)
+        .fetch_optional(&self.pool)
+        .await?;
+        state.map(|s| s.parse()).transpose()
+    }
+
+    async fn renew_lease(&self, job_id: i64, worker: &str, lease: Duration) -> Result<bool> {
+        let n = query(
+            "UPDATE jobs SET lease_until = now() + make_interval(secs => $3), updated_at = now()
+             WHERE id = $1 AND state = 'running' AND worker = $2",
+        )
+        .bind(job_id)
+        .bind(worker)
+        .bind(lease.as_secs_f64())
         .execute(&self.pool)
         .await?
         .rows_affected();

@@ -728,7 +728,7 @@ impl Backend for SqliteStore {
         let now_s = ts_text(now);
         let until = ts_text(now + lease_delta(lease));
         let mut tx = self.begin().await?;
-        query(concat!(
+        let reaped = query(concat!(
             "UPDATE jobs SET state = 'failed', lease_until = NULL, updated_at = ",
             now!(),
             ", last_error = 'lease expired ' || attempts || ' times (worker died?)'
@@ -737,7 +737,8 @@ impl Backend for SqliteStore {
         .bind(&now_s)
         .bind(MAX_ATTEMPTS)
         .execute(&mut *tx)
-        .await?;
+        .await?
+        .rows_affected();
         let row = query(concat!(
             "UPDATE jobs SET state = 'running', attempts = attempts + 1, worker = $1,
                              lease_until = $2, updated_at = $3
@@ -753,6 +754,7 @@ impl Backend for SqliteStore {
         .fetch_optional(&mut *tx)
         .await?;
         tx.commit().await?;
+        super::count_lease_expired(reaped);
         row.map(|r| job_from(&r)).transpose()
     }
 
@@ -847,10 +849,10 @@ impl Backend for SqliteStore {
         Ok(n == 1)
     }
 
-    async fn release_counted(&self, job_id: i64, worker: &str) -> Result<bool> {
+    async fn release_counted(&self, job_id: i64, worker: &str) -> Result<Option<JobState>> {
         // Its fit had started: the attempt the claim counted stays counted, so a fit that
         // outlasts every shutdown cannot loop for ever; at the limit the job fails (issue 18).
-        let n = query(concat!(
+        let state: Option<String> = query_scalar(concat!(
             "UPDATE jobs SET state = CASE WHEN attempts >= $3 THEN 'failed' ELSE 'queued' END,
                              last_error = CASE WHEN attempts >= $3
                                  THEN 'stopped by a shutdown during each of its ' || attempts
@@ -858,11 +860,26 @@ impl Backend for SqliteStore {
                                  ELSE last_error END,
                              worker = NULL, lease_until = NULL, updated_at = ",
             now!(),
-            " WHERE id = $1 AND state = 'running' AND worker = $2"
+            " WHERE id = $1 AND state = 'running' AND worker = $2 RETURNING state"
         ))
         .bind(job_id)
         .bind(worker)
         .bind(MAX_ATTEMPTS)
+        .fetch_optional(&self.pool)
+        .await?;
+        state.map(|s| s.parse()).transpose()
+    }
+
+    async fn renew_lease(&self, job_id: i64, worker: &str, lease: Duration) -> Result<bool> {
+        let until = ts_text(Utc::now() + lease_delta(lease));
+        let n = query(concat!(
+            "UPDATE jobs SET lease_until = $3, updated_at = ",
+            now!(),
+            " WHERE id = $1 AND state = 'running' AND worker = $2"
+        ))
+        .bind(job_id)
+        .bind(worker)
+        .bind(&until)
         .execute(&self.pool)
         .await?
         .rows_affected();

@@ -11,6 +11,7 @@
 mod harness;
 mod procs;
 
+mod every_job_ends;
 mod kill;
 mod metrics;
 mod pg_restart;

@@ -165,6 +165,25 @@ pub fn slow_lift() -> Value {
     serde_json::from_slice(&std::fs::read(&out).expect("read")).expect("lift JSON")
 }
 
+/// A slider test of the head held by a pull and released (`simulate --kind slider --pull 30`):
+/// the longest fit of a valid trace measured (~840 model evaluations, ~2 s on an idle core).
+pub fn held_slider() -> Value {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("held-slider.json");
+    let st = Command::new(env!("CARGO_BIN_EXE_pantowatch"))
+        .args(["simulate", "--kind", "slider", "--pull", "30", "-o"])
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .expect("pantowatch simulate");
+    assert!(
+        st.success(),
+        "pantowatch simulate --kind slider --pull 30: {st}"
+    );
+    serde_json::from_slice(&std::fs::read(&out).expect("read")).expect("slider JSON")
+}
+
 /// `doc` with another `trace_id` (a distinct trace, same samples).
 pub fn with_id(doc: &Value, id: &str) -> Vec<u8> {
     let mut d = doc.clone();
