@@ -22,7 +22,7 @@ use std::time::Duration;
 
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
-use axum::http::{HeaderName, HeaderValue, Method, Uri, header};
+use axum::http::{HeaderName, HeaderValue, Method, header};
 use axum::middleware::from_fn_with_state;
 use axum::routing::get;
 use metrics_exporter_prometheus::PrometheusHandle;
@@ -207,18 +207,18 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
 /// No route: a problem answer, or — for a browser asking for a page outside `/v1` — the site's
 /// HTML 404 page.
 async fn not_found(
-    method: Method,
-    uri: Uri,
-    headers: axum::http::HeaderMap,
+    axum::extract::State(st): axum::extract::State<AppState>,
+    parts: axum::http::request::Parts,
 ) -> axum::response::Response {
     use axum::response::IntoResponse;
-    let e = AppError::NotFound(format!("no route {method} {}", uri.path()));
-    let wants_html = headers
+    let e = AppError::NotFound(format!("no route {} {}", parts.method, parts.uri.path()));
+    let wants_html = parts
+        .headers
         .get(header::ACCEPT)
         .and_then(|v| v.to_str().ok())
         .is_some_and(|a| a.contains("text/html"));
-    if wants_html && !uri.path().starts_with("/v1") {
-        crate::web::WebError::from(e).into_response()
+    if wants_html && !parts.uri.path().starts_with("/v1") {
+        crate::web::not_found_page(&st, &parts, e).await
     } else {
         e.into_response()
     }

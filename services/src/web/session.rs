@@ -110,21 +110,25 @@ impl IntoResponse for SignIn {
     }
 }
 
+/// The unrevoked key a request's session cookie names, if any (a store failure is logged and
+/// read as "not signed in").
+pub async fn signed_in(parts: &Parts, st: &AppState) -> Option<ApiKey> {
+    let id = cookie_value(parts).and_then(|v| st.sessions.verify(&v))?;
+    let keys = st
+        .store
+        .list_api_keys()
+        .await
+        .map_err(|e| tracing::error!(error = %e, "session check failed"))
+        .ok()?;
+    keys.into_iter()
+        .find(|k| k.id == id && k.revoked_at.is_none())
+}
+
 impl FromRequestParts<AppState> for WebUser {
     type Rejection = SignIn;
 
     async fn from_request_parts(parts: &mut Parts, st: &AppState) -> Result<Self, SignIn> {
-        let id = cookie_value(parts)
-            .and_then(|v| st.sessions.verify(&v))
-            .ok_or(SignIn)?;
-        let keys = st.store.list_api_keys().await.map_err(|e| {
-            tracing::error!(error = %e, "session check failed");
-            SignIn
-        })?;
-        let key = keys
-            .into_iter()
-            .find(|k| k.id == id && k.revoked_at.is_none())
-            .ok_or(SignIn)?;
+        let key = signed_in(parts, st).await.ok_or(SignIn)?;
         Ok(WebUser { key })
     }
 }

@@ -1,9 +1,11 @@
-//! Inline SVG charts for the web pages, drawn by hand (no JavaScript, no fonts to load): every
-//! chart has `role="img"`, a `<title>` and a `<desc>` that says in words what it shows.
+//! Inline SVG charts for the web pages, drawn with `maud` (no JavaScript, no fonts to load;
+//! every value escaped): every chart has `role="img"`, a `<title>` and a `<desc>` that says in
+//! words what it shows. Elements are written with explicit end tags: inside `<svg>` the HTML
+//! parser closes no element by itself.
 
-use std::fmt::Write;
+use maud::{Markup, html};
 
-use super::esc;
+use crate::store::Status;
 
 const W: f64 = 720.0;
 const H: f64 = 240.0;
@@ -12,11 +14,16 @@ const R: f64 = 20.0;
 const T: f64 = 20.0;
 const B: f64 = 30.0;
 
+/// A pixel coordinate as written into the SVG.
+fn px(v: f64) -> String {
+    format!("{v:.1}")
+}
+
 /// A plot area mapping data to pixels.
 pub struct Frame {
     x: (f64, f64),
     y: (f64, f64),
-    body: String,
+    body: Vec<Markup>,
 }
 
 fn nice_range(lo: f64, hi: f64) -> (f64, f64) {
@@ -34,7 +41,7 @@ impl Frame {
         Frame {
             x,
             y: nice_range(y.0, y.1),
-            body: String::new(),
+            body: Vec::new(),
         }
     }
 
@@ -50,78 +57,61 @@ impl Frame {
     /// A horizontal band between `lo` and `hi`.
     pub fn hband(&mut self, lo: f64, hi: f64, fill: &str, label: &str) {
         let (y1, y2) = (self.sy(hi), self.sy(lo));
-        let _ = write!(
-            self.body,
-            r#"<rect x="{L}" y="{y1:.1}" width="{:.1}" height="{:.1}" fill="{fill}"><title>{}</title></rect>"#,
-            W - L - R,
-            (y2 - y1).max(0.0),
-            esc(label)
-        );
+        self.body.push(html! {
+            rect x=(L) y=(px(y1)) width=(px(W - L - R)) height=(px((y2 - y1).max(0.0))) fill=(fill) {
+                title { (label) }
+            }
+        });
     }
 
     /// A horizontal line at `y`.
     pub fn hline(&mut self, y: f64, stroke: &str, dash: bool) {
-        let sy = self.sy(y);
-        let d = if dash {
-            r#" stroke-dasharray="4 3""#
-        } else {
-            ""
-        };
-        let _ = write!(
-            self.body,
-            r#"<line x1="{L}" x2="{:.1}" y1="{sy:.1}" y2="{sy:.1}" stroke="{stroke}"{d}/>"#,
-            W - R
-        );
+        let sy = px(self.sy(y));
+        self.body.push(html! {
+            line x1=(L) x2=(px(W - R)) y1=(sy) y2=(sy) stroke=(stroke)
+                stroke-dasharray=[dash.then_some("4 3")] {}
+        });
     }
 
     /// A line through the points.
     pub fn polyline(&mut self, pts: &[(f64, f64)], stroke: &str, width: f64, dash: bool) {
-        let mut p = String::new();
-        for (x, y) in pts.iter().filter(|(x, y)| x.is_finite() && y.is_finite()) {
-            let _ = write!(p, "{:.1},{:.1} ", self.sx(*x), self.sy(*y));
-        }
-        let d = if dash {
-            r#" stroke-dasharray="6 4""#
-        } else {
-            ""
-        };
-        let _ = write!(
-            self.body,
-            r#"<polyline points="{p}" fill="none" stroke="{stroke}" stroke-width="{width}"{d}/>"#
-        );
+        let points: Vec<String> = pts
+            .iter()
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .map(|(x, y)| format!("{},{}", px(self.sx(*x)), px(self.sy(*y))))
+            .collect();
+        self.body.push(html! {
+            polyline points=(points.join(" ")) fill="none" stroke=(stroke) stroke-width=(width)
+                stroke-dasharray=[dash.then_some("6 4")] {}
+        });
     }
 
-    /// A point with its interval as a vertical bar; `label` is its tooltip.
-    pub fn point_with_interval(
+    /// One test's value with its interval as a vertical bar, coloured by `status` through the
+    /// status's class (the badges' class); `trace_id` names the test, `label` is the tooltip.
+    pub fn point(
         &mut self,
-        x: f64,
-        y: f64,
-        lo: f64,
-        hi: f64,
-        fill: &str,
+        (x, y, lo, hi): (f64, f64, f64, f64),
+        status: Status,
+        trace_id: &str,
         label: &str,
     ) {
-        let (sx, sy) = (self.sx(x), self.sy(y));
-        let _ = write!(
-            self.body,
-            r#"<g><title>{}</title><line x1="{sx:.1}" x2="{sx:.1}" y1="{:.1}" y2="{:.1}" stroke="{fill}" stroke-width="2"/><circle cx="{sx:.1}" cy="{sy:.1}" r="3.5" fill="{fill}"/></g>"#,
-            esc(label),
-            self.sy(hi),
-            self.sy(lo)
-        );
+        let (sx, sy) = (px(self.sx(x)), px(self.sy(y)));
+        self.body.push(html! {
+            g.pt.(status.as_str()) data-trace=(trace_id) {
+                title { (label) }
+                line x1=(sx) x2=(sx) y1=(px(self.sy(hi))) y2=(px(self.sy(lo))) stroke-width="2" {}
+                circle cx=(sx) cy=(sy) r="3.5" {}
+            }
+        });
     }
 
     /// A vertical marker at `x` with a label.
     pub fn vline(&mut self, x: f64, stroke: &str, label: &str) {
         let sx = self.sx(x);
-        let _ = write!(
-            self.body,
-            r#"<line x1="{sx:.1}" x2="{sx:.1}" y1="{T}" y2="{:.1}" stroke="{stroke}" stroke-dasharray="2 2"/><text x="{:.1}" y="{:.1}" font-size="11" fill="{stroke}">{}</text>"#,
-            H - B,
-            sx + 3.0,
-            T + 11.0,
-            esc(label)
-        );
+        self.body.push(html! {
+            line x1=(px(sx)) x2=(px(sx)) y1=(T) y2=(px(H - B)) stroke=(stroke) stroke-dasharray="2 2" {}
+            text x=(px(sx + 3.0)) y=(px(T + 11.0)) font-size="11" fill=(stroke) { (label) }
+        });
     }
 
     /// The finished `<svg>` with axes: `x_labels` are (x, text) ticks; `y_unit` names the axis.
@@ -131,56 +121,44 @@ impl Frame {
         desc: &str,
         x_labels: &[(f64, String)],
         y_unit: &str,
-    ) -> String {
-        let mut s = String::new();
-        let _ = write!(
-            s,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W} {H}" width="{W}" height="{H}" role="img" aria-labelledby="t d"><title>{}</title><desc>{}</desc>"#,
-            esc(title),
-            esc(desc)
-        );
-        let _ = write!(
-            s,
-            r##"<rect x="{L}" y="{T}" width="{:.1}" height="{:.1}" fill="#fff" stroke="#999"/>"##,
-            W - L - R,
-            H - T - B
-        );
-        s.push_str(&self.body);
-        for k in 0..=4 {
-            let y = self.y.0 + (self.y.1 - self.y.0) * f64::from(k) / 4.0;
-            let _ = write!(
-                s,
-                r##"<text x="{:.1}" y="{:.1}" font-size="11" text-anchor="end" fill="#333">{}</text>"##,
-                L - 4.0,
-                self.sy(y) + 4.0,
-                fmt_num(y)
-            );
+    ) -> Markup {
+        let y_ticks: Vec<(f64, f64)> = (0..=4)
+            .map(|k| {
+                let y = self.y.0 + (self.y.1 - self.y.0) * f64::from(k) / 4.0;
+                (self.sy(y) + 4.0, y)
+            })
+            .collect();
+        let x_ticks: Vec<(f64, &str, &str)> = x_labels
+            .iter()
+            .map(|(x, label)| {
+                let sx = self.sx(*x);
+                let anchor = if sx < L + 40.0 {
+                    "start"
+                } else if sx > W - R - 40.0 {
+                    "end"
+                } else {
+                    "middle"
+                };
+                (sx, anchor, label.as_str())
+            })
+            .collect();
+        html! {
+            svg xmlns="http://www.w3.org/2000/svg" viewBox={ "0 0 " (W) " " (H) } width=(W) height=(H)
+                role="img" {
+                title { (title) }
+                desc { (desc) }
+                rect x=(L) y=(T) width=(px(W - L - R)) height=(px(H - T - B)) fill="#fff" stroke="#999" {}
+                @for m in &self.body { (m) }
+                @for (sy, y) in &y_ticks {
+                    text x=(px(L - 4.0)) y=(px(*sy)) font-size="11" text-anchor="end" fill="#333" { (fmt_num(*y)) }
+                }
+                @for (sx, anchor, label) in &x_ticks {
+                    text x=(px(*sx)) y=(px(H - 10.0)) font-size="11" text-anchor=(anchor) fill="#333" { (label) }
+                }
+                text x="12" y=(px(H / 2.0)) font-size="11" fill="#333"
+                    transform={ "rotate(-90 12 " (px(H / 2.0)) ")" } { (y_unit) }
+            }
         }
-        for (x, label) in x_labels {
-            let sx = self.sx(*x);
-            let anchor = if sx < L + 40.0 {
-                "start"
-            } else if sx > W - R - 40.0 {
-                "end"
-            } else {
-                "middle"
-            };
-            let _ = write!(
-                s,
-                r##"<text x="{:.1}" y="{:.1}" font-size="11" text-anchor="{anchor}" fill="#333">{}</text>"##,
-                sx,
-                H - 10.0,
-                esc(label)
-            );
-        }
-        let _ = write!(
-            s,
-            r##"<text x="12" y="{:.1}" font-size="11" fill="#333" transform="rotate(-90 12 {:.1})">{}</text></svg>"##,
-            H / 2.0,
-            H / 2.0,
-            esc(y_unit)
-        );
-        s
     }
 }
 

@@ -2,8 +2,11 @@
 //! small demo fleet uploaded through the API: `--dump-dom` and `--screenshot` subprocess calls.
 //!
 //! The signed-in browser goes through a loopback proxy that adds the session cookie (headless
-//! Chromium takes no cookie on its command line); sign-in and the acknowledge are plain HTTP form
-//! posts. Screenshots land in `target/screenshots/`.
+//! Chromium takes no cookie on its command line). The proxy also serves `/__post?to=PATH&k=v…`,
+//! a page of its own whose script submits a form of those fields to PATH, so the browser itself
+//! posts (a wrong key to `/login`, a reader's acknowledge) and renders the answer. Sign-in and
+//! the writer's acknowledge are also plain HTTP form posts. Screenshots land in
+//! `target/screenshots/`.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -82,18 +85,51 @@ struct Proxy {
     client: reqwest::Client,
 }
 
-/// Forwards a request to the app with the session cookie.
-async fn forward(State(p): State<Arc<Proxy>>, method: AxMethod, uri: Uri, body: Bytes) -> Response {
+/// The proxy's form driver: a page that posts `fields` to `to` as soon as it loads.
+fn form_driver(query: &str) -> Response {
+    let q: Vec<(String, String)> = serde_urlencoded::from_str(query).unwrap_or_default();
+    let to = q.iter().find(|(k, _)| k == "to").map_or("/", |(_, v)| v);
+    let page = maud::html! {
+        (maud::DOCTYPE)
+        html {
+            body {
+                form method="post" action=(to) {
+                    @for (k, v) in q.iter().filter(|(k, _)| k != "to") {
+                        input type="hidden" name=(k) value=(v);
+                    }
+                }
+                script { "document.forms[0].submit()" }
+            }
+        }
+    };
+    page.into_response()
+}
+
+/// Forwards a request to the app with the session cookie (and the headers a page request
+/// carries: what it accepts, what its body is).
+async fn forward(
+    State(p): State<Arc<Proxy>>,
+    method: AxMethod,
+    uri: Uri,
+    headers: axum::http::HeaderMap,
+    body: Bytes,
+) -> Response {
+    if uri.path() == "/__post" {
+        return form_driver(uri.query().unwrap_or(""));
+    }
     let path = uri.path_and_query().map_or("/", |p| p.as_str());
     let m = reqwest::Method::from_bytes(method.as_str().as_bytes()).unwrap_or(reqwest::Method::GET);
-    let r = p
+    let mut req = p
         .client
         .request(m, format!("{}{path}", p.target))
         .header("cookie", &p.cookie)
-        .body(body)
-        .send()
-        .await;
-    match r {
+        .body(body);
+    for h in ["accept", "content-type"] {
+        if let Some(v) = headers.get(h).and_then(|v| v.to_str().ok()) {
+            req = req.header(h, v);
+        }
+    }
+    match req.send().await {
         Ok(r) => {
             let status = AxStatus::from_u16(r.status().as_u16()).unwrap_or(AxStatus::BAD_GATEWAY);
             let ct = r
@@ -115,6 +151,124 @@ async fn forward(State(p): State<Arc<Proxy>>, method: AxMethod, uri: Uri, body: 
             resp
         }
         Err(e) => (AxStatus::BAD_GATEWAY, e.to_string()).into_response(),
+    }
+}
+
+/// A proxy to the app that signs every request in with `cookie`; its base URL.
+async fn start_proxy(app: &TestApp, client: &reqwest::Client, cookie: &str) -> String {
+    let proxy = Arc::new(Proxy {
+        target: app.url(""),
+        cookie: cookie.to_owned(),
+        client: client.clone(),
+    });
+    let router = axum::Router::new().fallback(forward).with_state(proxy);
+    let l = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("bind");
+    let base = format!("http://{}", l.local_addr().expect("addr"));
+    tokio::spawn(async move {
+        let _ = axum::serve(l, router).await;
+    });
+    base
+}
+
+/// Signs in with `key` over plain HTTP; the session cookie (`name=value`).
+async fn sign_in(app: &TestApp, client: &reqwest::Client, key: &str) -> String {
+    let r = client
+        .post(app.url("/login"))
+        .header("content-type", "application/x-www-form-urlencoded")
+        .body(serde_urlencoded::to_string([("key", key)]).expect("form"))
+        .send()
+        .await
+        .expect("login");
+    assert_eq!(r.status(), StatusCode::SEE_OTHER);
+    let set_cookie = r
+        .headers()
+        .get("set-cookie")
+        .and_then(|v| v.to_str().ok())
+        .expect("set-cookie")
+        .to_owned();
+    assert!(
+        set_cookie.contains("HttpOnly")
+            && set_cookie.contains("Secure")
+            && set_cookie.contains("SameSite=Strict"),
+        "{set_cookie}"
+    );
+    set_cookie.split(';').next().expect("cookie").to_owned()
+}
+
+/// The value of the first `attr="…"` in `html`.
+fn first_attr<'a>(html: &'a str, attr: &str) -> Option<&'a str> {
+    let start = html.find(&format!("{attr}=\""))? + attr.len() + 2;
+    let end = html[start..].find('"')? + start;
+    Some(&html[start..end])
+}
+
+/// Each joint section of a pantograph page: (joint, its HTML).
+fn joint_sections(dom: &str) -> Vec<(String, &str)> {
+    dom.split("<section id=\"joint-")
+        .skip(1)
+        .filter_map(|s| {
+            let (joint, rest) = s.split_once('"')?;
+            Some((
+                joint.to_owned(),
+                rest.split("</section>").next().unwrap_or(rest),
+            ))
+        })
+        .collect()
+}
+
+/// The charts of a joint section, by parameter: each plotted point's (status class, trace).
+fn chart_points(section: &str) -> Vec<(String, Vec<(String, String)>)> {
+    section
+        .split("data-param=\"")
+        .skip(1)
+        .filter_map(|c| {
+            let (param, rest) = c.split_once('"')?;
+            let points = rest
+                .split("<g class=\"pt ")
+                .skip(1)
+                .filter_map(|g| {
+                    let (class, after) = g.split_once('"')?;
+                    Some((
+                        class.to_owned(),
+                        first_attr(after, "data-trace")?.to_owned(),
+                    ))
+                })
+                .collect();
+            Some((param.to_owned(), points))
+        })
+        .collect()
+}
+
+/// A page rendered as the site's HTML (its heading and, signed in, its navigation), not the
+/// API's problem JSON.
+fn assert_site_page(dom: &str, heading: &str, signed_in: bool) {
+    assert!(
+        dom.contains(&format!("<h1>{heading}</h1>")),
+        "{heading}: {dom}"
+    );
+    assert!(
+        dom.contains("<header><strong>pantowatch</strong>"),
+        "site header: {dom}"
+    );
+    assert!(
+        !dom.contains("\"type\":") && !dom.contains("/problems/") && !dom.contains("&lt;"),
+        "no problem JSON, no escaped markup: {dom}"
+    );
+    assert_eq!(
+        dom.contains("Sign out") && dom.contains("href=\"/fleet\""),
+        signed_in,
+        "navigation when signed in: {dom}"
+    );
+}
+
+fn status_rank(s: &str) -> u8 {
+    match s {
+        "alarm" => 3,
+        "watch" => 2,
+        "ok" => 1,
+        _ => 0,
     }
 }
 
@@ -167,12 +321,6 @@ async fn seed_demo_fleet(app: &TestApp, vehicles: usize) -> usize {
     n
 }
 
-fn first_attr<'a>(html: &'a str, attr: &str) -> Option<&'a str> {
-    let start = html.find(&format!("{attr}=\""))? + attr.len() + 2;
-    let end = html[start..].find('"')? + start;
-    Some(&html[start..end])
-}
-
 pub async fn web_pages_in_headless_chromium() {
     let t0 = Instant::now();
     let app = spawn_app(Backend::Sqlite).await;
@@ -200,7 +348,21 @@ pub async fn web_pages_in_headless_chromium() {
     assert!(login.contains("name=\"key\""), "{login}");
     screenshot(profile.path(), &app.url("/"), "01-login.png").await;
 
-    // Sign in (a form post) → the session cookie.
+    // A wrong key, posted by the browser from a form: the sign-in page again with the reason,
+    // answered 401 (the status over plain HTTP).
+    let anon = start_proxy(&app, &plain, "pw_session=none").await;
+    let failed = dom(
+        profile.path(),
+        &format!("{anon}/__post?to=/login&key=pw_not_a_key"),
+    )
+    .await;
+    assert_site_page(&failed, "Sign in", false);
+    assert!(
+        failed.contains("<title>Sign-in failed · pantowatch</title>")
+            && failed.contains("role=\"alert\">Unknown or revoked API key.</p>")
+            && failed.contains("name=\"key\""),
+        "{failed}"
+    );
     let r = plain
         .post(app.url("/login"))
         .header("content-type", "application/x-www-form-urlencoded")
@@ -209,41 +371,14 @@ pub async fn web_pages_in_headless_chromium() {
         .await
         .expect("login");
     assert_eq!(r.status(), StatusCode::UNAUTHORIZED);
-    let r = plain
-        .post(app.url("/login"))
-        .header("content-type", "application/x-www-form-urlencoded")
-        .body(serde_urlencoded::to_string([("key", app.keys.writer.as_str())]).expect("form"))
-        .send()
-        .await
-        .expect("login");
-    assert_eq!(r.status(), StatusCode::SEE_OTHER);
-    let set_cookie = r
-        .headers()
-        .get("set-cookie")
-        .and_then(|v| v.to_str().ok())
-        .expect("set-cookie")
-        .to_owned();
     assert!(
-        set_cookie.contains("HttpOnly")
-            && set_cookie.contains("Secure")
-            && set_cookie.contains("SameSite=Strict"),
-        "{set_cookie}"
+        r.headers()["content-type"]
+            .to_str()
+            .is_ok_and(|c| c.starts_with("text/html"))
     );
-    let cookie = set_cookie.split(';').next().expect("cookie").to_owned();
-
-    let proxy = Arc::new(Proxy {
-        target: app.url(""),
-        cookie: cookie.clone(),
-        client: plain.clone(),
-    });
-    let router = axum::Router::new().fallback(forward).with_state(proxy);
-    let l = tokio::net::TcpListener::bind("127.0.0.1:0")
-        .await
-        .expect("bind");
-    let base = format!("http://{}", l.local_addr().expect("addr"));
-    tokio::spawn(async move {
-        let _ = axum::serve(l, router).await;
-    });
+    // Sign in (a form post) → the session cookie.
+    let cookie = sign_in(&app, &plain, &app.keys.writer).await;
+    let base = start_proxy(&app, &plain, &cookie).await;
 
     // Fleet: the worst pantograph first.
     let fleet_dom = dom(profile.path(), &format!("{base}/fleet")).await;
@@ -326,6 +461,75 @@ pub async fn web_pages_in_headless_chromium() {
         "03-pantograph.png",
     )
     .await;
+    // Each joint's badge and its charts' latest points carry one status (issue 18): the badge's
+    // class is the worst of the classes of each parameter's latest plotted point (the joint's
+    // state is each parameter from the latest test that informed it, the joint at the worst).
+    // And a chart plots exactly the tests that informed its parameter: a lift that cannot see a
+    // joint's parameter (reported at baseline with the prior's interval) draws no point for it.
+    let sections = joint_sections(&pdom);
+    assert!(sections.len() >= 8, "every joint has a section: {pdom}");
+    let (mut not_ok_checked, mut uninformed_lifts) = (0, 0);
+    for (joint, section) in &sections {
+        let badge = first_attr(section, "class")
+            .and_then(|c| c.strip_prefix("badge "))
+            .unwrap_or_else(|| panic!("{joint}: a status badge: {section}"));
+        let charts = chart_points(section);
+        assert_eq!(charts.len(), 2, "{joint}: a viscous and a dry chart");
+        let latest = charts
+            .iter()
+            .filter_map(|(_, pts)| pts.last().map(|(class, _)| class.as_str()))
+            .max_by_key(|c| status_rank(c))
+            .unwrap_or("unknown");
+        assert_eq!(badge, latest, "{joint}: badge vs latest points: {section}");
+        if badge != "ok" && badge != "unknown" {
+            not_ok_checked += 1;
+        }
+        let path = format!("/v1/pantographs/{first}/joints/{joint}/history");
+        let (s, history) = app.get_json(&path).await;
+        if joint.contains('+') {
+            // A combination a lift reports (`J1+J3`) has no history route of its own.
+            assert_eq!(s, StatusCode::BAD_REQUEST, "{path}: {history}");
+            continue;
+        }
+        assert_eq!(s, StatusCode::OK, "{path}: {history}");
+        let history = history["points"].as_array().cloned().unwrap_or_default();
+        for (param, pts) in &charts {
+            let informed: Vec<&str> = history
+                .iter()
+                .filter(|p| {
+                    let own = &p[format!("{param}_status").as_str()];
+                    let status = own.as_str().or(p["status"].as_str()).unwrap_or("unknown");
+                    !p[param.as_str()].is_null()
+                        && p[format!("{param}_informed").as_str()]
+                            .as_bool()
+                            .unwrap_or(p["identifiable"] == true)
+                        && status != "unknown"
+                })
+                .filter_map(|p| p["trace_id"].as_str())
+                .collect();
+            let drawn: Vec<&str> = pts.iter().map(|(_, t)| t.as_str()).collect();
+            assert_eq!(
+                drawn, informed,
+                "{joint} {param}: points drawn vs tests that informed it"
+            );
+            uninformed_lifts += history
+                .iter()
+                .filter(|p| {
+                    p["trace_id"].as_str().is_some_and(|t| t.ends_with("-lift"))
+                        && !p[param.as_str()].is_null()
+                        && p[format!("{param}_informed").as_str()] == false
+                })
+                .count();
+        }
+    }
+    assert!(
+        not_ok_checked > 0,
+        "a joint at watch or alarm was checked: {pdom}"
+    );
+    assert!(
+        uninformed_lifts > 0,
+        "some lift left a parameter uninformed (and drew no point for it)"
+    );
     // A single-joint trace (its page draws measured vs model; a lift trace's page shows the
     // joints and the finding).
     let trace = pdom
@@ -340,6 +544,83 @@ pub async fn web_pages_in_headless_chromium() {
         "{tdom}"
     );
     screenshot(profile.path(), &format!("{base}{trace}"), "04-trace.png").await;
+    // A lift's page names the test, the assembly and the pantograph, and no internal error.
+    let (s, j3) = app
+        .get_json(&format!("/v1/pantographs/{first}/joints/J3/history"))
+        .await;
+    assert_eq!(s, StatusCode::OK);
+    let lift = j3["points"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|p| p["trace_id"].as_str())
+        .find(|t| t.ends_with("-lift"))
+        .expect("a lift of the worst pantograph")
+        .to_owned();
+    let ldom = dom(profile.path(), &format!("{base}/traces/{lift}")).await;
+    assert!(
+        ldom.contains(&format!(
+            "<p id=\"tested\">lift test of the whole pantograph on pantograph \
+             <a href=\"/pantographs/{first}\">{first}</a> (vehicle EN57-"
+        )),
+        "{ldom}"
+    );
+    assert!(ldom.contains(&format!("<h1>Trace {lift}</h1>")), "{ldom}");
+    for internal in [
+        "No model curve",
+        "not a single-joint",
+        "id=\"no-curve\"",
+        "pantograph —",
+    ] {
+        assert!(!ldom.contains(internal), "{internal}: {ldom}");
+    }
+    screenshot(
+        profile.path(),
+        &format!("{base}/traces/{lift}"),
+        "07-lift-trace.png",
+    )
+    .await;
+
+    // Unknown pages, signed in: the site's 404 page with its navigation; a malformed path or
+    // query: its 400 page.
+    for (path, heading, detail) in [
+        (
+            "/pantographs/160EC-9999",
+            "Not found",
+            "no pantograph `160EC-9999`",
+        ),
+        (
+            "/traces/no-such-trace",
+            "Not found",
+            "no trace `no-such-trace`",
+        ),
+        ("/nowhere", "Not found", "no route GET /nowhere"),
+        ("/traces/%FF", "Bad request", ""),
+        (
+            "/alerts?done=1&done=2",
+            "Bad request",
+            "duplicate field `done`",
+        ),
+    ] {
+        let d = dom(profile.path(), &format!("{base}{path}")).await;
+        assert_site_page(&d, heading, true);
+        assert!(d.contains(detail), "{path}: {d}");
+        let r = plain
+            .get(app.url(path))
+            .header("cookie", &cookie)
+            .header("accept", "text/html")
+            .send()
+            .await
+            .expect("GET");
+        let status = if heading == "Not found" { 404 } else { 400 };
+        assert_eq!(r.status().as_u16(), status, "{path}");
+    }
+    screenshot(
+        profile.path(),
+        &format!("{base}/pantographs/160EC-9999"),
+        "08-not-found.png",
+    )
+    .await;
 
     // Alerts: the demo leaves some open; acknowledge one on the page, see it over REST.
     let (s, open) = app.get_json("/v1/alerts?state=open").await;
@@ -348,6 +629,23 @@ pub async fn web_pages_in_headless_chromium() {
     assert!(!open.is_empty(), "alerts open after the demo fleet");
     let adom = dom(profile.path(), &format!("{base}/alerts")).await;
     let id = open[0]["id"].as_i64().expect("id");
+    // A reader posting the acknowledge form (the page offers none to a reader): the site's 403
+    // page with the reader's navigation, and the alert stays open.
+    let reader = sign_in(&app, &plain, &app.keys.reader).await;
+    let rbase = start_proxy(&app, &plain, &reader).await;
+    let denied = dom(
+        profile.path(),
+        &format!("{rbase}/__post?to=/alerts/{id}/acknowledge&note=reader"),
+    )
+    .await;
+    assert_site_page(&denied, "Forbidden", true);
+    assert!(
+        denied.contains("acknowledging needs a writer key") && denied.contains("reader key"),
+        "{denied}"
+    );
+    let (s, a) = app.get_json(&format!("/v1/alerts/{id}")).await;
+    assert_eq!(s, StatusCode::OK);
+    assert_eq!(a["alert"]["state"], "open", "{a}");
     assert!(
         adom.contains(&format!("action=\"/alerts/{id}/acknowledge\"")),
         "ack form"

@@ -314,6 +314,25 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
         .unwrap();
     let html = html_of(r, 404).await;
     assert!(html.contains("Back to the fleet"), "{html}");
+    // A trace with no pantograph serial says so in words on its page (not "on pantograph —").
+    let t: Vec<f64> = (0..200).map(|i| f64::from(i) * 0.004).collect();
+    let a: Vec<f64> = t
+        .iter()
+        .map(|t| 30.0 * (-0.3 * t).exp() * (2.0 * t).cos())
+        .collect();
+    let doc = serde_json::json!({"format": "pantograph-trace/1", "trace_id": "no-serial",
+        "vehicle_id": "Depot's 7", "pantograph": {"model": "160EC"},
+        "recorded_at": "2026-03-02T07:15:00Z", "test": {"kind": "pendulum", "joint": "J1", "rig": {}},
+        "channels": {"t_s": t, "alpha_deg": a}});
+    let r = app.upload_json(&serde_json::to_vec(&doc).unwrap()).await;
+    assert_eq!(r.status(), 202);
+    let html = app.web_page("/traces/no-serial").await;
+    assert!(
+        html.contains(
+            "pendulum test of joint J1 on vehicle Depot's 7 (no pantograph serial recorded), recorded 2026-03-02"
+        ) && !html.contains("pantograph —"),
+        "{html}"
+    );
     let r = client
         .get(app.url("/v1/nowhere"))
         .header("accept", "text/html")

@@ -1,0 +1,118 @@
+//! The fleet: every pantograph by risk — alarm first, then watch, then the earliest forecast
+//! date of reaching the alarm band — with its live alerts.
+
+use std::collections::HashMap;
+
+use axum::extract::State;
+use chrono::{DateTime, Utc};
+use maud::{Markup, html};
+
+use crate::api::AppState;
+use crate::api::error::AppError;
+use crate::store::{Alert, AlertFilter, FleetFilter, Page, Status};
+use crate::web::layout::badge;
+use crate::web::session::WebUser;
+use crate::web::{PageResult, day, seg, signed_in_page};
+
+/// Earliest forecast crossing in a live alert's evidence.
+fn alert_forecast(a: &Alert) -> Option<DateTime<Utc>> {
+    a.evidence
+        .get("trends")?
+        .as_array()?
+        .iter()
+        .filter_map(|t| t.pointer("/forecast/date")?.as_str())
+        .filter_map(|d| DateTime::parse_from_rfc3339(d).ok())
+        .map(|d| d.with_timezone(&Utc))
+        .min()
+}
+
+pub async fn fleet_page(State(st): State<AppState>, user: WebUser) -> PageResult {
+    signed_in_page(&user, "Fleet", fleet(&st).await)
+}
+
+async fn fleet(st: &AppState) -> Result<Markup, AppError> {
+    let fleet = st
+        .store
+        .fleet_health(
+            &FleetFilter::default(),
+            Page {
+                limit: 100_000,
+                offset: 0,
+            },
+        )
+        .await?;
+    let live = st
+        .store
+        .list_alerts(&AlertFilter {
+            live: true,
+            ..AlertFilter::default()
+        })
+        .await?;
+    let mut alerts: HashMap<&str, Vec<&Alert>> = HashMap::new();
+    for a in &live {
+        alerts.entry(a.serial.as_str()).or_default().push(a);
+    }
+    let mut rows: Vec<_> = fleet
+        .rows
+        .iter()
+        .map(|r| {
+            let mine = alerts.get(r.serial.as_str()).cloned().unwrap_or_default();
+            let forecast = mine.iter().filter_map(|a| alert_forecast(a)).min();
+            (r, mine, forecast)
+        })
+        .collect();
+    // Risk: alarm first, then watch (…), then the earliest forecast crossing, then serial.
+    rows.sort_by(|a, b| {
+        b.0.worst_status
+            .cmp(&a.0.worst_status)
+            .then_with(|| match (a.2, b.2) {
+                (Some(x), Some(y)) => x.cmp(&y),
+                (Some(_), None) => std::cmp::Ordering::Less,
+                (None, Some(_)) => std::cmp::Ordering::Greater,
+                (None, None) => std::cmp::Ordering::Equal,
+            })
+            .then_with(|| a.0.serial.cmp(&b.0.serial))
+    });
+    let n = |s: Status| rows.iter().filter(|r| r.0.worst_status == Some(s)).count();
+    Ok(html! {
+        h1 { "Fleet" }
+        p {
+            (rows.len()) " pantographs: " (n(Status::Alarm)) " alarm, " (n(Status::Watch))
+            " watch, " (n(Status::Ok)) " ok, " (n(Status::Unknown)) " unknown. "
+            (live.len()) " alerts open or acknowledged."
+        }
+        table #fleet {
+            caption {
+                "Pantographs by risk: alarm first, then watch, then the earliest forecast date of \
+                 reaching the alarm band."
+            }
+            thead {
+                tr {
+                    th { "#" } th { "serial" } th { "vehicle" } th { "worst" }
+                    th { "joints not ok" } th { "alerts" } th { "forecast alarm" } th { "last test" }
+                }
+            }
+            tbody {
+                @for (i, (r, mine, forecast)) in rows.iter().enumerate() {
+                    tr data-serial=(r.serial) {
+                        td { (i + 1) }
+                        td { a href={ "/pantographs/" (seg(&r.serial)) } { (r.serial) } }
+                        td { (r.vehicle_id.as_deref().unwrap_or("—")) }
+                        td { (badge(r.worst_status)) }
+                        td {
+                            @for (k, j) in r.not_ok.iter().enumerate() {
+                                @if k > 0 { ", " }
+                                (j.joint) " " (badge(Some(j.status)))
+                            }
+                        }
+                        td {
+                            @if mine.is_empty() { "—" } @else { a href="/alerts" { (mine.len()) } }
+                        }
+                        td { (forecast.map_or("—".to_owned(), day)) }
+                        td { (r.last_test.map_or("—".to_owned(), day)) }
+                    }
+                }
+            }
+        }
+    })
+}

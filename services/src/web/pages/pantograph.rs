@@ -1,0 +1,274 @@
+//! One pantograph: each joint's status badge and, per parameter, its tests over time with their
+//! intervals, the Table 4 and alarm bands, the trend and its forecast. A chart draws only the
+//! tests that informed its parameter ([`Param::of`]); each point carries its parameter's status
+//! in that test as the status class the badges use, so the latest points' colours and the
+//! joint's badge (the worst parameter from the latest test that informed it) agree.
+
+use std::collections::BTreeMap;
+use std::fmt::Write;
+
+use axum::extract::State;
+use chrono::{DateTime, Utc};
+use maud::{Markup, html};
+use pantowatch_models::drift::DriftThresholds;
+
+use crate::api::AppState;
+use crate::api::error::AppError;
+use crate::health::{self, Param, ParamTrend};
+use crate::ids::Serial;
+use crate::store::{AlertFilter, JointPoint, Status};
+use crate::web::error::WebPath;
+use crate::web::layout::{badge, sev_badge};
+use crate::web::session::WebUser;
+use crate::web::svg::{Frame, fmt_num};
+use crate::web::{PageResult, day, seg, signed_in_page};
+
+/// A parameter's status in one test: its own verdict, or the joint's when the result has none
+/// per parameter — the status fleet health and the alerts read.
+fn param_status(p: &JointPoint, param: Param) -> Status {
+    match param {
+        Param::Viscous => p.fit.viscous_status,
+        Param::Dry => p.fit.dry_status,
+    }
+    .unwrap_or(p.fit.status)
+}
+
+fn param_chart(
+    serial: &str,
+    joint: &str,
+    history: &[JointPoint],
+    tr: &ParamTrend,
+    watch: [f64; 2],
+) -> Markup {
+    let Some(t0) = history.first().map(|p| p.recorded_at) else {
+        return html! {};
+    };
+    let days = |t: DateTime<Utc>| (t - t0).num_seconds() as f64 / 86_400.0;
+    let pts: Vec<(f64, f64, f64, f64, &JointPoint)> = history
+        .iter()
+        .filter_map(|p| {
+            let (v, lo, hi) = tr.param.of(p)?;
+            Some((days(p.recorded_at), v, lo, hi, p))
+        })
+        .collect();
+    let param = tr.param.as_str();
+    if pts.is_empty() {
+        return html! {
+            p.chart data-param=(param) { "No test has informed " (param) " of " (joint) " yet." }
+        };
+    }
+    let last_x = pts.iter().map(|p| p.0).fold(0.0, f64::max);
+    let fc_x = tr.forecast.as_ref().map(|f| days(f.date));
+    let x1 = fc_x
+        .map_or(last_x, |f| f.clamp(last_x, last_x + 730.0))
+        .max(last_x + 1.0);
+    let mut ylo = pts.iter().map(|p| p.2).fold(f64::INFINITY, f64::min);
+    let mut yhi = pts.iter().map(|p| p.3).fold(f64::NEG_INFINITY, f64::max);
+    if let Some(b) = tr.baseline {
+        ylo = ylo.min(b * watch[0]);
+        yhi = yhi.max(b * watch[1]);
+    }
+    if let Some([_, hi]) = tr.alarm_band
+        && tr.forecast.as_ref().is_some_and(|f| f.threshold >= hi)
+    {
+        yhi = yhi.max(hi);
+    }
+    let mut f = Frame::new((0.0, x1), (ylo, yhi));
+    if let Some(b) = tr.baseline {
+        f.hband(
+            b * watch[0],
+            b * watch[1],
+            "#e8f5e9",
+            "Table 4 band (watch band × baseline)",
+        );
+        f.hline(b, "#2e7d32", true);
+    }
+    if let Some([lo, hi]) = tr.alarm_band {
+        f.hline(lo, "#c62828", true);
+        f.hline(hi, "#c62828", true);
+    }
+    if let Some(t) = &tr.trend {
+        let end = fc_x.map_or(last_x, |x| x.min(x1));
+        let a = t.level + t.slope_per_day * (0.0 - days(t.level_at));
+        let b = t.level + t.slope_per_day * (end - days(t.level_at));
+        let color = if t.significant { "#1565c0" } else { "#9e9e9e" };
+        f.polyline(&[(0.0, a), (end, b)], color, 2.0, !t.significant);
+    }
+    if let (Some(fc), Some(x)) = (&tr.forecast, fc_x)
+        && x <= x1
+    {
+        f.vline(x, "#c62828", &format!("alarm {}", day(fc.date)));
+    }
+    if let Some(d) = tr.crossed_on {
+        let x = days(d);
+        if x >= 0.0 && x <= x1 {
+            f.vline(x, "#c62828", &format!("crossed on {}", day(d)));
+        }
+    }
+    for (x, v, lo, hi, p) in &pts {
+        let status = param_status(p, tr.param);
+        let label = format!(
+            "{} {}: {} [{}, {}] {status}",
+            day(p.recorded_at),
+            p.trace_id,
+            fmt_num(*v),
+            fmt_num(*lo),
+            fmt_num(*hi),
+        );
+        f.point((*x, *v, *lo, *hi), status, &p.trace_id, &label);
+    }
+    let x_labels = vec![
+        (0.0, day(t0)),
+        (last_x, day(pts.last().map_or(t0, |p| p.4.recorded_at))),
+    ];
+    let title = format!("{serial} {joint} {param} over time");
+    let desc = describe(
+        joint,
+        tr,
+        &pts.iter()
+            .map(|p| (p.4.recorded_at, p.1))
+            .collect::<Vec<_>>(),
+    );
+    html! {
+        figure.chart data-param=(param) {
+            (f.finish(&title, &desc, &x_labels, param))
+            figcaption { (desc) }
+        }
+    }
+}
+
+/// The chart in words (its `<desc>` and caption).
+fn describe(joint: &str, tr: &ParamTrend, pts: &[(DateTime<Utc>, f64)]) -> String {
+    let mut d = format!(
+        "{} {} of {joint}: {} tests",
+        tr.param.as_str(),
+        if tr.param == Param::Viscous {
+            "damping"
+        } else {
+            "friction"
+        },
+        pts.len()
+    );
+    if let (Some(a), Some(b)) = (pts.first(), pts.last()) {
+        let _ = write!(
+            d,
+            " from {} ({}) to {} ({})",
+            day(a.0),
+            fmt_num(a.1),
+            day(b.0),
+            fmt_num(b.1)
+        );
+    }
+    if let Some(b) = tr.baseline {
+        let _ = write!(d, "; Table 4 baseline {}", fmt_num(b));
+    }
+    match &tr.trend {
+        Some(t) if t.significant => {
+            let _ = write!(
+                d,
+                "; trend {} per day (95 % interval {} to {})",
+                fmt_num(t.slope_per_day),
+                fmt_num(t.slope_ci95[0]),
+                fmt_num(t.slope_ci95[1])
+            );
+        }
+        _ => d.push_str("; no trend"),
+    }
+    if let Some(f) = &tr.forecast {
+        let r = |x: Option<DateTime<Utc>>| x.map_or("open".to_owned(), day);
+        let _ = write!(
+            d,
+            "; forecast to reach the alarm band ({}) on {} (95 % interval {} to {})",
+            fmt_num(f.threshold),
+            day(f.date),
+            r(f.date_ci95[0]),
+            r(f.date_ci95[1])
+        );
+    }
+    d.push('.');
+    d
+}
+
+pub async fn pantograph_page(
+    State(st): State<AppState>,
+    user: WebUser,
+    WebPath(raw): WebPath<String>,
+) -> PageResult {
+    signed_in_page(&user, &raw, pantograph(&st, &raw).await)
+}
+
+async fn pantograph(st: &AppState, raw: &str) -> Result<Markup, AppError> {
+    let serial = Serial::parse("serial", raw)?;
+    if !st.store.pantograph_exists(serial.as_str()).await? {
+        return Err(AppError::NotFound(format!("no pantograph `{serial}`")));
+    }
+    let points = st.store.serial_history(serial.as_str()).await?;
+    // Each joint's health as fleet health and the alerts see it (issue 15).
+    let states = st.store.joint_states(serial.as_str()).await?;
+    let mut by_joint: BTreeMap<String, Vec<JointPoint>> = BTreeMap::new();
+    for p in points {
+        by_joint.entry(p.fit.joint.clone()).or_default().push(p);
+    }
+    let watch = DriftThresholds::default().watch;
+    let live = st
+        .store
+        .list_alerts(&AlertFilter {
+            live: true,
+            ..AlertFilter::default()
+        })
+        .await?;
+    let mut joints = Vec::new();
+    for (joint, history) in &by_joint {
+        let last = history.last();
+        let (bv, bd) = match last {
+            Some(p) => match st.store.get_fit(&p.trace_id).await? {
+                Some(f) => health::baselines(&f.result, joint),
+                None => (None, None),
+            },
+            None => (None, None),
+        };
+        let state = states.iter().find(|s| &s.joint == joint);
+        let charts: Vec<Markup> = [(Param::Viscous, bv), (Param::Dry, bd)]
+            .into_iter()
+            .map(|(param, b)| {
+                let tr = health::param_trend(history, param, b, st.alerts.alarm);
+                param_chart(serial.as_str(), joint, history, &tr, watch)
+            })
+            .collect();
+        joints.push(html! {
+            section id={ "joint-" (joint) } {
+                h2 { (joint) " " (badge(state.map(|s| s.status).or(last.map(|p| p.fit.status)))) }
+                @match (state, last) {
+                    (Some(s), _) if s.informed => p {
+                        "Status from the " (s.kind) " test of " (day(s.recorded_at)) " ("
+                        a href={ "/traces/" (seg(&s.trace_id)) } { (s.trace_id) }
+                        "); tests that could not inform this joint change nothing."
+                    },
+                    (_, Some(p)) => p {
+                        "No test has informed this joint yet; latest test " (day(p.recorded_at)) " ("
+                        a href={ "/traces/" (seg(&p.trace_id)) } { (p.trace_id) } ")."
+                    },
+                    _ => {},
+                }
+                @for c in &charts { (c) }
+            }
+        });
+    }
+    Ok(html! {
+        h1 { "Pantograph " (serial.as_str()) }
+        @for a in live.iter().filter(|a| a.serial == serial.as_str()) {
+            p {
+                (sev_badge(a.severity)) " alert on " (a.joint) ": " (a.reason) " — "
+                a href="/alerts" { "alerts" }
+            }
+        }
+        p.note {
+            "Each point is one test that informed the parameter, with its 95 % interval, in the \
+             colour of its status; the green band is Table 4's watch band around the baseline \
+             (dashed green), red dashed lines the alarm band, the blue line the robust trend (grey \
+             dashed: no trend), the red marker the forecast date of reaching the alarm band."
+        }
+        @for j in &joints { (j) }
+        @if by_joint.is_empty() { p { "No fitted tests yet." } }
+    })
+}

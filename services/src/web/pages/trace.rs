@@ -1,0 +1,331 @@
+//! One trace: what was tested (the kind, the joint or assembly, the pantograph and vehicle), its
+//! current fit's parameters, the residual finding and — for a single-joint test — measured vs
+//! model. A fault while drawing is logged and told in a plain sentence, never as error text.
+
+use axum::extract::State;
+use maud::{Markup, html};
+use pantowatch_models::drift::DriftThresholds;
+
+use crate::api::AppState;
+use crate::api::error::AppError;
+use crate::ingest::stored_doc;
+use crate::store::TraceMeta;
+use crate::web::error::WebPath;
+use crate::web::layout::badge;
+use crate::web::session::WebUser;
+use crate::web::svg::{Frame, fmt_num, thin};
+use crate::web::{PageResult, seg, signed_in_page};
+
+pub async fn trace_page(
+    State(st): State<AppState>,
+    user: WebUser,
+    WebPath(id): WebPath<String>,
+) -> PageResult {
+    signed_in_page(&user, &id, trace(&st, &id).await)
+}
+
+/// What a test of this kind tested: a lift or a quadrangle swing tests an assembly, not one joint.
+fn subject(meta: &TraceMeta) -> String {
+    match (meta.joint.as_deref(), meta.kind.as_str()) {
+        (Some(j), _) => format!("joint {j}"),
+        (None, "lift") => "the whole pantograph".to_owned(),
+        (None, "quadrangle_swing") => "the lower quadrangle (J1, J2, J2′, J3)".to_owned(),
+        (None, _) => "the pantograph".to_owned(),
+    }
+}
+
+async fn trace(st: &AppState, id: &str) -> Result<Markup, AppError> {
+    let meta = st
+        .store
+        .get_trace(id)
+        .await?
+        .ok_or_else(|| AppError::NotFound(format!("no trace `{id}`")))?;
+    let fit = st.store.get_fit(id).await?;
+    let recorded = meta.recorded_at.format("%Y-%m-%d %H:%M UTC").to_string();
+    let tested = html! {
+        p #tested {
+            (meta.kind) " test of " (subject(&meta))
+            @if let Some(s) = &meta.serial {
+                " on pantograph " a href={ "/pantographs/" (seg(s)) } { (s) }
+                " (vehicle " (meta.vehicle_id) "), recorded " (recorded) "."
+            } @else {
+                " on vehicle " (meta.vehicle_id) " (no pantograph serial recorded), recorded "
+                (recorded) "."
+            }
+        }
+    };
+    let Some(fit) = fit else {
+        return Ok(html! {
+            h1 { "Trace " (meta.trace_id) }
+            (tested)
+            p { "Not fitted yet." }
+        });
+    };
+    let joints = fit
+        .result
+        .get("joints")
+        .and_then(|v| v.as_array())
+        .cloned()
+        .unwrap_or_default();
+    let charts = trace_charts(st, &meta).await;
+    Ok(html! {
+        h1 { "Trace " (meta.trace_id) }
+        (tested)
+        p { "Fit " (fit.id) " by " code { (fit.model_version) } ", status " (badge(fit.status)) "." }
+        table {
+            thead {
+                tr {
+                    th { "joint" } th { "parameter" } th { "value" } th { "95 % interval" }
+                    th { "baseline" } th { "status" }
+                }
+            }
+            tbody {
+                @for j in &joints {
+                    @for p in ["viscous", "dry"] {
+                        @let g = |k: &str| j.pointer(&format!("/{p}/{k}")).and_then(|v| v.as_f64());
+                        @let num = |k: &str| g(k).map_or("—".to_owned(), fmt_num);
+                        tr {
+                            td { (j.get("joint").and_then(|v| v.as_str()).unwrap_or("")) }
+                            td { (p) }
+                            td { (num("value")) }
+                            td { "[" (num("ci95/0")) ", " (num("ci95/1")) "]" }
+                            td { (num("baseline")) }
+                            td { (j.pointer(&format!("/{p}/status")).and_then(|v| v.as_str()).unwrap_or("")) }
+                        }
+                    }
+                }
+            }
+        }
+        (residual_finding(&fit.result))
+        (charts)
+    })
+}
+
+/// A residual effect in words: its name and each parameter as "v [lo, hi]".
+fn effect_text(e: &serde_json::Value) -> Option<String> {
+    let name = e.get("name")?.as_str()?;
+    let params = e.get("params").and_then(|p| p.as_object());
+    let shown: Vec<String> = params
+        .into_iter()
+        .flatten()
+        .filter(|(k, _)| !k.ends_with("_ci95"))
+        .map(|(k, v)| {
+            let ci = params
+                .and_then(|p| p.get(&format!("{k}_ci95")))
+                .and_then(|c| Some((c.get(0)?.as_f64()?, c.get(1)?.as_f64()?)))
+                .map_or(String::new(), |(lo, hi)| {
+                    format!(" [{}, {}]", fmt_num(lo), fmt_num(hi))
+                });
+            let v = v
+                .as_f64()
+                .map_or_else(|| v.as_str().unwrap_or("").to_owned(), fmt_num);
+            format!("{k} {v}{ci}")
+        })
+        .collect();
+    Some(if shown.is_empty() {
+        name.to_owned()
+    } else {
+        format!("{name} ({})", shown.join(", "))
+    })
+}
+
+/// The residual block in words.
+fn residual_finding(result: &serde_json::Value) -> Markup {
+    let Some(r) = result.get("residual") else {
+        return html! {};
+    };
+    let num = |k: &str| {
+        r.get(k)
+            .and_then(|v| v.as_f64())
+            .map_or("—".into(), fmt_num)
+    };
+    let effects: Vec<String> = r
+        .get("effects")
+        .and_then(|v| v.as_array())
+        .into_iter()
+        .flatten()
+        .filter_map(effect_text)
+        .collect();
+    let finding = if !effects.is_empty() {
+        format!("effects found: {}", effects.join(", "))
+    } else if let Some(v) = r.get("verdict").and_then(|v| v.as_str()) {
+        format!("verdict: {v}")
+    } else {
+        "no structure left that an effect would explain".to_owned()
+    };
+    let correlates: Vec<String> = r
+        .get("correlates_with")
+        .and_then(|v| v.as_array())
+        .into_iter()
+        .flatten()
+        .filter_map(|p| {
+            Some(format!(
+                "{} ({:+.2})",
+                p.get(0)?.as_str()?,
+                p.get(1)?.as_f64()?
+            ))
+        })
+        .collect();
+    let excess = r.get("excess_ratio").and_then(|v| v.as_f64());
+    // A lift whose residual shows a model error (issue 16): the joints above are withheld.
+    let withheld = r.get("joints_withheld").and_then(|v| v.as_str());
+    let holdout_note = r.get("holdout_note").and_then(|v| v.as_str());
+    // The residual's autocorrelation (lift fits): after, and before where an effect was named.
+    let acf = |k: &str| -> Vec<(f64, f64)> {
+        r.get(k)
+            .and_then(|v| v.as_array())
+            .into_iter()
+            .flatten()
+            .filter_map(|p| Some((p.get(0)?.as_f64()?, p.get(1)?.as_f64()?)))
+            .collect()
+    };
+    let (after, before) = (acf("autocorrelation"), acf("autocorrelation_before"));
+    html! {
+        h2 { "Residual finding" }
+        p #finding {
+            (finding) ". RMSE before " (num("rmse_before")) " / after " (num("rmse_after"))
+            "; held-out " (num("holdout_rmse_before")) " / " (num("holdout_rmse_after")) "."
+            @if let Some(x) = excess { " Residual RMS " (fmt_num(x)) " × the sensor noise." }
+            @if !correlates.is_empty() { " The residual follows " (correlates.join(", ")) "." }
+        }
+        @if let Some(w) = withheld {
+            p #withheld.alarm { b { "Joint statuses withheld:" } " " (w) "." }
+        }
+        @if let Some(w) = holdout_note { p #holdout-note { (w) "." } }
+        @if !after.is_empty() {
+            table #acf {
+                thead {
+                    tr {
+                        th { "lag (s)" } th { "autocorrelation" }
+                        @if !before.is_empty() { th { "before the effect" } }
+                    }
+                }
+                tbody {
+                    @for (i, (lag, a)) in after.iter().enumerate() {
+                        tr {
+                            td { (fmt_num(*lag)) }
+                            td { (format!("{a:+.3}")) }
+                            @if let Some((_, b)) = before.get(i) { td { (format!("{b:+.3}")) } }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Why there is no model curve, for people; the error itself goes to the log.
+fn no_curve(trace_id: &str, error: &str) -> Markup {
+    tracing::error!(trace_id, error, "trace page: model curve not drawn");
+    html! {
+        p #no-curve {
+            "The measured and model curves of this trace could not be drawn; the service's log \
+             says why. The fitted parameters above are unaffected."
+        }
+    }
+}
+
+/// Measured vs model and the residual. The model curve comes from re-running the fit on the
+/// stored samples off the runtime (5–30 ms; the same code and data give the stored fit).
+async fn trace_charts(st: &AppState, meta: &TraceMeta) -> Markup {
+    if !matches!(meta.kind.as_str(), "pendulum" | "slider") {
+        return html! {
+            p {
+                "The measured and model curves of a " (meta.kind) " test are drawn by "
+                code { "pantowatch fit TRACE --plot" } "; this page lists its parameters."
+            }
+        };
+    }
+    let channels = match st.store.get_samples(&meta.trace_id).await {
+        Ok(Some(c)) => c,
+        Ok(None) => return no_curve(&meta.trace_id, "the samples are missing"),
+        Err(e) => return no_curve(&meta.trace_id, &format!("samples unreadable: {e}")),
+    };
+    let doc = match stored_doc(meta, channels) {
+        Ok(d) => d,
+        Err(e) => return no_curve(&meta.trace_id, &e),
+    };
+    let run = tokio::task::spawn_blocking(move || {
+        let (test, _) = doc.joint_test().map_err(|e| e.to_string())?;
+        let (_, o) = crate::fitting::fit_with_outcome(&doc, &DriftThresholds::default())
+            .map_err(|e| e.to_string())?;
+        Ok::<_, String>((test, o))
+    })
+    .await;
+    let (test, o) = match run {
+        Ok(Ok(x)) => x,
+        Ok(Err(e)) => return no_curve(&meta.trace_id, &e),
+        Err(e) => return no_curve(&meta.trace_id, &e.to_string()),
+    };
+    let end = (o.start + o.n_fit)
+        .min(test.t_s.len())
+        .min(test.y.len())
+        .min(o.start + o.model_y.len());
+    if end <= o.start {
+        return no_curve(&meta.trace_id, "the fitted window is empty");
+    }
+    let t = &test.t_s[o.start..end];
+    let y = &test.y[o.start..end];
+    let m = &o.model_y[..end - o.start];
+    let idx = thin(t.len(), 1200);
+    let (lo, hi) = y
+        .iter()
+        .chain(m)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let (t0, t1) = (
+        t.first().copied().unwrap_or(0.0),
+        t.last().copied().unwrap_or(1.0),
+    );
+    let mut f = Frame::new((t0, t1), (lo, hi));
+    f.polyline(
+        &idx.iter().map(|&i| (t[i], y[i])).collect::<Vec<_>>(),
+        "#757575",
+        1.0,
+        false,
+    );
+    f.polyline(
+        &idx.iter().map(|&i| (t[i], m[i])).collect::<Vec<_>>(),
+        "#1565c0",
+        1.0,
+        false,
+    );
+    let xl = vec![(t0, format!("{t0:.2} s")), (t1, format!("{t1:.2} s"))];
+    let desc = format!(
+        "Measured {} (wide grey) and the fitted model (thin blue) over {} samples from {:.2} s to {:.2} s; RMSE {} {}.",
+        test.unit,
+        t.len(),
+        t0,
+        t1,
+        fmt_num(o.rmse),
+        test.unit
+    );
+    let top = f.finish("Measured vs model", &desc, &xl, test.unit);
+    let res: Vec<f64> = m.iter().zip(y).map(|(a, b)| a - b).collect();
+    let (rlo, rhi) = res
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let mut g = Frame::new((t0, t1), (rlo, rhi));
+    g.hline(0.0, "#999", true);
+    g.polyline(
+        &idx.iter().map(|&i| (t[i], res[i])).collect::<Vec<_>>(),
+        "#c62828",
+        1.0,
+        false,
+    );
+    let rdesc = format!(
+        "Residual (model − measured) from {} to {} {}.",
+        fmt_num(rlo),
+        fmt_num(rhi),
+        test.unit
+    );
+    let bottom = g.finish("Residual", &rdesc, &xl, test.unit);
+    html! {
+        h2 { "Measured vs model" }
+        figure { (top) figcaption { (desc) } }
+        figure { (bottom) figcaption { (rdesc) } }
+    }
+}
