@@ -1014,6 +1014,13 @@ impl Store {
         Ok((key, secret))
     }
 
+    /// API-key lookups this store (and its clones) has sent to the database since it was
+    /// opened: one per [`Store::verify_api_key`] of a key-shaped secret. The rate limiter's
+    /// test counts them (an over-quota request must cost none).
+    pub fn key_lookups(&self) -> u64 {
+        dispatch!(self, s => s.key_lookups())
+    }
+
     /// The unrevoked key matching `secret` (hash compared in constant time), if any.
     pub async fn verify_api_key(&self, secret: &str) -> Result<Option<ApiKey>> {
         let Some(prefix) = keys::prefix(secret) else {
