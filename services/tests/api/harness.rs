@@ -309,6 +309,13 @@ impl TestApp {
         self.store.counts().await.expect("counts")
     }
 
+    /// The rows an upload writes — vehicles, pantographs, traces, jobs — and not the fits,
+    /// which the workers write on their own time: the same before and after a refusal.
+    pub async fn stored(&self) -> [i64; 4] {
+        let c = self.counts().await;
+        [c.vehicles, c.pantographs, c.traces, c.jobs]
+    }
+
     /// Graceful stop: waits for the server and its workers.
     pub async fn stop(mut self) {
         if let Some(tx) = self.stop.take() {
