@@ -145,26 +145,44 @@ pub struct PantographType {
 
 /// The span a test rig's stated values and recorded channels can physically have (issue 18):
 /// each `[lo, hi]` inclusive, channel bounds on the absolute value. Outside it, a trace is
-/// refused at upload naming the field, before any fit could spend its budget on it.
+/// refused at upload naming the field, before any fit could spend its budget on it. The file
+/// states each value's reason; README "Input limits" lists them.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RigLimits {
     pub source: String,
     pub pin_radius_m: [f64; 2],
+    /// Any stated mass: a pendulum's body, an attachment, a quadrangle's point mass, kg.
     pub mass_kg: [f64; 2],
     pub inertia_kgm2: [f64; 2],
     pub com_distance_m: [f64; 2],
-    /// A point attachment's distance or a rod's length, m.
+    /// A point attachment's distance or a rod's length, m; a quadrangle point mass's distance
+    /// from its body's origin.
     pub attachment_m: [f64; 2],
     pub gravity_m_s2: [f64; 2],
     pub initial_rate_deg_s: [f64; 2],
     pub moving_mass_kg: [f64; 2],
+    /// Springs of a slider, a whole number; 0 is a slider without one.
     pub springs: [f64; 2],
     pub spring_stiffness_n_per_mm: [f64; 2],
     pub normal_force_n: [f64; 2],
+    /// |joint angle| of a pendulum's `alpha_deg`, a quadrangle's `alpha_deg` and `beta_deg`.
     pub alpha_deg_abs: f64,
     pub h_mm_abs: f64,
+    /// |force| of a slider's `F_N`.
     pub force_n_abs: f64,
+    /// The quadrangle stand's frame-plane incline from horizontal, deg.
+    pub incline_deg: [f64; 2],
+    /// A lift's `H_m`, the contact strip's height above the base frame, m.
+    pub lift_strip_height_m: [f64; 2],
+    /// A lift's `Fs_N` and `Fm_N`, loads on the strip positive down, N.
+    pub lift_strip_force_n: [f64; 2],
+    /// Each interval between consecutive `t_s` samples, s (every kind).
+    pub sample_interval_s: [f64; 2],
+    /// Every `t_s` sample, s on the test's own clock.
+    pub time_s: [f64; 2],
+    /// `t_s`'s last sample less its first, s.
+    pub record_duration_max_s: f64,
 }
 
 impl RigLimits {
@@ -181,6 +199,102 @@ impl RigLimits {
                 ),
             ))
         }
+    }
+
+    /// The first sample of a channel outside `span` (NaN included), as `channels.NAME[i]`.
+    pub fn check_channel_span(
+        name: &str,
+        values: &[f64],
+        span: [f64; 2],
+        unit: &str,
+    ) -> Result<(), (String, String)> {
+        match values
+            .iter()
+            .position(|v| !(*v >= span[0] && *v <= span[1]))
+        {
+            None => Ok(()),
+            Some(i) => Err((
+                format!("channels.{name}[{i}]"),
+                format!(
+                    "{} {unit} is outside [{}, {}] {unit}, the plausible range of this channel (models/data, `rig_limits`)",
+                    values[i], span[0], span[1]
+                ),
+            )),
+        }
+    }
+
+    /// A record's clock (`channels.t_s`, already strictly increasing): every sample within
+    /// `time_s`, every interval within `sample_interval_s` (named by the sample after it), and
+    /// the whole record no longer than `record_duration_max_s` (named `channels.t_s`).
+    pub fn check_sampling(&self, t_s: &[f64]) -> Result<(), (String, String)> {
+        Self::check_channel_span("t_s", t_s, self.time_s, "s")?;
+        let [lo, hi] = self.sample_interval_s;
+        if let Some(i) = t_s
+            .windows(2)
+            .position(|w| !(w[1] - w[0] >= lo && w[1] - w[0] <= hi))
+        {
+            return Err((
+                format!("channels.t_s[{}]", i + 1),
+                format!(
+                    "{} s after the sample before it: a sampling interval outside [{lo}, {hi}] s \
+                     (models/data, `rig_limits.sample_interval_s`)",
+                    t_s[i + 1] - t_s[i]
+                ),
+            ));
+        }
+        if let (Some(first), Some(last)) = (t_s.first(), t_s.last())
+            && last - first > self.record_duration_max_s
+        {
+            return Err((
+                "channels.t_s".into(),
+                format!(
+                    "the record lasts {} s, longer than {} s (models/data, \
+                     `rig_limits.record_duration_max_s`)",
+                    last - first,
+                    self.record_duration_max_s
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Every span names a range: finite, `lo <= hi`; every bound on a magnitude finite and > 0.
+    fn validate(&self) -> Result<(), DataError> {
+        let spans = [
+            ("pin_radius_m", self.pin_radius_m),
+            ("mass_kg", self.mass_kg),
+            ("inertia_kgm2", self.inertia_kgm2),
+            ("com_distance_m", self.com_distance_m),
+            ("attachment_m", self.attachment_m),
+            ("gravity_m_s2", self.gravity_m_s2),
+            ("initial_rate_deg_s", self.initial_rate_deg_s),
+            ("moving_mass_kg", self.moving_mass_kg),
+            ("springs", self.springs),
+            ("spring_stiffness_n_per_mm", self.spring_stiffness_n_per_mm),
+            ("normal_force_n", self.normal_force_n),
+            ("incline_deg", self.incline_deg),
+            ("lift_strip_height_m", self.lift_strip_height_m),
+            ("lift_strip_force_n", self.lift_strip_force_n),
+            ("sample_interval_s", self.sample_interval_s),
+            ("time_s", self.time_s),
+        ];
+        for (name, [lo, hi]) in spans {
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+                return Err(invalid(
+                    format!("rig_limits.{name}"),
+                    format!("[{lo}, {hi}] is not a range"),
+                ));
+            }
+        }
+        for (name, v) in [
+            ("alpha_deg_abs", self.alpha_deg_abs),
+            ("h_mm_abs", self.h_mm_abs),
+            ("force_n_abs", self.force_n_abs),
+            ("record_duration_max_s", self.record_duration_max_s),
+        ] {
+            positive(&format!("rig_limits.{name}"), v)?;
+        }
+        positive("rig_limits.sample_interval_s[0]", self.sample_interval_s[0])
     }
 
     /// The first sample of a channel whose magnitude exceeds `abs_max`, as `channels.NAME[i]`.
@@ -249,6 +363,9 @@ impl PantographType {
             ));
         }
         positive("gravity_m_s2", self.gravity_m_s2)?;
+        if let Some(l) = &self.rig_limits_data {
+            l.validate()?;
+        }
         for (name, b) in &self.bodies {
             positive(&format!("bodies.{name}.mass_kg"), b.mass_kg)?;
             if let Some(i) = b.inertia_axis_kgm2 {
@@ -419,6 +536,84 @@ mod tests {
                 "{name} cites Table 4"
             );
         }
+    }
+
+    /// Issue 18: a record's clock is held to `[rig_limits]` — a time far from the test's zero
+    /// (`t_s = [0, 1e300]`), an interval outside the sampling span, a record over the longest
+    /// duration are refused naming `channels.t_s[i]` or `channels.t_s`; the spans' ends pass.
+    #[test]
+    fn sampling_outside_the_rig_limits_is_refused_naming_t_s() {
+        let l = builtin_160ec().rig_limits();
+        let [dt_lo, dt_hi] = l.sample_interval_s;
+        let field = |t: &[f64]| l.check_sampling(t).map_err(|(f, _)| f);
+        assert_eq!(field(&[0.0, 1e300, 2e300]), Err("channels.t_s[1]".into()));
+        assert_eq!(
+            field(&[l.time_s[0] - 1.0, 0.0]),
+            Err("channels.t_s[0]".into())
+        );
+        assert_eq!(
+            field(&[0.0, 0.002, 0.002 + dt_hi * 2.0]),
+            Err("channels.t_s[2]".into())
+        );
+        assert_eq!(field(&[0.0, dt_lo / 2.0]), Err("channels.t_s[1]".into()));
+        let long: Vec<f64> = (0..=(l.record_duration_max_s / dt_hi) as usize + 1)
+            .map(|i| i as f64 * dt_hi)
+            .collect();
+        assert_eq!(field(&long), Err("channels.t_s".into()));
+        assert_eq!(
+            field(&long[..long.len() - 1]),
+            Ok(()),
+            "exactly the longest record"
+        );
+        assert_eq!(field(&[-dt_hi, 0.0, dt_lo]), Ok(()));
+        assert_eq!(field(&[l.time_s[1] - 1.0, l.time_s[1]]), Ok(()));
+    }
+
+    /// README "Input limits" is these values: a row per `[rig_limits]` key with its span.
+    #[test]
+    fn readme_lists_every_rig_limit() {
+        let readme = include_str!("../../README.md");
+        let l = builtin_160ec().rig_limits();
+        let spans = [
+            ("pin_radius_m", l.pin_radius_m),
+            ("mass_kg", l.mass_kg),
+            ("inertia_kgm2", l.inertia_kgm2),
+            ("com_distance_m", l.com_distance_m),
+            ("attachment_m", l.attachment_m),
+            ("gravity_m_s2", l.gravity_m_s2),
+            ("initial_rate_deg_s", l.initial_rate_deg_s),
+            ("moving_mass_kg", l.moving_mass_kg),
+            ("springs", l.springs),
+            ("spring_stiffness_n_per_mm", l.spring_stiffness_n_per_mm),
+            ("normal_force_n", l.normal_force_n),
+            ("incline_deg", l.incline_deg),
+            ("lift_strip_height_m", l.lift_strip_height_m),
+            ("lift_strip_force_n", l.lift_strip_force_n),
+            ("sample_interval_s", l.sample_interval_s),
+            ("time_s", l.time_s),
+        ];
+        let mut rows: Vec<String> = spans
+            .iter()
+            .map(|(k, [lo, hi])| format!("| `{k}` | [{lo}, {hi}] |"))
+            .collect();
+        for (k, v) in [
+            ("alpha_deg_abs", l.alpha_deg_abs),
+            ("h_mm_abs", l.h_mm_abs),
+            ("force_n_abs", l.force_n_abs),
+            ("record_duration_max_s", l.record_duration_max_s),
+        ] {
+            rows.push(format!("| `{k}` | {v} |"));
+        }
+        if let Some([lo, hi]) = crate::lift::geometry::builtin_160ec().drive_torque_range_nm {
+            rows.push(format!(
+                "| `[drive] torque_range_Nm` (geometry file) | [{lo}, {hi}] |"
+            ));
+        }
+        let missing: Vec<&String> = rows.iter().filter(|r| !readme.contains(*r)).collect();
+        assert!(
+            missing.is_empty(),
+            "README \"Input limits\" lacks {missing:#?}"
+        );
     }
 
     #[test]

@@ -411,4 +411,52 @@ mod tests {
             .joint_test(data, t, vec![l.alpha_deg_abs, 0.0, -l.alpha_deg_abs])
             .expect("±alpha_deg_abs is inside");
     }
+
+    /// Issue 18: one rule for a slider's spring count, `[rig_limits] springs` — a custom
+    /// slider's "0 for none" is accepted (the range check refused it), the span's ends are
+    /// accepted, one past them refused naming `test.rig.springs`.
+    #[test]
+    fn the_spring_count_has_one_rule_and_zero_means_none() {
+        let data = Some(builtin_160ec());
+        let [lo, hi] = builtin_160ec().rig_limits().springs;
+        assert_eq!(lo, 0.0, "0 springs is the documented `none`");
+        let custom = |springs: u32| SliderSpec {
+            custom: true,
+            moving_mass_kg: Some(2.0),
+            springs: Some(springs),
+            spring_stiffness_n_per_mm: None,
+            normal_force_n: Some(10.0),
+        };
+        let (rig, baseline) = custom(0)
+            .rig(data)
+            .expect("a custom slider without springs");
+        assert_eq!(rig.stiffness_n_per_m, 0.0);
+        assert_eq!(baseline.joint, "custom");
+        let top = hi as u32;
+        let e = custom(top)
+            .rig(data)
+            .expect_err("springs need their stiffness");
+        assert_eq!(e.field, "test.rig.spring_stiffness_n_per_mm");
+        SliderSpec {
+            spring_stiffness_n_per_mm: Some(4.0),
+            ..custom(top)
+        }
+        .rig(data)
+        .expect("the span's upper end");
+        for springs in [top + 1, u32::MAX] {
+            let e = SliderSpec {
+                springs: Some(springs),
+                ..Default::default()
+            }
+            .rig(data)
+            .unwrap_err();
+            assert_eq!(e.field, "test.rig.springs", "{springs}");
+        }
+        SliderSpec {
+            springs: Some(0),
+            ..Default::default()
+        }
+        .rig(data)
+        .expect("the head's slider without springs");
+    }
 }

@@ -336,6 +336,13 @@ impl TraceDoc {
                 ),
             ));
         }
+        // The clock within the type's plausible sampling (issue 18: `t_s = [0, 1e300]` was
+        // accepted): times, intervals and the record's length, `[rig_limits]` in models/data.
+        data::builtin(&pantograph_model)
+            .unwrap_or_else(data::builtin_160ec)
+            .rig_limits()
+            .check_sampling(&t)
+            .map_err(|(field, message)| bad(field, message))?;
         let (needed, optional) = kind.channels();
         for name in needed {
             if !chans.contains_key(*name) {
@@ -448,25 +455,19 @@ impl TraceDoc {
         let get = |name: &str| self.channel(name).unwrap_or_default();
         lift_gaps(get("t_s"))?;
         self.lift_protocol(get("t_s"))?;
-        if let Some([lo, hi]) =
-            pantowatch_models::lift::geometry::builtin_160ec().drive_torque_range_nm
-            && let Some(i) = get("T_Nm").iter().position(|t| !(lo..=hi).contains(t))
-        {
-            return Err(bad(
-                format!("channels.T_Nm[{i}]"),
-                format!(
-                    "{} N·m is outside the drive's range [{lo}, {hi}] N·m (models/data/160ec-geometry.toml, `[drive] torque_range_Nm`)",
-                    get("T_Nm")[i]
-                ),
-            ));
-        }
-        Ok(LiftChannels {
+        let channels = LiftChannels {
             t_s: get("t_s"),
             strip_height_m: get("H_m"),
             torque_nm: get("T_Nm"),
             fs_n: get("Fs_N"),
             fm_n: get("Fm_N"),
-        })
+        };
+        // T within the drive's range, H within the working heights, Fs and Fm within the
+        // strip loads the drive can hold (models' data files).
+        channels
+            .check_limits()
+            .map_err(|(field, message)| bad(field, message))?;
+        Ok(channels)
     }
 
     /// The drive protocol a lift states it ran (`test.protocol`, optional: as `pantowatch
@@ -589,14 +590,15 @@ impl TraceDoc {
         }
         q.model().map_err(|e| bad(e.field, e.message))?;
         let get = |name: &str| self.channel(name).unwrap_or_default();
-        Ok((
-            QuadChannels {
-                t_s: get("t_s"),
-                alpha_deg: get("alpha_deg"),
-                beta_deg: get("beta_deg"),
-            },
-            q,
-        ))
+        let channels = QuadChannels {
+            t_s: get("t_s"),
+            alpha_deg: get("alpha_deg"),
+            beta_deg: get("beta_deg"),
+        };
+        channels
+            .check_limits()
+            .map_err(|e| bad(e.field, e.message))?;
+        Ok((channels, q))
     }
 
     /// The pantograph type's data when compiled in (`160EC`); `None` for other models.
@@ -771,11 +773,20 @@ impl TraceDoc {
                     ],
                     "test.rig",
                 )?;
+                // A whole number here; its span (`[rig_limits] springs`, 0 = none) is the
+                // models' one rule, checked with the rest of the rig.
                 let springs = match rig.get("springs") {
                     None | Some(Value::Null) => None,
-                    Some(v) => Some(v.as_u64().filter(|n| *n <= 64).ok_or_else(|| {
-                        bad("test.rig.springs", "must be a whole number from 0 to 64")
-                    })? as u32),
+                    Some(v) => Some(
+                        v.as_u64()
+                            .map(|n| u32::try_from(n).unwrap_or(u32::MAX))
+                            .ok_or_else(|| {
+                                bad(
+                                    "test.rig.springs",
+                                    "must be a whole number of springs (0 for none)",
+                                )
+                            })?,
+                    ),
                 };
                 let spec = SliderSpec {
                     custom: self.joint.as_deref() == Some("custom"),
@@ -880,6 +891,30 @@ mod tests {
         let mut d = custom.clone();
         d["test"]["joint"] = json!("J3");
         assert_eq!(field_of(d), "test.joint");
+    }
+
+    /// Issue 18: one rule for a slider's springs (`[rig_limits] springs` in models/data): a
+    /// custom slider's "0 for none" is accepted — the range check refused it while the parser
+    /// said "0 to 64" — and a count outside the span or not whole is refused naming the field.
+    #[test]
+    fn a_custom_slider_without_springs_is_accepted() {
+        let mut d = doc();
+        d["test"] = json!({"kind": "slider", "joint": "custom",
+            "rig": {"moving_mass_kg": 2.0, "springs": 0, "normal_force_n": 10.0}});
+        d["channels"] = json!({"t_s": [0.0, 0.002, 0.004], "h_mm": [1.0, 0.9, 0.8]});
+        TraceDoc::from_value(&d).expect("a custom slider with no spring");
+        for bad in [
+            json!(17),
+            json!(64),
+            json!(4_294_967_296_u64),
+            json!(1.5),
+            json!(-1),
+        ] {
+            let mut d = d.clone();
+            d["test"]["rig"]["springs"] = bad.clone();
+            d["test"]["rig"]["spring_stiffness_n_per_mm"] = json!(4.0);
+            assert_eq!(field_of(d), "test.rig.springs", "{bad}");
+        }
     }
 
     #[test]

@@ -136,8 +136,12 @@ pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
             Some(("test", k)) => test.insert(k.to_owned(), value),
             _ => root.insert(key.to_owned(), value),
         };
+        // A key given twice is the same rule as a key repeated in a JSON object: 422 naming it.
         if slot.is_some() {
-            return Err(malformed(key, "given twice"));
+            return Err(CsvError::Invalid(TraceError {
+                field: key.to_owned(),
+                message: format!("`{key}` is given twice in the metadata"),
+            }));
         }
     }
     if header_line_no == 0 {
@@ -203,10 +207,10 @@ pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
     let mut seen = std::collections::HashSet::new();
     for f in &names {
         if !seen.insert(f.as_str()) {
-            return Err(malformed(
-                format!("channels.{f}"),
-                "channel named twice in the header row",
-            ));
+            return Err(CsvError::Invalid(TraceError {
+                field: format!("channels.{f}"),
+                message: "channel named twice in the header row".into(),
+            }));
         }
     }
     let sep_name = if sep == b';' { "`;`" } else { "`,`" };
@@ -368,6 +372,37 @@ mod tests {
             "csv.line[11]"
         );
         assert_eq!(field("# format: pantograph-trace/1\n"), "channels");
+    }
+
+    /// Issue 18: a metadata key given twice or a channel named twice breaks the same rule as a
+    /// key repeated in a JSON object — `Invalid` (422) naming it, not `Malformed` (400).
+    #[test]
+    fn a_repeated_key_or_channel_is_invalid_naming_it() {
+        for (csv, field) in [
+            (
+                CSV.replace(
+                    "# test.joint: J1",
+                    "# test.joint: J1\n# vehicle_id: EN57-9999",
+                ),
+                "vehicle_id",
+            ),
+            (
+                CSV.replace("# test.rig: {}", "# test.rig: {}\n# pantograph.serial: S-2"),
+                "pantograph.serial",
+            ),
+            (
+                CSV.replace("t_s,alpha_deg", "t_s,alpha_deg,alpha_deg")
+                    .replace("0,74.2", "0,74.2,1")
+                    .replace("0.002,74.19", "0.002,74.19,1")
+                    .replace("0.004, 74.17", "0.004, 74.17,1"),
+                "channels.alpha_deg",
+            ),
+        ] {
+            match parse(csv.as_bytes()) {
+                Err(CsvError::Invalid(e)) => assert_eq!(e.field, field, "{}", e.message),
+                other => panic!("{field}: {other:?}"),
+            }
+        }
     }
 
     /// Issue 18: what European tools write — `;` separators and decimal commas — reads as the

@@ -1,7 +1,7 @@
-//! The bad-input corpus (`tests/corpus/`, 73 malformed or hostile uploads, written by
-//! `tests/corpus/generate.py`): every one is refused with an error naming the field its manifest
-//! says, by the same parser the upload route uses — never accepted, never a panic. Plus a
-//! 10⁷-sample channel, made here rather than stored.
+//! The bad-input corpus (`tests/corpus/`: malformed, hostile or physically absurd uploads,
+//! written by `tests/corpus/generate.py`): every one is refused with an error naming the field
+//! its manifest says, by the same parser the upload route uses — never accepted, never a panic.
+//! Plus a 10⁷-sample channel, made here rather than stored.
 
 use std::path::PathBuf;
 

@@ -18,6 +18,18 @@ LIFT = copy.deepcopy(BASE)
 LIFT["test"] = {"kind": "lift", "rig": {}}
 LIFT["channels"] = {"t_s": [0.0, 0.002], "H_m": [1.04, 1.04], "Fs_N": [18.0, 18.0]}
 
+FULL_LIFT = copy.deepcopy(BASE)
+FULL_LIFT["test"] = {"kind": "lift", "rig": {}}
+FULL_LIFT["channels"] = {"t_s": [0.0, 0.002, 0.004], "H_m": [1.04, 1.04, 1.04], "T_Nm": [1110.0, 1110.0, 1110.0],
+                         "Fs_N": [18.0, 18.0, 18.0], "Fm_N": [78.5, 78.5, 78.5]}
+QUAD = copy.deepcopy(BASE)
+QUAD["test"] = {"kind": "quadrangle_swing", "rig": {}}
+QUAD["channels"] = {"t_s": [0.0, 0.002, 0.004, 0.006], "alpha_deg": [-10.1, -10.1, -10.0, -9.9],
+                    "beta_deg": [-3.6, -3.6, -3.6, -3.59]}
+
+def point(mass_kg, x):
+    return {"kind": "point", "mass_kg": mass_kg, "body": "upper_arm", "position_m": [x, 0.0]}
+
 cases = []  # (name, content_type, bytes, expected field)
 
 def doc(name, field, f, base=BASE):
@@ -132,6 +144,27 @@ doc("release-after-end", "test.release_t_s", lambda d: d["test"].update(release_
 doc("release-negative", "test.release_t_s", lambda d: d["test"].update(release_t_s=-1.0))
 doc("release-string", "test.release_t_s", lambda d: d["test"].update(release_t_s="0.2 s"))
 doc("release-on-slider", "test.release_t_s", lambda d: d["test"].update(release_t_s=0.0), base=SLIDER)
+# Issue 18 (D): the rest of the physically absurd values, each outside a span of `[rig_limits]`
+# in models/data/160ec.toml (README "Input limits"); the old code accepted every one.
+doc("quad-point-mass-1e308", "test.rig.attachments[0].mass_kg",
+    lambda d: d["test"]["rig"].update(attachments=[point(1e308, 0.5)]), QUAD)
+doc("quad-point-mass-8m-off", "test.rig.attachments[0].position_m",
+    lambda d: d["test"]["rig"].update(attachments=[point(5.0, 8.0)]), QUAD)
+doc("quad-gravity-moon", "test.rig.gravity_m_s2", lambda d: d["test"]["rig"].update(gravity_m_s2=1.62), QUAD)
+doc("quad-alpha-1e308", "channels.alpha_deg[2]", lambda d: d["channels"]["alpha_deg"].__setitem__(2, 1e308), QUAD)
+doc("quad-beta-1e308", "channels.beta_deg[1]", lambda d: d["channels"]["beta_deg"].__setitem__(1, 1e308), QUAD)
+doc("lift-height-1e308", "channels.H_m[1]", lambda d: d["channels"]["H_m"].__setitem__(1, 1e308), FULL_LIFT)
+doc("lift-height-underground", "channels.H_m[0]", lambda d: d["channels"]["H_m"].__setitem__(0, -1.0), FULL_LIFT)
+doc("lift-spring-force-1e308", "channels.Fs_N[2]", lambda d: d["channels"]["Fs_N"].__setitem__(2, 1e308), FULL_LIFT)
+doc("lift-weight-force-5kN-up", "channels.Fm_N[1]", lambda d: d["channels"]["Fm_N"].__setitem__(1, -5000.0), FULL_LIFT)
+doc("t-1e300", "channels.t_s[1]", lambda d: d["channels"].update(t_s=[0.0, 1e300, 2e300, 3e300]))
+doc("t-far-from-zero", "channels.t_s[0]", lambda d: d["channels"].update(t_s=[1e12, 1e12 + 0.002, 1e12 + 0.004, 1e12 + 0.006]))
+doc("t-interval-10s", "channels.t_s[3]", lambda d: d["channels"].update(t_s=[0.0, 0.002, 0.004, 10.004]))
+doc("t-interval-1ns", "channels.t_s[1]", lambda d: d["channels"].update(t_s=[0.0, 1e-9, 0.004, 0.006]))
+doc("t-record-over-an-hour", "channels.t_s",
+    lambda d: d["channels"].update(t_s=[float(i) for i in range(3602)], alpha_deg=[10.0] * 3602))
+doc("lift-t-1e300", "channels.t_s[2]", lambda d: d["channels"].update(t_s=[0.0, 0.002, 1e300]), FULL_LIFT)
+doc("quad-t-interval-10s", "channels.t_s[2]", lambda d: d["channels"].update(t_s=[0.0, 0.002, 10.0, 10.002]), QUAD)
 
 manifest = []
 for i, (name, ct, body, field) in enumerate(cases, 1):

@@ -51,6 +51,33 @@ pub struct LiftChannels<'a> {
     pub fm_n: &'a [f64],
 }
 
+impl LiftChannels<'_> {
+    /// Every channel within what this stand can record (issue 18), the first sample outside
+    /// named (`channels.H_m[3]`): `T_Nm` within the drive's range
+    /// (`models/data/160ec-geometry.toml`, `[drive] torque_range_Nm`, when the geometry states
+    /// one); `H_m` within the type's working heights and `Fs_N`, `Fm_N` within the strip loads
+    /// the drive can hold (`models/data/160ec.toml`, `[rig_limits] lift_strip_height_m`,
+    /// `lift_strip_force_n`). `Err((field, message))`.
+    pub fn check_limits(&self) -> Result<(), (String, String)> {
+        if let Some([lo, hi]) = super::geometry::builtin_160ec().drive_torque_range_nm
+            && let Some(i) = self.torque_nm.iter().position(|t| !(lo..=hi).contains(t))
+        {
+            return Err((
+                format!("channels.T_Nm[{i}]"),
+                format!(
+                    "{} N·m is outside the drive's range [{lo}, {hi}] N·m (models/data/160ec-geometry.toml, `[drive] torque_range_Nm`)",
+                    self.torque_nm[i]
+                ),
+            ));
+        }
+        let l = crate::data::builtin_160ec().rig_limits();
+        use crate::data::RigLimits;
+        RigLimits::check_channel_span("H_m", self.strip_height_m, l.lift_strip_height_m, "m")?;
+        RigLimits::check_channel_span("Fs_N", self.fs_n, l.lift_strip_force_n, "N")?;
+        RigLimits::check_channel_span("Fm_N", self.fm_n, l.lift_strip_force_n, "N")
+    }
+}
+
 /// A lift fit: the contract result, the MAP fit, and the fitted H (for plots).
 #[derive(Debug, Clone)]
 pub struct LiftReport {
@@ -797,5 +824,58 @@ mod tests {
         assert_eq!(rep.fitted_height_m.len(), rec.t_s.len());
         let json = serde_json::to_value(r).unwrap();
         assert_eq!(json["joints"][8]["viscous"]["unit"], "N·s/m");
+    }
+
+    /// Issue 18: a lift's H, Fs and Fm are held to the type's working heights and the strip
+    /// loads its drive can hold — 1e308 m, 1e308 N or −5 kN are refused naming the sample; the
+    /// simulated reference lift, every channel, lies inside.
+    #[test]
+    fn absurd_lift_channels_are_refused_naming_the_sample() {
+        let g = builtin_160ec();
+        let rec = record(
+            &LiftModel::new(g),
+            &LiftProtocol::reference(g),
+            &crate::lift::simulate::SimOptions::default(),
+        )
+        .unwrap();
+        let ch = LiftChannels {
+            t_s: &rec.t_s,
+            strip_height_m: &rec.strip_height_m,
+            torque_nm: &rec.torque_nm,
+            fs_n: &rec.fs_n,
+            fm_n: &rec.fm_n,
+        };
+        ch.check_limits().expect("the reference lift is plausible");
+        let n = rec.t_s.len();
+        let spoil = |v: &[f64], x: f64| {
+            let mut v = v.to_vec();
+            v[n / 2] = x;
+            v
+        };
+        let h = spoil(&rec.strip_height_m, 1e308);
+        let fs = spoil(&rec.fs_n, 1e308);
+        let fm = spoil(&rec.fm_n, -5000.0);
+        let t = spoil(&rec.torque_nm, -1.0);
+        for (c, field) in [
+            (
+                LiftChannels {
+                    strip_height_m: &h,
+                    ..ch
+                },
+                "H_m",
+            ),
+            (LiftChannels { fs_n: &fs, ..ch }, "Fs_N"),
+            (LiftChannels { fm_n: &fm, ..ch }, "Fm_N"),
+            (
+                LiftChannels {
+                    torque_nm: &t,
+                    ..ch
+                },
+                "T_Nm",
+            ),
+        ] {
+            let (f, why) = c.check_limits().unwrap_err();
+            assert_eq!(f, format!("channels.{field}[{}]", n / 2), "{why}");
+        }
     }
 }

@@ -304,12 +304,12 @@ impl Quadrangle {
                 message: format!("must be a finite number > 0, got {}", pm.mass_kg),
             });
         }
-        if !(pm.position_m.x.is_finite() && pm.position_m.y.is_finite())
-            || pm.position_m.norm() > 10.0
-        {
+        // How far from the body is plausible is the stand's question (`QuadRig::model`, from
+        // the type's `[rig_limits]`); the model needs only finite coordinates.
+        if !(pm.position_m.x.is_finite() && pm.position_m.y.is_finite()) {
             return Err(RigError {
                 field: format!("{field}.position_m"),
-                message: "must be two finite numbers within 10 m of the body's origin".into(),
+                message: "must be two finite numbers".into(),
             });
         }
         let i = pm.body.index();

@@ -14,6 +14,7 @@
 use super::identify::{QuadEstimate, QuadFit, QuadFitError, QuadFitOptions, SwingTrace, fit_swing};
 use super::model::{PointMass, QJoint, Quadrangle, RigError};
 use super::simulate::{SwingError, SwingOptions, simulate_swing};
+use crate::data::RigLimits;
 use crate::drift::DriftThresholds;
 use crate::lift::geometry::builtin_160ec;
 use crate::noise::Noise;
@@ -47,25 +48,45 @@ impl Default for QuadRig {
     }
 }
 
+/// The plausible spans of a stand and its channels: the 160EC type's `[rig_limits]`
+/// (`models/data/160ec.toml`; the quadrangle is of that type only).
+fn limits() -> &'static RigLimits {
+    crate::data::builtin_160ec().rig_limits()
+}
+
+fn out_of_range((field, message): (String, String)) -> RigError {
+    RigError { field, message }
+}
+
 impl QuadRig {
-    /// The 160EC quadrangle on this stand, Table 4 friction. Errors name the rig field.
+    /// The 160EC quadrangle on this stand, Table 4 friction. Errors name the rig field. Every
+    /// stated value lies in the type's plausible span (`[rig_limits]`: `incline_deg`,
+    /// `gravity_m_s2`, and per attachment `mass_kg` and its distance `attachment_m`), checked
+    /// before the model is built (issue 18: a 1e308 kg point mass was accepted).
     pub fn model(&self) -> Result<Quadrangle, RigError> {
-        let bad = |field: &str, message: String| RigError {
-            field: format!("test.rig.{field}"),
-            message,
+        let l = limits();
+        let c = |field: &str, v: f64, span| {
+            RigLimits::check(&format!("test.rig.{field}"), v, span).map_err(out_of_range)
         };
-        if !(self.incline_deg.is_finite() && (0.0..=90.0).contains(&self.incline_deg)) {
-            return Err(bad(
-                "incline_deg",
-                format!("must be in [0, 90] degrees, got {}", self.incline_deg),
-            ));
-        }
-        if !(self.gravity_m_s2.is_finite() && self.gravity_m_s2 > 0.0 && self.gravity_m_s2 < 100.0)
-        {
-            return Err(bad(
-                "gravity_m_s2",
-                format!("must be in (0, 100) m/s², got {}", self.gravity_m_s2),
-            ));
+        c("incline_deg", self.incline_deg, l.incline_deg)?;
+        c("gravity_m_s2", self.gravity_m_s2, l.gravity_m_s2)?;
+        for (i, a) in self.attachments.iter().enumerate() {
+            c(&format!("attachments[{i}].mass_kg"), a.mass_kg, l.mass_kg)?;
+            let d = a.position_m.norm();
+            let within = a.position_m.x.is_finite()
+                && a.position_m.y.is_finite()
+                && d >= l.attachment_m[0]
+                && d <= l.attachment_m[1];
+            if !within {
+                return Err(RigError {
+                    field: format!("test.rig.attachments[{i}].position_m"),
+                    message: format!(
+                        "must be two finite numbers within [{}, {}] m of the body's origin \
+                         (models/data, `rig_limits.attachment_m`), got [{}, {}]",
+                        l.attachment_m[0], l.attachment_m[1], a.position_m.x, a.position_m.y
+                    ),
+                });
+            }
         }
         let mut m = Quadrangle::new(builtin_160ec(), self.incline_deg.to_radians());
         m.set_gravity(self.gravity_m_s2, self.incline_deg.to_radians());
@@ -73,6 +94,16 @@ impl QuadRig {
             m.add_point_mass(a, &format!("test.rig.attachments[{i}]"))?;
         }
         Ok(m)
+    }
+}
+
+impl QuadChannels<'_> {
+    /// Both angle channels within the type's plausible joint angle (`[rig_limits]`
+    /// `alpha_deg_abs`); a refusal names the sample (`channels.beta_deg[7]`).
+    pub fn check_limits(&self) -> Result<(), RigError> {
+        let abs = limits().alpha_deg_abs;
+        RigLimits::check_channel("alpha_deg", self.alpha_deg, abs).map_err(out_of_range)?;
+        RigLimits::check_channel("beta_deg", self.beta_deg, abs).map_err(out_of_range)
     }
 }
 
@@ -345,5 +376,73 @@ mod tests {
             ..QuadRig::default()
         };
         assert_eq!(rig.model().unwrap_err().field, "test.rig.gravity_m_s2");
+    }
+
+    /// Issue 18: the stand and its channels are held to the type's `[rig_limits]` — a point
+    /// mass of 1e308 kg, the Moon's gravity, a mass 6 m off its body, an angle of 1e308° are
+    /// refused naming the field; the paper's stand and the spans' own ends are accepted.
+    #[test]
+    fn absurd_stands_and_channels_are_refused_by_the_rig_limits() {
+        let l = crate::data::builtin_160ec().rig_limits();
+        let point = |mass_kg: f64, x: f64| PointMass {
+            body: super::super::model::QBody::named("upper_arm").unwrap(),
+            mass_kg,
+            position_m: crate::lift::vec2::V2::new(x, 0.0),
+        };
+        let with = |attachments: Vec<PointMass>| QuadRig {
+            attachments,
+            ..QuadRig::default()
+        };
+        for (rig, field) in [
+            (
+                with(vec![point(1e308, 0.5)]),
+                "test.rig.attachments[0].mass_kg",
+            ),
+            (
+                with(vec![point(5.0, 0.5), point(5.0, l.attachment_m[1] + 1.0)]),
+                "test.rig.attachments[1].position_m",
+            ),
+            (
+                QuadRig {
+                    gravity_m_s2: 1.62,
+                    ..QuadRig::default()
+                },
+                "test.rig.gravity_m_s2",
+            ),
+            (
+                QuadRig {
+                    incline_deg: l.incline_deg[0] - 1.0,
+                    ..QuadRig::default()
+                },
+                "test.rig.incline_deg",
+            ),
+        ] {
+            assert_eq!(rig.model().unwrap_err().field, field, "{rig:?}");
+        }
+        QuadRig::default().model().expect("the paper's stand");
+        QuadRig {
+            gravity_m_s2: l.gravity_m_s2[1],
+            incline_deg: l.incline_deg[1],
+            attachments: vec![point(l.mass_kg[1], l.attachment_m[1])],
+        }
+        .model()
+        .expect("the spans' upper ends");
+        let t = [0.0, 0.002, 0.004];
+        let ok = [-10.0, -10.0, -9.9];
+        let bad = [-3.6, 1e308, -3.6];
+        let ch = |alpha_deg, beta_deg| QuadChannels {
+            t_s: &t,
+            alpha_deg,
+            beta_deg,
+        };
+        assert_eq!(
+            ch(&ok, &bad).check_limits().unwrap_err().field,
+            "channels.beta_deg[1]"
+        );
+        assert_eq!(
+            ch(&bad, &ok).check_limits().unwrap_err().field,
+            "channels.alpha_deg[1]"
+        );
+        ch(&ok, &ok).check_limits().expect("plausible angles");
     }
 }

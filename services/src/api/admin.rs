@@ -116,7 +116,7 @@ pub async fn revoke_key(
 ) -> Result<StatusCode, AppError> {
     let id: i64 = raw
         .parse()
-        .map_err(|_| AppError::bad_field("id", "a key id is a whole number"))?;
+        .map_err(|_| AppError::bad_parameter("id", "a key id is a whole number"))?;
     if st.store.revoke_api_key(id).await? {
         tracing::info!(key_id = id, "API key revoked");
         Ok(StatusCode::NO_CONTENT)

@@ -85,7 +85,7 @@ fn check_note(note: &str) -> Result<(), AppError> {
 pub fn parse_id(raw: &str) -> Result<i64, AppError> {
     raw.trim()
         .parse::<i64>()
-        .map_err(|_| AppError::bad_field("id", "an alert id is a whole number"))
+        .map_err(|_| AppError::bad_parameter("id", "an alert id is a whole number"))
 }
 
 fn done(t: Transition, id: i64, what: &str) -> Result<Alert, AppError> {
@@ -134,7 +134,10 @@ pub fn filter(q: &AlertQuery) -> Result<AlertFilter, AppError> {
         Some("live") => f.live = true,
         Some(s) => {
             f.state = Some(s.parse::<AlertState>().map_err(|_| {
-                AppError::bad_field("state", "must be one of open, acknowledged, resolved, live")
+                AppError::bad_parameter(
+                    "state",
+                    "must be one of open, acknowledged, resolved, live",
+                )
             })?)
         }
     }
@@ -146,11 +149,15 @@ pub fn filter(q: &AlertQuery) -> Result<AlertFilter, AppError> {
     {
         f.severity = Some(
             s.parse::<Severity>()
-                .map_err(|_| AppError::bad_field("severity", "must be watch or alarm"))?,
+                .map_err(|_| AppError::bad_parameter("severity", "must be watch or alarm"))?,
         );
     }
     if let Some(v) = q.vehicle.as_deref().filter(|s| !s.is_empty()) {
-        f.vehicle_id = Some(VehicleId::parse("vehicle", v)?.to_string());
+        f.vehicle_id = Some(
+            VehicleId::parse("vehicle", v)
+                .map_err(AppError::parameter_id)?
+                .to_string(),
+        );
     }
     Ok(f)
 }

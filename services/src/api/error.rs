@@ -30,14 +30,15 @@ pub struct Problem {
     pub status: u16,
     /// What went wrong with this request.
     pub detail: String,
-    /// The offending field (`channels.t_s[17]`, `test.joint`, `Authorization`, …). Every 4xx
-    /// names one, or a `parameter` instead.
+    /// The offending field of the request's body or headers (`channels.t_s[17]`, `test.joint`,
+    /// `Authorization`, `Content-Type`, …). Every 4xx names one, or a `parameter` instead.
     pub field: Option<String>,
-    /// The offending path or query parameter (`path` for a resource the path names that does
-    /// not exist, `limit`, …), on answers about the request's address rather than its body.
+    /// The offending path segment or query key (`trace_id`, `vehicle_id`, `id`, `limit`,
+    /// `state`; `path` for a resource the path names that does not exist or a request target
+    /// over the limit), on answers about the request's address rather than its body.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub parameter: Option<String>,
-    /// For `GET /v1/traces/{id}/fit` before the fit exists: the trace's fit job.
+    /// For `GET /v1/traces/{trace_id}/fit` before the fit exists: the trace's fit job.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub job: Option<super::traces::JobView>,
 }
@@ -50,6 +51,9 @@ pub enum AppError {
         field: Option<String>,
         detail: String,
     },
+    /// A path segment or query value that does not parse: 400 naming it as `parameter`.
+    #[error("{detail}")]
+    BadParameter { parameter: String, detail: String },
     #[error("{detail}")]
     Malformed {
         field: Option<String>,
@@ -103,10 +107,29 @@ impl AppError {
         }
     }
 
+    /// A path segment or query value `parameter` that does not parse.
+    pub fn bad_parameter(parameter: impl Into<String>, detail: impl Into<String>) -> Self {
+        AppError::BadParameter {
+            parameter: parameter.into(),
+            detail: detail.into(),
+        }
+    }
+
+    /// An id read from the address (path segment or query value) that is not one: 400 naming
+    /// it as `parameter` (the same id in a body is a `field`: `From<IdError>`).
+    pub fn parameter_id(e: IdError) -> Self {
+        AppError::BadParameter {
+            parameter: e.field,
+            detail: e.message,
+        }
+    }
+
     fn parts(&self) -> (StatusCode, &'static str, &'static str) {
         use AppError::*;
         match self {
-            BadRequest { .. } => (StatusCode::BAD_REQUEST, "bad-request", "Bad request"),
+            BadRequest { .. } | BadParameter { .. } => {
+                (StatusCode::BAD_REQUEST, "bad-request", "Bad request")
+            }
             Malformed { .. } => (StatusCode::BAD_REQUEST, "malformed-body", "Malformed body"),
             Invalid { .. } => (
                 StatusCode::UNPROCESSABLE_ENTITY,
@@ -179,6 +202,7 @@ impl AppError {
             AppError::BadRequest { field, detail }
             | AppError::Malformed { field, detail }
             | AppError::Invalid { field, detail } => (detail.clone(), field.clone(), None),
+            AppError::BadParameter { detail, .. } => (detail.clone(), None, None),
             AppError::Unauthorized(_) => (self.to_string(), Some("Authorization".into()), None),
             AppError::FitNotReady { detail, job } => (detail.clone(), None, job.clone()),
             AppError::Internal(_) => (
@@ -196,9 +220,12 @@ impl AppError {
             AppError::MethodNotAllowed(_) => (self.to_string(), Some("method".into()), None),
             _ => (self.to_string(), None, None),
         };
-        // A 404 is about the address: the resource the path names does not exist.
-        let parameter = matches!(self, AppError::NotFound(_) | AppError::FitNotReady { .. })
-            .then(|| "path".to_owned());
+        let parameter = match self {
+            AppError::BadParameter { parameter, .. } => Some(parameter.clone()),
+            // A 404 is about the address: the resource the path names does not exist.
+            AppError::NotFound(_) | AppError::FitNotReady { .. } => Some("path".to_owned()),
+            _ => None,
+        };
         Problem {
             kind: format!("/problems/{slug}"),
             title: title.to_owned(),
@@ -244,12 +271,15 @@ impl IntoResponse for AppError {
 impl From<StoreError> for AppError {
     fn from(e: StoreError) -> Self {
         match e {
-            // The store refused a value: the caller's input (the trace checks come first, so
-            // this is rare), never a fault of ours.
-            StoreError::Invalid(m) => AppError::Invalid {
-                field: None,
-                detail: m,
+            // The store refused a value of the caller's, naming it (the trace checks come
+            // first, so this is rare).
+            StoreError::InvalidField { field, message } => AppError::Invalid {
+                detail: format!("`{field}`: {message}"),
+                field: Some(field),
             },
+            // The store refused a value this code built (a fit result, an alert's evidence): a
+            // server fault, logged.
+            StoreError::Invalid(m) => AppError::Internal(format!("the store refused: {m}")),
             other => match other.fault() {
                 Some(f) => {
                     tracing::warn!(error = %other, "database fault: {}", f.describe());

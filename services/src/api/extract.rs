@@ -82,9 +82,24 @@ impl<T: DeserializeOwned + Send> FromRequest<AppState> for ApiJson<T> {
             .map(ApiJson)
             .map_err(|e| {
                 let path = e.path().to_string();
-                let field = if path == "." { "body".to_owned() } else { path };
                 let syntax = e.inner().is_syntax() || e.inner().is_eof();
                 let detail = e.into_inner().to_string();
+                // serde names an unknown or missing key only in its message
+                // ("unknown field `x`, expected …"): the field is that key, under its object.
+                let key = ["unknown field `", "missing field `"]
+                    .iter()
+                    .find_map(|p| detail.strip_prefix(p))
+                    .and_then(|rest| rest.split('`').next());
+                // serde_path_to_error's path ends at an unknown key already, at its object for
+                // a missing one.
+                let field = match (path.as_str(), key) {
+                    (".", Some(k)) => k.to_owned(),
+                    (".", None) => "body".to_owned(),
+                    (p, Some(k)) if p != k && !p.ends_with(&format!(".{k}")) => {
+                        format!("{p}.{k}")
+                    }
+                    (p, _) => p.to_owned(),
+                };
                 if syntax {
                     AppError::Malformed {
                         field: Some("body".into()),
@@ -100,8 +115,29 @@ impl<T: DeserializeOwned + Send> FromRequest<AppState> for ApiJson<T> {
     }
 }
 
-/// Query parameters; values arrive as strings and handlers parse them with named errors.
+/// Query parameters; values arrive as strings and handlers parse them with named errors. A
+/// query that does not deserialize (a key the route does not take, a key given twice) is
+/// refused naming that key as `parameter` (`query` when no single key is to blame).
 pub struct ApiQuery<T>(pub T);
+
+/// The query key to blame for `T` refusing query `q`: a key given twice, else the first pair
+/// that `T` refuses on its own (an unknown key; a value of the wrong shape).
+fn culprit<T: DeserializeOwned>(q: &str) -> Option<String> {
+    let mut seen = std::collections::HashSet::new();
+    for (k, v) in form_urlencoded::parse(q.as_bytes()) {
+        if !seen.insert(k.clone()) {
+            return Some(k.into_owned());
+        }
+        let one = form_urlencoded::Serializer::new(String::new())
+            .append_pair(&k, &v)
+            .finish();
+        let de = serde_urlencoded::Deserializer::new(form_urlencoded::parse(one.as_bytes()));
+        if T::deserialize(de).is_err() {
+            return Some(k.into_owned());
+        }
+    }
+    None
+}
 
 impl<T: DeserializeOwned + Send> FromRequestParts<AppState> for ApiQuery<T> {
     type Rejection = AppError;
@@ -113,27 +149,41 @@ impl<T: DeserializeOwned + Send> FromRequestParts<AppState> for ApiQuery<T> {
             .map(ApiQuery)
             .map_err(|e| {
                 let path = e.path().to_string();
-                AppError::BadRequest {
-                    field: Some(if path == "." { "query".into() } else { path }),
-                    detail: format!("query string: {}", e.into_inner()),
-                }
+                let parameter = if path == "." {
+                    culprit::<T>(q).unwrap_or_else(|| "query".into())
+                } else {
+                    path
+                };
+                AppError::bad_parameter(parameter, format!("query string: {}", e.into_inner()))
             })
     }
 }
 
-/// Path parameters as text; handlers parse them into domain ids.
+/// Path parameters as text; handlers parse them into domain ids. A segment that is not text
+/// (invalid UTF-8 once percent-decoded) is refused naming it as `parameter` — the route's name
+/// for it (`trace_id`, `vehicle_id`, `id`) — or `path` when axum does not say which.
 pub struct ApiPath<T>(pub T);
 
 impl<T: DeserializeOwned + Send> FromRequestParts<AppState> for ApiPath<T> {
     type Rejection = AppError;
 
     async fn from_request_parts(parts: &mut Parts, state: &AppState) -> Result<Self, AppError> {
+        use axum::extract::path::ErrorKind;
+        use axum::extract::rejection::PathRejection;
         axum::extract::Path::<T>::from_request_parts(parts, state)
             .await
             .map(|p| ApiPath(p.0))
-            .map_err(|e| AppError::BadRequest {
-                field: Some("path".into()),
-                detail: e.body_text(),
+            .map_err(|e| {
+                let key = match &e {
+                    PathRejection::FailedToDeserializePathParams(f) => match f.kind() {
+                        ErrorKind::InvalidUtf8InPathParam { key }
+                        | ErrorKind::ParseErrorAtKey { key, .. }
+                        | ErrorKind::DeserializeError { key, .. } => Some(key.clone()),
+                        _ => None,
+                    },
+                    _ => None,
+                };
+                AppError::bad_parameter(key.unwrap_or_else(|| "path".into()), e.body_text())
             })
     }
 }

@@ -49,8 +49,8 @@ pub async fn list_vehicles(
 }
 
 /// A vehicle, its pantographs as mounted now, and each joint's latest status.
-#[utoipa::path(get, path = "/v1/vehicles/{id}", tag = "fleet",
-    params(("id" = String, Path, description = "vehicle id")),
+#[utoipa::path(get, path = "/v1/vehicles/{vehicle_id}", tag = "fleet",
+    params(("vehicle_id" = String, Path, description = "vehicle id")),
     responses(
         (status = 200, body = VehicleDetail),
         (status = 400, description = "Malformed vehicle id", body = Problem, content_type = "application/problem+json"),
@@ -62,7 +62,7 @@ pub async fn get_vehicle(
     _auth: Reader,
     ApiPath(raw): ApiPath<String>,
 ) -> Result<Json<VehicleDetail>, AppError> {
-    let id = VehicleId::parse("vehicle_id", &raw)?;
+    let id = VehicleId::parse("vehicle_id", &raw).map_err(AppError::parameter_id)?;
     st.store
         .get_vehicle(id.as_str())
         .await?
@@ -127,8 +127,8 @@ pub async fn joint_history(
     _auth: Reader,
     ApiPath((serial, joint)): ApiPath<(String, String)>,
 ) -> Result<Json<JointHistory>, AppError> {
-    let serial = Serial::parse("serial", &serial)?;
-    let joint = JointName::parse("joint", &joint)?;
+    let serial = Serial::parse("serial", &serial).map_err(AppError::parameter_id)?;
+    let joint = JointName::parse("joint", &joint).map_err(AppError::parameter_id)?;
     if !st.store.pantograph_exists(serial.as_str()).await? {
         return Err(AppError::NotFound(format!("no pantograph `{serial}`")));
     }
@@ -171,10 +171,10 @@ pub struct FleetHealth {
     pub rows: Vec<FleetRow>,
 }
 
-fn parse_num<T: std::str::FromStr>(field: &str, v: &str) -> Result<T, AppError> {
+fn parse_num<T: std::str::FromStr>(parameter: &str, v: &str) -> Result<T, AppError> {
     v.trim()
         .parse::<T>()
-        .map_err(|_| AppError::bad_field(field, format!("`{v}` is not a whole number ≥ 0")))
+        .map_err(|_| AppError::bad_parameter(parameter, format!("`{v}` is not a whole number ≥ 0")))
 }
 
 /// A row per pantograph: worst latest joint status, the joints that are not ok, last test.
@@ -182,7 +182,7 @@ fn parse_num<T: std::str::FromStr>(field: &str, v: &str) -> Result<T, AppError> 
     params(FleetQuery),
     responses(
         (status = 200, body = FleetHealth),
-        (status = 400, description = "A bad filter or page (`field` names it)", body = Problem, content_type = "application/problem+json"),
+        (status = 400, description = "A bad filter or page (`parameter` names it)", body = Problem, content_type = "application/problem+json"),
     ),
     security(("bearer" = [])))]
 pub async fn fleet_health(
@@ -196,7 +196,7 @@ pub async fn fleet_health(
         .filter(|s| !s.is_empty())
         .map(|s| {
             s.parse::<Status>().map_err(|_| {
-                AppError::bad_field("status", "must be one of alarm, watch, ok, unknown")
+                AppError::bad_parameter("status", "must be one of alarm, watch, ok, unknown")
             })
         })
         .transpose()?;
@@ -204,7 +204,7 @@ pub async fn fleet_health(
         .vehicle
         .as_deref()
         .filter(|s| !s.is_empty())
-        .map(|v| VehicleId::parse("vehicle", v))
+        .map(|v| VehicleId::parse("vehicle", v).map_err(AppError::parameter_id))
         .transpose()?
         .map(|v| v.to_string());
     let limit = match q.limit.as_deref() {
@@ -212,7 +212,7 @@ pub async fn fleet_health(
         Some(v) => parse_num::<u32>("limit", v)?,
     };
     if !(1..=MAX_LIMIT).contains(&limit) {
-        return Err(AppError::bad_field(
+        return Err(AppError::bad_parameter(
             "limit",
             format!("must be from 1 to {MAX_LIMIT}"),
         ));
@@ -222,7 +222,7 @@ pub async fn fleet_health(
         Some(v) => parse_num::<u64>("offset", v)?,
     };
     if offset > i64::MAX as u64 {
-        return Err(AppError::bad_field("offset", "too large"));
+        return Err(AppError::bad_parameter("offset", "too large"));
     }
     let page = st
         .store

@@ -265,16 +265,19 @@ pub const SECURITY_HEADERS: [(&str, &str); 4] = [
     ("referrer-policy", "same-origin"),
 ];
 
-/// The whole HTTP application. Layers, outermost first: panic guard, CORS, telemetry and
-/// timeout, key identification + rate limit (when configured), body limit.
+/// The whole HTTP application. Layers, outermost first: security headers, request id and
+/// trace span, panic guard, CORS, telemetry and timeout, rate limit with key identification
+/// (when configured: charged before the key lookup, `ratelimit::gate`), body limit. The
+/// security headers are outermost so that every answer carries them: a panic's 500 and a CORS
+/// preflight, which the layers inside answer themselves, included.
 pub fn router(state: AppState) -> Router {
     let (routes, doc) = api_routes().split_for_parts();
     let doc = Arc::new(doc);
     let limit = state.body_limit;
     let timeout = state.timeout;
-    let rate_limit = state.rate_limit.clone();
+    let limited = state.rate_limit.is_some();
     let cors = cors(&state.cors_origins);
-    let identify_state = state.clone();
+    let gate_state = state.clone();
     let mut app = routes
         .route(
             "/openapi.json",
@@ -290,27 +293,18 @@ pub fn router(state: AppState) -> Router {
         // `Content-Encoding: gzip` bodies are inflated as they are read, so the body limit
         // above bounds the decompressed size; another encoding is refused with 415.
         .layer(RequestDecompressionLayer::new());
-    if let Some(rl) = rate_limit {
-        app = app
-            .layer(from_fn_with_state(rl, ratelimit::limit))
-            .layer(from_fn_with_state(identify_state, ratelimit::identify));
+    if limited {
+        app = app.layer(from_fn_with_state(gate_state, ratelimit::gate));
     }
     app = app.layer(from_fn_with_state(timeout, telemetry::track));
-    // Security headers on every answer (issue 18): the pages run no script and embed nothing,
-    // so the policy allows only their own inline styles, images and form posts, and no framing.
-    for (name, value) in SECURITY_HEADERS {
-        app = app.layer(SetResponseHeaderLayer::if_not_present(
-            HeaderName::from_static(name),
-            HeaderValue::from_static(value),
-        ));
-    }
     if let Some(cors) = cors {
         app = app.layer(cors);
     }
     // Request ids (issue 18): a caller's `x-request-id` is kept (else a UUID is made), echoed in
     // the answer, and every log line of the request carries it through the TraceLayer's span.
     let x_request_id = HeaderName::from_static("x-request-id");
-    app.layer(CatchPanicLayer::custom(telemetry::panic_response))
+    app = app
+        .layer(CatchPanicLayer::custom(telemetry::panic_response))
         .layer(PropagateRequestIdLayer::new(x_request_id.clone()))
         .layer(
             TraceLayer::new_for_http()
@@ -319,5 +313,15 @@ pub fn router(state: AppState) -> Router {
                 .on_response(())
                 .on_failure(()),
         )
-        .layer(SetRequestIdLayer::new(x_request_id, MakeRequestUuid))
+        .layer(SetRequestIdLayer::new(x_request_id, MakeRequestUuid));
+    // Security headers on every answer (issue 18), outermost: the pages run no script and embed
+    // nothing, so the policy allows only their own inline styles, images and form posts, and
+    // no framing.
+    for (name, value) in SECURITY_HEADERS {
+        app = app.layer(SetResponseHeaderLayer::if_not_present(
+            HeaderName::from_static(name),
+            HeaderValue::from_static(value),
+        ));
+    }
+    app
 }

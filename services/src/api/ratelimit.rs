@@ -1,17 +1,34 @@
-//! Rate limit per API key: each request is charged to the key it authenticates with (bearer
-//! header or web session), or to its peer IP when it has no valid key; over the quota → 429.
+//! Rate limit per API key, charged before any database work: each request is charged to the key
+//! it authenticates with (bearer header or web session), or to its peer IP when it has no valid
+//! key; over the quota → 429.
 //!
-//! [`identify`] verifies the bearer key once and leaves the result for the `Auth` extractor
-//! ([`VerifiedKey`]), so limiting costs no second store lookup. The quota and the keyed GCRA
-//! state are tower_governor's ([`GovernorConfigBuilder`], [`RequestKey`] as its key extractor);
-//! the middleware around them is ours so that `/healthz`, `/readyz` and `/metrics` (probes,
-//! scrapers) are never limited and the 429 is the API's problem JSON with a `Retry-After` that
-//! is never early. Assumptions: the limit is per process (each replica counts on its own, so a
-//! fleet of N replicas admits up to N × the rate), and behind a proxy every keyless caller shares
-//! the proxy's IP (forwarded headers are not trusted: any client could forge them).
+//! [`gate`] charges in this order (issue 18, point H: the key lookup, one database query, ran
+//! before anything was charged, so a flood of over-quota or made-up keys cost a query each):
+//! 1. Before the database: a bearer key this process has verified before ([`KnownKeys`], by the
+//!    SHA-256 of the presented text) is charged to that key; a web session (signed, checked
+//!    without the database) to its key; a bearer key not known here to its peer address's
+//!    *lookup* budget ([`RateKey::Lookup`]); no key to the peer address. Over → 429, no query.
+//! 2. The lookup ([`Store::verify_api_key`](crate::store::Store::verify_api_key)), left for the
+//!    `Auth` extractor ([`VerifiedKey`]) so that authenticating costs no second query.
+//! 3. When the lookup names another budget than step 1 charged — a key seen for the first time
+//!    (its own), an unknown or revoked one (the peer's, as without a key) — that one too.
+//!
+//! So a key over its quota and a flood of made-up keys from one address are both refused
+//! without a query; only a key's first request after the process started (or after the cache
+//! of known keys was full and cleared) is charged twice, to its address's lookup budget and to
+//! itself. The cache only picks the budget: every admitted request is still verified, so a
+//! revoked key is refused at once (and forgotten here). The quota and the keyed GCRA state are
+//! tower_governor's ([`GovernorConfigBuilder`], [`RequestKey`] as its key extractor); the
+//! middleware around them is ours so that `/healthz`, `/readyz` and `/metrics` (probes,
+//! scrapers) are never limited nor looked up, and the 429 is the API's problem JSON naming
+//! `Authorization` with a `Retry-After` that is never early. Assumptions: the limit is per
+//! process (each replica counts on its own, so a fleet of N replicas admits up to N × the
+//! rate), and behind a proxy every keyless caller shares the proxy's IP (forwarded headers are
+//! not trusted: any client could forge them).
 
+use std::collections::HashMap;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
-use std::sync::{Arc, Weak};
+use std::sync::{Arc, Mutex, Weak};
 use std::time::Duration;
 
 use axum::extract::{ConnectInfo, Request, State};
@@ -20,6 +37,7 @@ use axum::middleware::Next;
 use axum::response::Response;
 use governor::clock::{Clock, QuantaInstant};
 use governor::middleware::NoOpMiddleware;
+use sha2::{Digest, Sha256};
 use tower_governor::GovernorError;
 use tower_governor::governor::{GovernorConfigBuilder, SharedRateLimiter};
 use tower_governor::key_extractor::KeyExtractor;
@@ -41,6 +59,48 @@ pub enum RateKey {
     Key(i64),
     /// No valid key: the peer address (unspecified when the server has no connect info).
     Peer(IpAddr),
+    /// A bearer key this process has not verified yet, before it is looked up: the peer
+    /// address's budget of key lookups.
+    Lookup(IpAddr),
+}
+
+/// How many verified keys [`KnownKeys`] holds before it starts over (each entry 40 bytes).
+pub const KNOWN_KEYS_MAX: usize = 10_000;
+
+/// Bearer keys this process has verified: the SHA-256 of the presented text → the key's id.
+/// Names the budget to charge before the lookup; grants nothing (every admitted request is
+/// still verified by the store). Cleared when full, so a scan cannot grow it for ever.
+#[derive(Debug, Clone, Default)]
+pub struct KnownKeys(Arc<Mutex<HashMap<[u8; 32], i64>>>);
+
+impl KnownKeys {
+    fn digest(secret: &str) -> [u8; 32] {
+        Sha256::digest(secret.as_bytes()).into()
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<[u8; 32], i64>> {
+        // The map holds no invariant a panic could break: take it back if poisoned.
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn get(&self, digest: &[u8; 32]) -> Option<i64> {
+        self.lock().get(digest).copied()
+    }
+
+    fn learn(&self, digest: [u8; 32], found: Option<i64>) {
+        let mut m = self.lock();
+        match found {
+            Some(id) => {
+                if m.len() >= KNOWN_KEYS_MAX && !m.contains_key(&digest) {
+                    m.clear();
+                }
+                m.insert(digest, id);
+            }
+            None => {
+                m.remove(&digest);
+            }
+        }
+    }
 }
 
 /// The outcome of checking the request's bearer key (`None`: unknown or revoked), left in the
@@ -69,6 +129,7 @@ pub struct RateLimit {
     limiter: SharedRateLimiter<RateKey, NoOpMiddleware<QuantaInstant>>,
     burst: u32,
     per_s: f64,
+    known: KnownKeys,
 }
 
 impl std::fmt::Debug for RateLimit {
@@ -99,6 +160,7 @@ impl RateLimit {
             limiter: config.limiter().clone(),
             burst: http.rate_limit_burst,
             per_s,
+            known: KnownKeys::default(),
         };
         limit.spawn_cleanup();
         Some(limit)
@@ -134,22 +196,54 @@ impl RateLimit {
     }
 }
 
-/// Sets the request's [`RateKey`] (and [`VerifiedKey`] when a bearer key was presented).
-/// A store failure while verifying charges the peer and leaves the error to `Auth`.
-pub async fn identify(State(st): State<AppState>, req: Request, next: Next) -> Response {
+/// Charges the request before any database work, looks its bearer key up, then charges the
+/// budget the lookup names (module doc); answers 429 when one is spent. Leaves the request's
+/// [`RateKey`] and, for a bearer key, the [`VerifiedKey`] for `Auth`. A store failure while
+/// verifying leaves the error to `Auth` (it asks again and answers 503). Without a limiter, or
+/// on an exempt path, the request passes untouched.
+pub async fn gate(State(st): State<AppState>, req: Request, next: Next) -> Response {
+    let Some(rl) = st.rate_limit.clone() else {
+        return next.run(req).await;
+    };
+    if EXEMPT_PATHS.contains(&req.uri().path()) {
+        return next.run(req).await;
+    }
+    let peer = peer_ip(&req);
     let (mut parts, body) = req.into_parts();
-    let mut key = None;
-    if let Ok(secret) = bearer(&parts) {
-        if let Ok(found) = st.store.verify_api_key(secret).await {
-            key = found.as_ref().map(|k| RateKey::Key(k.id));
-            parts.extensions.insert(VerifiedKey(found));
+    let presented = bearer(&parts)
+        .ok()
+        .map(|secret| (secret.to_owned(), KnownKeys::digest(secret)));
+    // 1. What the request can be told apart by without the database.
+    let first = match &presented {
+        Some((_, digest)) => rl
+            .known
+            .get(digest)
+            .map_or(RateKey::Lookup(peer), RateKey::Key),
+        None => session::cookie_value(&parts)
+            .and_then(|v| st.sessions.verify(&v))
+            // A signed session names its key; `WebUser` still checks that it is unrevoked.
+            .map_or(RateKey::Peer(peer), RateKey::Key),
+    };
+    if let Err(wait) = rl.check(&first) {
+        return refuse(first, wait, &rl);
+    }
+    // 2. The lookup; 3. the budget it names, when step 1 charged another.
+    let mut key = first;
+    if let Some((secret, digest)) = presented
+        && let Ok(found) = st.store.verify_api_key(&secret).await
+    {
+        rl.known.learn(digest, found.as_ref().map(|k| k.id));
+        key = found
+            .as_ref()
+            .map_or(RateKey::Peer(peer), |k| RateKey::Key(k.id));
+        parts.extensions.insert(VerifiedKey(found));
+        if key != first
+            && let Err(wait) = rl.check(&key)
+        {
+            return refuse(key, wait, &rl);
         }
-    } else if let Some(id) = session::cookie_value(&parts).and_then(|v| st.sessions.verify(&v)) {
-        // A signed session names its key; `WebUser` still checks that it is unrevoked.
-        key = Some(RateKey::Key(id));
     }
     let mut req = Request::from_parts(parts, body);
-    let key = key.unwrap_or_else(|| RateKey::Peer(peer_ip(&req)));
     req.extensions_mut().insert(key);
     next.run(req).await
 }
@@ -160,27 +254,17 @@ fn peer_ip(req: &Request) -> IpAddr {
         .map_or(IpAddr::V4(Ipv4Addr::UNSPECIFIED), |ConnectInfo(a)| a.ip())
 }
 
-/// Answers 429 when the request's key is over its quota (exempt paths pass untouched).
-pub async fn limit(State(rl): State<RateLimit>, req: Request, next: Next) -> Response {
-    if EXEMPT_PATHS.contains(&req.uri().path()) {
-        return next.run(req).await;
-    }
-    let key = match RequestKey.extract(&req) {
-        Ok(k) => k,
-        // `identify` always runs first; without it, charge the peer.
-        Err(_) => RateKey::Peer(peer_ip(&req)),
-    };
-    match rl.check(&key) {
-        Ok(()) => next.run(req).await,
-        Err(wait) => {
-            if let RateKey::Key(id) = key {
-                tracing::debug!(key_id = id, "rate limit exceeded");
-            } else {
-                tracing::debug!("rate limit exceeded for a caller without a valid key");
-            }
-            too_many_requests(wait, &rl)
+fn refuse(key: RateKey, wait: Duration, rl: &RateLimit) -> Response {
+    match key {
+        RateKey::Key(id) => tracing::debug!(key_id = id, "rate limit exceeded"),
+        RateKey::Lookup(_) => {
+            tracing::debug!("rate limit of key lookups exceeded for an address")
+        }
+        RateKey::Peer(_) => {
+            tracing::debug!("rate limit exceeded for a caller without a valid key")
         }
     }
+    too_many_requests(wait, rl)
 }
 
 /// The 429 problem answer; `Retry-After` is `wait` rounded up to whole seconds (never 0).
@@ -192,7 +276,8 @@ pub fn too_many_requests(wait: Duration, rl: &RateLimit) -> Response {
         title: "Too many requests".into(),
         status: StatusCode::TOO_MANY_REQUESTS.as_u16(),
         detail: format!(
-            "over the rate limit of {} requests/s (bursts of {}) for this key; retry in {secs} s",
+            "over the rate limit of {} requests/s (bursts of {}) for this key (or, without a \
+             known key, this address); retry in {secs} s",
             rl.per_s, rl.burst
         ),
         // The key (or, keyless, the address) whose budget is spent.

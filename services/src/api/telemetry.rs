@@ -104,18 +104,7 @@ async fn problemize(resp: Response) -> Response {
     } else {
         text
     };
-    // Every 4xx names what to change: a field of the request or a parameter of its address.
-    let (slug, field, parameter) = match status {
-        StatusCode::METHOD_NOT_ALLOWED => ("method-not-allowed", Some("method"), None),
-        StatusCode::NOT_FOUND => ("not-found", None, Some("path")),
-        StatusCode::PAYLOAD_TOO_LARGE => ("payload-too-large", Some("body"), None),
-        StatusCode::URI_TOO_LONG => ("uri-too-long", None, Some("path")),
-        StatusCode::UNSUPPORTED_MEDIA_TYPE => {
-            ("unsupported-media-type", Some("Content-Encoding"), None)
-        }
-        s if s.is_server_error() => ("internal", None, None),
-        _ => ("bad-request", Some("body"), None),
-    };
+    let (slug, field, parameter) = named_part(status);
     let mut out = problem_response(&Problem {
         kind: format!("/problems/{slug}"),
         title: status.canonical_reason().unwrap_or("Error").to_owned(),
@@ -129,6 +118,36 @@ async fn problemize(resp: Response) -> Response {
         out.headers_mut().insert(header::ALLOW, a);
     }
     out
+}
+
+/// What a bare framework answer of `status` is about — `(slug, field, parameter)`: every 4xx
+/// names what to change, a field of the request (a header by its name, `body`) or a parameter
+/// of its address (`path`). The handlers' own answers are problems already and never come
+/// here; what does is the framework's: axum's 405 and 404, the body limit's 413, hyper's 414,
+/// the decompression layer's 415 (an encoding other than gzip: `Content-Encoding`). A client
+/// error no layer says more about is named `request`, the request as a whole, rather than a
+/// part it may not be about.
+fn named_part(status: StatusCode) -> (&'static str, Option<&'static str>, Option<&'static str>) {
+    match status {
+        StatusCode::METHOD_NOT_ALLOWED => ("method-not-allowed", Some("method"), None),
+        StatusCode::NOT_FOUND => ("not-found", None, Some("path")),
+        StatusCode::PAYLOAD_TOO_LARGE => ("payload-too-large", Some("body"), None),
+        StatusCode::URI_TOO_LONG => ("uri-too-long", None, Some("path")),
+        StatusCode::UNSUPPORTED_MEDIA_TYPE => {
+            ("unsupported-media-type", Some("Content-Encoding"), None)
+        }
+        StatusCode::REQUEST_TIMEOUT => ("request-timeout", Some("body"), None),
+        StatusCode::LENGTH_REQUIRED => ("length-required", Some("Content-Length"), None),
+        StatusCode::NOT_ACCEPTABLE => ("not-acceptable", Some("Accept"), None),
+        StatusCode::RANGE_NOT_SATISFIABLE => ("range-not-satisfiable", Some("Range"), None),
+        StatusCode::EXPECTATION_FAILED => ("expectation-failed", Some("Expect"), None),
+        StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE => {
+            ("header-fields-too-large", Some("headers"), None)
+        }
+        s if s.is_server_error() => ("internal", None, None),
+        StatusCode::BAD_REQUEST => ("bad-request", Some("request"), None),
+        _ => ("client-error", Some("request"), None),
+    }
 }
 
 /// Answer of a handler that panicked (the panic is logged, never shown).
@@ -150,4 +169,58 @@ pub fn request_span<B>(req: &axum::http::Request<B>) -> tracing::Span {
         .and_then(|v| v.to_str().ok())
         .unwrap_or("-");
     tracing::info_span!("http", request_id = %id, method = %req.method(), path = %req.uri().path())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    async fn problem_of(status: StatusCode) -> serde_json::Value {
+        let bare = (status, "plain text from a layer").into_response();
+        let resp = problemize(bare).await;
+        assert_eq!(resp.status(), status);
+        let ct = resp.headers()[header::CONTENT_TYPE]
+            .to_str()
+            .unwrap()
+            .to_owned();
+        assert!(ct.starts_with(PROBLEM_JSON), "{status}: {ct}");
+        let body = axum::body::to_bytes(resp.into_body(), 1 << 16)
+            .await
+            .unwrap();
+        serde_json::from_slice(&body).unwrap()
+    }
+
+    /// Issue 18: a bare framework answer becomes a problem naming what it is about — a header
+    /// by its name, `path`, or `request` when nothing says more — never `body` for an answer
+    /// that is not about the body (the catch-all named `body` for every other 4xx).
+    #[tokio::test]
+    async fn bare_client_errors_name_the_part_they_are_about() {
+        for (status, field, parameter) in [
+            (StatusCode::METHOD_NOT_ALLOWED, Some("method"), None),
+            (StatusCode::NOT_FOUND, None, Some("path")),
+            (StatusCode::PAYLOAD_TOO_LARGE, Some("body"), None),
+            (StatusCode::URI_TOO_LONG, None, Some("path")),
+            (
+                StatusCode::UNSUPPORTED_MEDIA_TYPE,
+                Some("Content-Encoding"),
+                None,
+            ),
+            (StatusCode::LENGTH_REQUIRED, Some("Content-Length"), None),
+            (
+                StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
+                Some("headers"),
+                None,
+            ),
+            (StatusCode::BAD_REQUEST, Some("request"), None),
+            (StatusCode::IM_A_TEAPOT, Some("request"), None),
+        ] {
+            let v = problem_of(status).await;
+            assert_eq!(v["field"].as_str(), field, "{status}: {v}");
+            assert_eq!(v["parameter"].as_str(), parameter, "{status}: {v}");
+            assert_eq!(v["status"], status.as_u16());
+        }
+        let v = problem_of(StatusCode::BAD_GATEWAY).await;
+        assert!(v["field"].is_null() && v["parameter"].is_null(), "{v}");
+        assert!(!v["detail"].as_str().unwrap().contains("plain text"), "{v}");
+    }
 }

@@ -198,7 +198,7 @@ pub struct TraceDocument {
 }
 
 fn trace_id(raw: &str) -> Result<TraceId, AppError> {
-    TraceId::parse("trace_id", raw).map_err(AppError::from)
+    TraceId::parse("trace_id", raw).map_err(AppError::parameter_id)
 }
 
 fn not_found(id: &TraceId) -> AppError {
@@ -238,8 +238,8 @@ pub async fn upload_trace(
 }
 
 /// A trace's metadata, its fit job and current fit.
-#[utoipa::path(get, path = "/v1/traces/{id}", tag = "traces",
-    params(("id" = String, Path, description = "trace id")),
+#[utoipa::path(get, path = "/v1/traces/{trace_id}", tag = "traces",
+    params(("trace_id" = String, Path, description = "trace id")),
     responses(
         (status = 200, body = TraceView),
         (status = 400, description = "Malformed trace id", body = Problem, content_type = "application/problem+json"),
@@ -303,8 +303,8 @@ fn wants_csv(headers: &HeaderMap) -> bool {
 }
 
 /// A trace's samples: JSON, or with `Accept: text/csv` the whole trace in the CSV upload shape.
-#[utoipa::path(get, path = "/v1/traces/{id}/samples", tag = "traces",
-    params(("id" = String, Path, description = "trace id")),
+#[utoipa::path(get, path = "/v1/traces/{trace_id}/samples", tag = "traces",
+    params(("trace_id" = String, Path, description = "trace id")),
     responses(
         (status = 200, description = "The samples, bit-identical to the upload",
             content((SamplesView = "application/json"), (String = "text/csv"))),
@@ -341,8 +341,8 @@ pub async fn get_samples(
 
 /// A trace's current fit (the trace format's fit result). 404 with the job's state until the
 /// fit is written (`job.state`: `queued`, `running`, or `failed` with `job.last_error`).
-#[utoipa::path(get, path = "/v1/traces/{id}/fit", tag = "traces",
-    params(("id" = String, Path, description = "trace id")),
+#[utoipa::path(get, path = "/v1/traces/{trace_id}/fit", tag = "traces",
+    params(("trace_id" = String, Path, description = "trace id")),
     responses(
         (status = 200, body = FitView),
         (status = 400, description = "Malformed trace id", body = Problem, content_type = "application/problem+json"),

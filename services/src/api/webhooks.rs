@@ -79,7 +79,7 @@ fn check_url(raw: &str) -> Result<(), AppError> {
 fn parse_id(raw: &str) -> Result<i64, AppError> {
     raw.trim()
         .parse::<i64>()
-        .map_err(|_| AppError::bad_field("id", "a webhook id is a whole number"))
+        .map_err(|_| AppError::bad_parameter("id", "a webhook id is a whole number"))
 }
 
 /// Subscribe a URL to alert changes (opened, escalated, resolved) of the given severities.

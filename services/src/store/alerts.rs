@@ -296,13 +296,19 @@ pub(crate) enum Target<'a> {
 /// Accepts the severities a subscription asks for (at least one, no repeats).
 pub fn check_severities(s: &[Severity]) -> Result<()> {
     if s.is_empty() {
-        return Err(StoreError::Invalid("severities is empty".into()));
+        return Err(StoreError::InvalidField {
+            field: "severities".into(),
+            message: "is empty".into(),
+        });
     }
     let mut v = s.to_vec();
     v.sort();
     v.dedup();
     if v.len() != s.len() {
-        return Err(StoreError::Invalid("severities repeat".into()));
+        return Err(StoreError::InvalidField {
+            field: "severities".into(),
+            message: "repeat".into(),
+        });
     }
     Ok(())
 }

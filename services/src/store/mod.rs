@@ -95,7 +95,12 @@ pub enum StoreError {
     /// A samples blob could not be encoded or decoded.
     #[error(transparent)]
     Codec(#[from] CodecError),
-    /// The caller passed something the store cannot accept.
+    /// A caller's value the store cannot accept, named as the caller spelled it
+    /// (`vehicle_id`, `channels`): the API answers 422 naming `field`.
+    #[error("invalid input: `{field}`: {message}")]
+    InvalidField { field: String, message: String },
+    /// A value this code built (a fit result, an alert's evidence, a generated key) that the
+    /// store cannot accept: a server fault, never the caller's.
     #[error("invalid input: {0}")]
     Invalid(String),
     /// A row holds a value this code does not understand.
@@ -1032,6 +1037,13 @@ impl Store {
         Ok((key, secret))
     }
 
+    /// API-key lookups this store (and its clones) has sent to the database since it was
+    /// opened: one per [`Store::verify_api_key`] of a key-shaped secret. The rate limiter's
+    /// test counts them (an over-quota request must cost none).
+    pub fn key_lookups(&self) -> u64 {
+        dispatch!(self, s => s.key_lookups())
+    }
+
     /// The unrevoked key matching `secret` (hash compared in constant time), if any.
     pub async fn verify_api_key(&self, secret: &str) -> Result<Option<ApiKey>> {
         let Some(prefix) = keys::prefix(secret) else {
@@ -1162,9 +1174,17 @@ impl Store {
     }
 }
 
+/// A refusal of the caller's value `field`.
+fn refused(field: &str, message: impl Into<String>) -> StoreError {
+    StoreError::InvalidField {
+        field: field.to_owned(),
+        message: message.into(),
+    }
+}
+
 fn non_empty(what: &str, v: &str) -> Result<()> {
     if v.trim().is_empty() {
-        return Err(StoreError::Invalid(format!("{what} is empty")));
+        return Err(refused(what, "is empty"));
     }
     Ok(())
 }
@@ -1179,12 +1199,10 @@ async fn prepare_trace(t: NewTrace) -> Result<PreparedTrace> {
     }
     let sha = t.content_sha256.to_ascii_lowercase();
     if sha.len() != 64 || !sha.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(StoreError::Invalid(
-            "content_sha256 is not 64 hex digits".into(),
-        ));
+        return Err(refused("content_sha256", "is not 64 hex digits"));
     }
     if serde_json::from_str::<serde_json::Value>(&t.test_json).is_err() {
-        return Err(StoreError::Invalid("test_json is not JSON".into()));
+        return Err(refused("test", "is not JSON"));
     }
     let trace_id = match t.trace_id {
         Some(id) => {
@@ -1195,11 +1213,11 @@ async fn prepare_trace(t: NewTrace) -> Result<PreparedTrace> {
     };
     let sample_count = t.channels.first().map_or(0, |(_, v)| v.len());
     if t.channels.iter().any(|(_, v)| v.len() != sample_count) {
-        return Err(StoreError::Invalid("channels differ in length".into()));
+        return Err(refused("channels", "differ in length"));
     }
     let names: Vec<&str> = t.channels.iter().map(|(n, _)| n.as_str()).collect();
     let channel_names =
-        serde_json::to_string(&names).map_err(|e| StoreError::Invalid(e.to_string()))?;
+        serde_json::to_string(&names).map_err(|e| refused("channels", e.to_string()))?;
     let channels = t.channels;
     let samples = tokio::task::spawn_blocking(move || samples::encode(&channels))
         .await
@@ -1216,7 +1234,7 @@ async fn prepare_trace(t: NewTrace) -> Result<PreparedTrace> {
         content_sha256: sha,
         samples,
         sample_count: i64::try_from(sample_count)
-            .map_err(|_| StoreError::Invalid("too many samples".into()))?,
+            .map_err(|_| refused("channels.t_s", "too many samples"))?,
         channel_names,
         model_version: t.model_version,
     })

@@ -112,9 +112,16 @@ fn is_loopback(host: &str) -> bool {
 #[derive(Debug, Clone)]
 pub struct PgStore {
     pool: PgPool,
+    /// API-key lookups sent to the database (`Store::key_lookups`).
+    key_lookups: std::sync::Arc<std::sync::atomic::AtomicU64>,
 }
 
 impl PgStore {
+    /// API-key lookups this store has sent to the database since it was opened.
+    pub fn key_lookups(&self) -> u64 {
+        self.key_lookups.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     /// Connects to the `postgres://` URL and migrates (concurrent migrators take a lock).
     /// While the server is down every operation fails after `opts.acquire_timeout`; pooled
     /// connections are tested before use, so the pool heals by itself when it is back.
@@ -135,7 +142,10 @@ impl PgStore {
             .connect_with(connect)
             .await?;
         MIGRATOR.run(&pool).await?;
-        Ok(PgStore { pool })
+        Ok(PgStore {
+            pool,
+            key_lookups: Default::default(),
+        })
     }
 
     /// The underlying pool.
@@ -1021,6 +1031,8 @@ impl Backend for PgStore {
     }
 
     async fn keys_by_prefix(&self, prefix: &str) -> Result<Vec<(ApiKey, String)>> {
+        self.key_lookups
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         query(
             "SELECT id, prefix, role, label, created_at, revoked_at, key_sha256 FROM api_keys
              WHERE prefix = $1 AND revoked_at IS NULL",

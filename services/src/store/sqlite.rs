@@ -104,9 +104,16 @@ macro_rules! job_cols {
 #[derive(Debug, Clone)]
 pub struct SqliteStore {
     pool: SqlitePool,
+    /// API-key lookups sent to the database (`Store::key_lookups`).
+    key_lookups: std::sync::Arc<std::sync::atomic::AtomicU64>,
 }
 
 impl SqliteStore {
+    /// API-key lookups this store has sent to the database since it was opened.
+    pub fn key_lookups(&self) -> u64 {
+        self.key_lookups.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     /// Opens (creating if missing) the file at `url` (a path or `sqlite:` URL) and migrates.
     /// Pool waits on a file are bounded by `pool_opts.acquire_timeout`, lock waits by the 30 s
     /// busy timeout. An in-memory database (one connection, no outage possible) keeps sqlx's
@@ -139,7 +146,10 @@ impl SqliteStore {
         .connect_with(opts)
         .await?;
         MIGRATOR.run(&pool).await?;
-        Ok(SqliteStore { pool })
+        Ok(SqliteStore {
+            pool,
+            key_lookups: Default::default(),
+        })
     }
 
     /// The underlying pool.
@@ -992,6 +1002,8 @@ impl Backend for SqliteStore {
     }
 
     async fn keys_by_prefix(&self, prefix: &str) -> Result<Vec<(ApiKey, String)>> {
+        self.key_lookups
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         query(
             "SELECT id, prefix, role, label, created_at, revoked_at, key_sha256 FROM api_keys
              WHERE prefix = $1 AND revoked_at IS NULL",

@@ -422,23 +422,22 @@ async fn failed_insert_writes_nothing(store: &Store) {
         assert_eq!(count(store, table).await, 0, "{table}");
     }
     // Rejected before any SQL.
+    // Each refusal names the caller's field (the API answers 422 naming it).
+    let refused = |r: Result<InsertOutcome>| match r {
+        Err(StoreError::InvalidField { field, .. }) => field,
+        other => panic!("not a named refusal: {other:?}"),
+    };
     let mut t = trace("bad", " ", None, "2026-03-02T07:00:00Z");
-    assert!(matches!(
-        store.insert_trace(t.clone()).await,
-        Err(StoreError::Invalid(_))
-    ));
+    assert_eq!(refused(store.insert_trace(t.clone()).await), "vehicle_id");
     t.vehicle_id = "V".into();
     t.content_sha256 = "xyz".into();
-    assert!(matches!(
-        store.insert_trace(t.clone()).await,
-        Err(StoreError::Invalid(_))
-    ));
+    assert_eq!(
+        refused(store.insert_trace(t.clone()).await),
+        "content_sha256"
+    );
     t.content_sha256 = sha('a');
     t.channels[1].1.pop();
-    assert!(matches!(
-        store.insert_trace(t).await,
-        Err(StoreError::Invalid(_))
-    ));
+    assert_eq!(refused(store.insert_trace(t).await), "channels");
     // A failure on an existing vehicle leaves the vehicle as it was and adds nothing else.
     insert_ok(store, trace("ok", "V1", Some("S1"), "2026-03-02T07:00:00Z")).await;
     let mut t = trace("half2", "V1", Some("S2"), "2026-03-05T07:00:00Z");

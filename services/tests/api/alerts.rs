@@ -98,14 +98,20 @@ pub async fn alert_lifecycle_over_http(b: Backend) {
         (StatusCode::OK, Some(1))
     );
     let r = app.get("/v1/alerts?state=closed", &app.keys.reader).await;
-    assert_problem(r, StatusCode::BAD_REQUEST, Some("state"), "bad state").await;
+    assert_problem_param(r, StatusCode::BAD_REQUEST, "state", "bad state").await;
     let r = app.get("/v1/alerts/999999", &app.keys.reader).await;
     assert_problem(r, StatusCode::NOT_FOUND, None, "no alert").await;
 
     // Acknowledge: writers only; who is the key; twice is a conflict.
     let path = format!("/v1/alerts/{id}/acknowledge");
     let r = post_json(&app, &path, &app.keys.reader, json!({"note": "x"})).await;
-    assert_problem(r, StatusCode::FORBIDDEN, None, "reader acknowledges").await;
+    assert_problem(
+        r,
+        StatusCode::FORBIDDEN,
+        Some("Authorization"),
+        "reader acknowledges",
+    )
+    .await;
     let r = post_json(&app, &path, &app.keys.writer, json!({"note": "on it"})).await;
     assert_eq!(r.status(), StatusCode::OK);
     let v: Value = r.json().await.expect("json");
@@ -117,9 +123,9 @@ pub async fn alert_lifecycle_over_http(b: Backend) {
         "{v}"
     );
     let r = post_json(&app, &path, &app.keys.writer, json!({"note": "again"})).await;
-    assert_problem(r, StatusCode::CONFLICT, None, "acknowledged twice").await;
+    assert_problem(r, StatusCode::CONFLICT, Some("state"), "acknowledged twice").await;
     let r = post_json(&app, &path, &app.keys.writer, json!({"nope": 1})).await;
-    assert_problem(r, StatusCode::BAD_REQUEST, None, "unknown field").await;
+    assert_problem(r, StatusCode::BAD_REQUEST, Some("nope"), "unknown field").await;
 
     // A later test of the same joint back in band resolves it automatically.
     let body = example_as(
@@ -169,7 +175,7 @@ pub async fn alert_lifecycle_over_http(b: Backend) {
         json!({}),
     )
     .await;
-    assert_problem(r, StatusCode::CONFLICT, None, "resolved twice").await;
+    assert_problem(r, StatusCode::CONFLICT, Some("state"), "resolved twice").await;
 
     // The history carries the trends.
     let (s, h) = app
@@ -301,7 +307,13 @@ pub async fn webhooks_signed_retried_and_logged(b: Backend) {
         json!({"url": "http://x/"}),
     )
     .await;
-    assert_problem(r, StatusCode::FORBIDDEN, None, "writer subscribes").await;
+    assert_problem(
+        r,
+        StatusCode::FORBIDDEN,
+        Some("Authorization"),
+        "writer subscribes",
+    )
+    .await;
     let r = post_json(
         &app,
         "/v1/admin/webhooks",
@@ -317,7 +329,13 @@ pub async fn webhooks_signed_retried_and_logged(b: Backend) {
         json!({"url": "http://x/", "severities": ["fatal"]}),
     )
     .await;
-    assert_problem(r, StatusCode::BAD_REQUEST, None, "bad severity").await;
+    assert_problem(
+        r,
+        StatusCode::BAD_REQUEST,
+        Some("severities[0]"),
+        "bad severity",
+    )
+    .await;
     let r = app.get("/v1/admin/webhooks", &app.keys.admin).await;
     let list: Value = r.json().await.expect("json");
     assert_eq!(list["webhooks"].as_array().map(Vec::len), Some(3));

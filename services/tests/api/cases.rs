@@ -158,7 +158,7 @@ pub async fn idempotent_upload_and_conflict(b: Backend) {
     let r = app
         .upload_json(&serde_json::to_vec(&other).expect("json"))
         .await;
-    let p = assert_problem(r, StatusCode::CONFLICT, None, "other content").await;
+    let p = assert_problem(r, StatusCode::CONFLICT, Some("trace_id"), "other content").await;
     assert!(p["detail"].as_str().unwrap_or("").contains("same-1"));
     let c = app.counts().await;
     assert_eq!((c.traces, c.jobs, c.fits), (1, 1, 0));
@@ -478,7 +478,13 @@ pub async fn every_route_every_role(b: Backend) {
         for role in [Role::Reader, Role::Writer, Role::Admin] {
             let r = send(Some(app.keys.of(role).to_owned())).await;
             if role < *least {
-                assert_problem(r, StatusCode::FORBIDDEN, None, &format!("{what} as {role}")).await;
+                assert_problem(
+                    r,
+                    StatusCode::FORBIDDEN,
+                    Some("Authorization"),
+                    &format!("{what} as {role}"),
+                )
+                .await;
             } else {
                 assert_eq!(
                     r.status(),
@@ -492,7 +498,7 @@ pub async fn every_route_every_role(b: Backend) {
     app.stop().await;
 }
 
-/// Does the OpenAPI template `/v1/traces/{id}` match the concrete path `/v1/traces/role-1`?
+/// Does the OpenAPI template `/v1/traces/{trace_id}` match the concrete path `/v1/traces/role-1`?
 fn path_matches(template: &str, path: &str) -> bool {
     let (t, p): (Vec<_>, Vec<_>) = (template.split('/').collect(), path.split('/').collect());
     t.len() == p.len()
@@ -728,6 +734,38 @@ pub async fn rejections_answer_problems_and_store_nothing(b: Backend) {
         u,
         "channels.alpha_deg[1]",
     ));
+    // A metadata key or a channel given twice: the rule of a key repeated in a JSON object,
+    // 422 naming it (issue 18: it was a 400 malformed body).
+    cases.push((
+        "CSV metadata key twice",
+        c,
+        csv.replacen(
+            "# vehicle_id:",
+            "# vehicle_id: EN57-TWICE\n# vehicle_id:",
+            1,
+        )
+        .into_bytes(),
+        u,
+        "vehicle_id",
+    ));
+    cases.push((
+        "CSV channel twice",
+        c,
+        {
+            let mut l: Vec<String> = lines.iter().map(|s| (*s).to_owned()).collect();
+            for (i, line) in l.iter_mut().enumerate().skip(header_line - 1) {
+                let last = line.rsplit(',').next().unwrap_or("").to_owned();
+                *line = if i == header_line - 1 {
+                    format!("{line},alpha_deg")
+                } else {
+                    format!("{line},{last}")
+                };
+            }
+            (l.join("\n") + "\n").into_bytes()
+        },
+        u,
+        "channels.alpha_deg",
+    ));
     cases.push((
         "CSV no header",
         c,
@@ -793,73 +831,109 @@ pub async fn rejections_answer_problems_and_store_nothing(b: Backend) {
     // Bad paths, queries and admin bodies.
     let reader = app.keys.reader.clone();
     let admin = app.keys.admin.clone();
-    let gets: [(&str, &str, StatusCode, Option<&str>); 12] = [
+    // The address's parts are `parameter`s named as the route and its query spell them
+    // (issue 18: they were `field`s, and a refused path segment was `path`).
+    let gets: [(&str, &str, StatusCode, &str); 13] = [
         (
             "/v1/fleet/health?limit=0",
             &reader,
             StatusCode::BAD_REQUEST,
-            Some("limit"),
+            "limit",
         ),
         (
             "/v1/fleet/health?limit=abc",
             &reader,
             StatusCode::BAD_REQUEST,
-            Some("limit"),
+            "limit",
         ),
         (
             "/v1/fleet/health?offset=-1",
             &reader,
             StatusCode::BAD_REQUEST,
-            Some("offset"),
+            "offset",
         ),
         (
             "/v1/fleet/health?status=broken",
             &reader,
             StatusCode::BAD_REQUEST,
-            Some("status"),
+            "status",
         ),
         (
             "/v1/fleet/health?colour=red",
             &reader,
             StatusCode::BAD_REQUEST,
-            None,
+            "colour",
+        ),
+        (
+            "/v1/fleet/health?limit=5&limit=6",
+            &reader,
+            StatusCode::BAD_REQUEST,
+            "limit",
         ),
         (
             "/v1/fleet/health?vehicle=%00",
             &reader,
             StatusCode::BAD_REQUEST,
-            Some("vehicle"),
+            "vehicle",
         ),
         (
             "/v1/traces/a%20b",
             &reader,
             StatusCode::BAD_REQUEST,
-            Some("trace_id"),
+            "trace_id",
         ),
-        ("/v1/traces/nope", &reader, StatusCode::NOT_FOUND, None),
-        ("/v1/traces/nope/fit", &reader, StatusCode::NOT_FOUND, None),
+        (
+            "/v1/traces/%FF%FE",
+            &reader,
+            StatusCode::BAD_REQUEST,
+            "trace_id",
+        ),
+        ("/v1/traces/nope", &reader, StatusCode::NOT_FOUND, "path"),
+        (
+            "/v1/traces/nope/fit",
+            &reader,
+            StatusCode::NOT_FOUND,
+            "path",
+        ),
         (
             "/v1/vehicles/%01",
             &reader,
             StatusCode::BAD_REQUEST,
-            Some("vehicle_id"),
+            "vehicle_id",
         ),
         (
             "/v1/pantographs/S-1/joints/J99/history",
             &reader,
             StatusCode::BAD_REQUEST,
-            Some("joint"),
-        ),
-        (
-            "/v1/pantographs/nope/joints/J1/history",
-            &reader,
-            StatusCode::NOT_FOUND,
-            None,
+            "joint",
         ),
     ];
-    for (path, key, status, field) in gets {
-        assert_problem(app.get(path, key).await, status, field, path).await;
+    for (path, key, status, parameter) in gets {
+        assert_problem_param(app.get(path, key).await, status, parameter, path).await;
     }
+    assert_problem_param(
+        app.get("/v1/pantographs/nope/joints/J1/history", &reader)
+            .await,
+        StatusCode::NOT_FOUND,
+        "path",
+        "no pantograph",
+    )
+    .await;
+    assert_problem_param(
+        app.get("/v1/alerts?state=closed&severity=alarm", &reader)
+            .await,
+        StatusCode::BAD_REQUEST,
+        "state",
+        "alert state",
+    )
+    .await;
+    assert_problem_param(
+        app.get("/v1/alerts/x1", &reader).await,
+        StatusCode::BAD_REQUEST,
+        "id",
+        "alert id",
+    )
+    .await;
     assert_problem(
         app.get("/v1/no/such/route", &reader).await,
         StatusCode::NOT_FOUND,
@@ -879,7 +953,13 @@ pub async fn rejections_answer_problems_and_store_nothing(b: Backend) {
         .send()
         .await
         .expect("send");
-    assert_problem(r, StatusCode::METHOD_NOT_ALLOWED, None, "wrong method").await;
+    assert_problem(
+        r,
+        StatusCode::METHOD_NOT_ALLOWED,
+        Some("method"),
+        "wrong method",
+    )
+    .await;
     let posts: [(&str, &str, &str, StatusCode, &str); 6] = [
         (
             "/v1/admin/keys",
@@ -893,7 +973,7 @@ pub async fn rejections_answer_problems_and_store_nothing(b: Backend) {
             "application/json",
             r#"{"label": "x"}"#,
             StatusCode::BAD_REQUEST,
-            "body",
+            "role",
         ),
         (
             "/v1/admin/keys",
@@ -939,7 +1019,7 @@ pub async fn rejections_answer_problems_and_store_nothing(b: Backend) {
         .send()
         .await
         .expect("send");
-    assert_problem(r, StatusCode::BAD_REQUEST, Some("id"), "key id").await;
+    assert_problem_param(r, StatusCode::BAD_REQUEST, "id", "key id").await;
     let r = app
         .req(Method::DELETE, "/v1/admin/keys/99999", Some(&admin))
         .send()

@@ -8,12 +8,17 @@ use serde_json::Value;
 
 use crate::harness::*;
 
+/// Every corpus upload is refused in problem form naming its field; around each one the rows an
+/// upload writes are unchanged (issue 18, H.1: checked per case, so one case that stored
+/// something and a later one that removed it cannot cancel out), and over the whole corpus not
+/// one answer is a 5xx.
 pub async fn corpus_uploads_are_refused_and_store_nothing(b: Backend) {
     let app = spawn_app(b).await;
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/corpus");
     let manifest = std::fs::read_to_string(dir.join("MANIFEST.tsv")).expect("manifest");
     let before = app.counts().await;
     let mut failures = Vec::new();
+    let mut server_errors = Vec::new();
     let mut n = 0;
     for line in manifest
         .lines()
@@ -23,6 +28,7 @@ pub async fn corpus_uploads_are_refused_and_store_nothing(b: Backend) {
         let (file, ct, expected) = (cols[0], cols[1], cols[2]);
         let body = std::fs::read(dir.join(file)).expect("corpus file");
         n += 1;
+        let stored = app.stored().await;
         let r = app
             .req(Method::POST, "/v1/traces", Some(&app.keys.writer))
             .header("content-type", ct)
@@ -31,6 +37,9 @@ pub async fn corpus_uploads_are_refused_and_store_nothing(b: Backend) {
             .await
             .expect("POST");
         let status = r.status();
+        if status.is_server_error() {
+            server_errors.push(format!("{file}: {status}"));
+        }
         let media = r
             .headers()
             .get("content-type")
@@ -50,8 +59,13 @@ pub async fn corpus_uploads_are_refused_and_store_nothing(b: Backend) {
                 "{file}: {status} {media} field `{field}` (expected `{expected}`): {v}"
             ));
         }
+        let after = app.stored().await;
+        if after != stored {
+            failures.push(format!("{file}: stored {stored:?} → {after:?}"));
+        }
     }
-    assert!(n >= 60, "{n} corpus cases");
+    assert!(n >= 99, "{n} corpus cases");
+    assert!(server_errors.is_empty(), "5xx answers: {server_errors:#?}");
     assert!(failures.is_empty(), "{failures:#?}");
     assert_eq!(app.counts().await, before, "nothing stored");
     app.stop().await;
@@ -108,7 +122,8 @@ pub async fn edge_dates_never_break_their_vehicle(b: Backend) {
 /// Issue 18, point 3: every refusal names what to change (`field`, or `parameter` for the
 /// address) in problem form — 403, 404, 405, 409, 413, 414, 415 included; gzip bodies are read;
 /// a repeated key is refused naming it; ids are NFC and hold no invisible characters; a CSV
-/// with `;` separators and decimal commas is the same trace.
+/// with `;` separators and decimal commas is the same trace. Around every refused request the
+/// rows an upload writes are unchanged, and not one answer of the whole test is a 5xx (H.1).
 pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
     use std::io::Write as _;
     let app = spawn_app(b).await;
@@ -119,8 +134,45 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
         .pool_max_idle_per_host(0)
         .build()
         .unwrap();
+    // Every answer of the test, for the check that no hostile request got a 5xx.
+    let answered = std::sync::Mutex::new(Vec::<(String, StatusCode)>::new());
+    let note = |what: &str, r: reqwest::Response| {
+        answered.lock().unwrap().push((what.to_owned(), r.status()));
+        r
+    };
     let send = |method: Method, path: &str, key: &str| {
         client.request(method, app.url(path)).bearer_auth(key)
+    };
+    // A refused request: sent, noted, and the rows an upload writes the same after it.
+    let refused = |what: &'static str, req: reqwest::RequestBuilder| {
+        let app = &app;
+        async move {
+            let before = app.stored().await;
+            let r = note(what, req.send().await.expect(what));
+            assert!(!r.status().is_success(), "{what}: {}", r.status());
+            assert_eq!(
+                app.stored().await,
+                before,
+                "{what}: a refusal stored something"
+            );
+            r
+        }
+    };
+    // An accepted upload: 202.
+    let accepted = |what: &'static str, req: reqwest::RequestBuilder| async move {
+        let r = note(what, req.send().await.expect(what));
+        let status = r.status();
+        assert_eq!(
+            status,
+            202,
+            "{what}: {}",
+            r.text().await.unwrap_or_default()
+        );
+    };
+    let upload = |body: Vec<u8>| {
+        send(Method::POST, "/v1/traces", &app.keys.writer)
+            .header("content-type", "application/json")
+            .body(body)
     };
     let check = |v: &Value, what: &str| {
         assert!(
@@ -140,10 +192,10 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
         r.json::<Value>().await.expect("problem body")
     };
     // 404 (unknown trace, unknown route), 403 (reader uploads), 405.
-    let get = |path: &str| send(Method::GET, path, &app.keys.reader).send();
+    let get = |path: &str| send(Method::GET, path, &app.keys.reader);
     // Security headers on API answers and pages alike.
     for path in ["/v1/traces/nope", "/", "/healthz"] {
-        let r = get(path).await.unwrap();
+        let r = note(path, get(path).send().await.unwrap());
         let h = |n: &str| {
             r.headers()
                 .get(n)
@@ -157,76 +209,61 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
         );
         assert_eq!(h("x-content-type-options"), "nosniff", "{path}");
     }
-    let v = problem(get("/v1/traces/nope").await.unwrap(), 404, "404").await;
+    let v = problem(refused("404", get("/v1/traces/nope")).await, 404, "404").await;
     assert_eq!(v["parameter"], "path", "{v}");
-    let v = problem(get("/v1/nowhere").await.unwrap(), 404, "route").await;
+    let v = problem(refused("route", get("/v1/nowhere")).await, 404, "route").await;
     check(&v, "route");
-    let r = send(Method::POST, "/v1/traces", &app.keys.reader)
-        .header("content-type", "application/json")
-        .body(base.clone())
-        .send()
-        .await
-        .unwrap();
+    let r = refused(
+        "403",
+        send(Method::POST, "/v1/traces", &app.keys.reader)
+            .header("content-type", "application/json")
+            .body(base.clone()),
+    )
+    .await;
     let v = problem(r, 403, "403").await;
     assert_eq!(v["field"], "Authorization", "{v}");
-    let r = send(Method::PUT, "/v1/fleet/health", &app.keys.reader)
-        .send()
-        .await
-        .unwrap();
+    let r = refused(
+        "405",
+        send(Method::PUT, "/v1/fleet/health", &app.keys.reader),
+    )
+    .await;
     let v = problem(r, 405, "405").await;
     check(&v, "405");
     // 409: the same trace id with other content.
-    assert_eq!(app.upload_json(&base).await.status(), 202);
+    accepted("base", upload(base.clone())).await;
     let mut other: Value = serde_json::from_slice(&base).unwrap();
     other["vehicle_id"] = "EN57-OTHER".into();
-    let r = app.upload_json(&serde_json::to_vec(&other).unwrap()).await;
+    let r = refused("409", upload(serde_json::to_vec(&other).unwrap())).await;
     let v = problem(r, 409, "409").await;
     assert_eq!(v["field"], "trace_id", "{v}");
     // 414 in problem form.
     let long = format!("/v1/traces/{}", "a".repeat(9000));
-    let v = problem(get(&long).await.unwrap(), 414, "414").await;
+    let v = problem(refused("414", get(&long)).await, 414, "414").await;
     check(&v, "414");
     // 413 (over the body limit) in problem form, also when it only grows that large inflated.
     let huge = vec![b' '; (BODY_LIMIT_MIB as usize) * 1024 * 1024 + 1];
-    let r = send(Method::POST, "/v1/traces", &app.keys.writer)
-        .header("content-type", "application/json")
-        .body(huge.clone())
-        .send()
-        .await
-        .unwrap();
-    let v = problem(r, 413, "413").await;
+    let v = problem(refused("413", upload(huge.clone())).await, 413, "413").await;
     assert_eq!(v["field"], "body", "{v}");
     let gz = |bytes: &[u8]| {
         let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
         e.write_all(bytes).unwrap();
         e.finish().unwrap()
     };
-    let r = send(Method::POST, "/v1/traces", &app.keys.writer)
-        .header("content-type", "application/json")
-        .header("content-encoding", "gzip")
-        .body(gz(&huge))
-        .send()
-        .await
-        .unwrap();
+    let r = refused(
+        "413 inflated",
+        upload(gz(&huge)).header("content-encoding", "gzip"),
+    )
+    .await;
     assert_eq!(r.status(), 413, "inflated past the limit");
     // gzip read; another encoding 415.
     let mut zipped: Value = serde_json::from_slice(&base).unwrap();
     zipped["trace_id"] = "gzipped-upload".into();
-    let r = send(Method::POST, "/v1/traces", &app.keys.writer)
-        .header("content-type", "application/json")
-        .header("content-encoding", "gzip")
-        .body(gz(&serde_json::to_vec(&zipped).unwrap()))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status(), 202, "{}", r.text().await.unwrap_or_default());
-    let r = send(Method::POST, "/v1/traces", &app.keys.writer)
-        .header("content-type", "application/json")
-        .header("content-encoding", "br")
-        .body(base.clone())
-        .send()
-        .await
-        .unwrap();
+    accepted(
+        "gzip",
+        upload(gz(&serde_json::to_vec(&zipped).unwrap())).header("content-encoding", "gzip"),
+    )
+    .await;
+    let r = refused("br", upload(base.clone()).header("content-encoding", "br")).await;
     let v = problem(r, 415, "br").await;
     check(&v, "415");
     for id in ["example-J1_baseline", "gzipped-upload"] {
@@ -244,7 +281,7 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
         &base[..],
         "the example has a vehicle_id key"
     );
-    let v = problem(app.upload_json(text.as_bytes()).await, 422, "dup").await;
+    let v = problem(refused("dup", upload(text.into_bytes())).await, 422, "dup").await;
     assert_eq!(v["field"], "vehicle_id", "{v}");
     // Ids: `..` alone and invisible characters refused.
     for (key, bad) in [
@@ -254,7 +291,7 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
     ] {
         let mut d: Value = serde_json::from_slice(&base).unwrap();
         d[key] = bad.into();
-        let r = app.upload_json(&serde_json::to_vec(&d).unwrap()).await;
+        let r = refused("id", upload(serde_json::to_vec(&d).unwrap())).await;
         let v = problem(r, 422, "id").await;
         assert_eq!(v["field"], key, "{bad:?}: {v}");
     }
@@ -264,12 +301,7 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
         let mut d: Value = serde_json::from_slice(&base).unwrap();
         d["trace_id"] = id.into();
         d["vehicle_id"] = vehicle.into();
-        assert_eq!(
-            app.upload_json(&serde_json::to_vec(&d).unwrap())
-                .await
-                .status(),
-            202
-        );
+        accepted("nfc", upload(serde_json::to_vec(&d).unwrap())).await;
     }
     let (s, v) = app.get_json("/v1/vehicles").await;
     assert_eq!(s, 200);
@@ -294,24 +326,26 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
         assert!(ct.starts_with("text/html"), "{status}: {ct}");
         r.text().await.expect("html")
     };
-    let r = client
-        .post(app.url("/login"))
-        .header("content-type", "application/x-www-form-urlencoded")
-        .body("key=pw_not-a-key")
-        .send()
-        .await
-        .unwrap();
+    let r = refused(
+        "login",
+        client
+            .post(app.url("/login"))
+            .header("content-type", "application/x-www-form-urlencoded")
+            .body("key=pw_not-a-key"),
+    )
+    .await;
     let html = html_of(r, 401).await;
     assert!(
         html.contains("Unknown or revoked API key") && html.contains("<form"),
         "{html}"
     );
-    let r = client
-        .get(app.url("/nowhere"))
-        .header("accept", "text/html")
-        .send()
-        .await
-        .unwrap();
+    let r = refused(
+        "page 404",
+        client
+            .get(app.url("/nowhere"))
+            .header("accept", "text/html"),
+    )
+    .await;
     let html = html_of(r, 404).await;
     assert!(html.contains("Back to the fleet"), "{html}");
     // A trace with no pantograph serial says so in words on its page (not "on pantograph —").
@@ -333,12 +367,13 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
         ) && !html.contains("pantograph —"),
         "{html}"
     );
-    let r = client
-        .get(app.url("/v1/nowhere"))
-        .header("accept", "text/html")
-        .send()
-        .await
-        .unwrap();
+    let r = refused(
+        "api 404 for a browser",
+        client
+            .get(app.url("/v1/nowhere"))
+            .header("accept", "text/html"),
+    )
+    .await;
     assert_eq!(r.status(), 404);
     assert!(
         r.headers()["content-type"]
@@ -351,13 +386,13 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
         # pantograph.model: 160EC\n# pantograph.serial: 160EC-0042\n\
         # recorded_at: 2026-03-02T07:15:00Z\n# test.kind: pendulum\n# test.joint: J1\n\
         t_s;alpha_deg\n0;74,2\n0,002;74,19\n0,004;74,17\n";
-    let r = send(Method::POST, "/v1/traces", &app.keys.writer)
-        .header("content-type", "text/csv")
-        .body(csv)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status(), 202, "{}", r.text().await.unwrap_or_default());
+    accepted(
+        "eu csv",
+        send(Method::POST, "/v1/traces", &app.keys.writer)
+            .header("content-type", "text/csv")
+            .body(csv),
+    )
+    .await;
     let (s, v) = app.get_json("/v1/traces/eu-csv/samples").await;
     assert_eq!(s, 200, "{v}");
     assert_eq!(
@@ -365,5 +400,13 @@ pub async fn hostile_requests_answer_problems_naming_their_field(b: Backend) {
         serde_json::json!([74.2, 74.19, 74.17]),
         "{v}"
     );
+    // H.1: not one answer of this test was a 5xx.
+    let answered = answered.into_inner().unwrap();
+    assert!(answered.len() >= 20, "{} answers noted", answered.len());
+    let server_errors: Vec<_> = answered
+        .iter()
+        .filter(|(_, s)| s.is_server_error())
+        .collect();
+    assert!(server_errors.is_empty(), "5xx answers: {server_errors:?}");
     app.stop().await;
 }

@@ -257,7 +257,7 @@ impl TestApp {
             .expect("POST /v1/traces")
     }
 
-    /// Polls `GET /v1/traces/{id}/fit` until it answers 200.
+    /// Polls `GET /v1/traces/{trace_id}/fit` until it answers 200.
     pub async fn wait_for_fit(&self, trace_id: &str) -> Value {
         let t0 = Instant::now();
         loop {
@@ -309,6 +309,13 @@ impl TestApp {
         self.store.counts().await.expect("counts")
     }
 
+    /// The rows an upload writes — vehicles, pantographs, traces, jobs — and not the fits,
+    /// which the workers write on their own time: the same before and after a refusal.
+    pub async fn stored(&self) -> [i64; 4] {
+        let c = self.counts().await;
+        [c.vehicles, c.pantographs, c.traces, c.jobs]
+    }
+
     /// Graceful stop: waits for the server and its workers.
     pub async fn stop(mut self) {
         if let Some(tx) = self.stop.take() {
@@ -344,7 +351,8 @@ pub fn shared(rel: &str) -> Vec<u8> {
     std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
-/// Asserts a problem answer: status, media type, and the named field.
+/// Asserts a problem answer: status, media type, and the named field. Every 4xx names what to
+/// change (issue 18): a `field`, or a `parameter` of the address.
 pub async fn assert_problem(
     r: Response,
     status: StatusCode,
@@ -368,8 +376,28 @@ pub async fn assert_problem(
         assert!(!body[k].is_null(), "{what}: problem without `{k}`: {body}");
     }
     assert_eq!(body["status"], status.as_u16(), "{what}");
+    if status.is_client_error() {
+        assert!(
+            body["field"].is_string() || body["parameter"].is_string(),
+            "{what}: a 4xx naming neither a field nor a parameter: {body}"
+        );
+    }
     if let Some(f) = field {
         assert_eq!(body["field"], f, "{what}: {body}");
     }
+    body
+}
+
+/// Asserts a problem answer about the request's address: status, media type, `parameter`
+/// naming the path segment or query key, and no `field`.
+pub async fn assert_problem_param(
+    r: Response,
+    status: StatusCode,
+    parameter: &str,
+    what: &str,
+) -> Value {
+    let body = assert_problem(r, status, None, what).await;
+    assert_eq!(body["parameter"], parameter, "{what}: {body}");
+    assert!(body["field"].is_null(), "{what}: a field as well: {body}");
     body
 }

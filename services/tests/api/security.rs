@@ -139,7 +139,13 @@ async fn rate_limit_per_key(b: Backend) {
         .and_then(|v| v.parse().ok())
         .expect("Retry-After in whole seconds");
     assert!((1..=4).contains(&retry), "Retry-After {retry}");
-    let body = assert_problem(r, StatusCode::TOO_MANY_REQUESTS, None, "key A over").await;
+    let body = assert_problem(
+        r,
+        StatusCode::TOO_MANY_REQUESTS,
+        Some("Authorization"),
+        "key A over",
+    )
+    .await;
     assert_eq!(body["type"], "/problems/too-many-requests");
     // Key B has its own quota, on every route.
     for path in ["/v1/vehicles", "/v1/fleet/health", "/v1/alerts"] {
@@ -177,6 +183,107 @@ async fn rate_limit_per_key(b: Backend) {
     let r = app.get("/v1/vehicles", Some(&app.key_a)).await;
     assert_eq!(r.status(), StatusCode::OK, "key A after Retry-After");
     app.stop().await;
+}
+
+/// Issue 18 (H): the limiter is charged before the API-key lookup, so an over-quota request
+/// costs no database query — neither a known key's over its burst nor a flood of made-up keys
+/// (well-formed, each new, so each would be looked up) from one address once the address's
+/// lookup budget is spent. Counted by the store's own count of key lookups, which the old
+/// order (lookup, then limit) raised once per request. Every 429 names `Authorization` and
+/// says when to retry.
+async fn over_quota_requests_touch_no_database(b: Backend) {
+    // 0.01 request/s: no quota comes back during the test.
+    let app = spawn(b, |s| {
+        s.http.rate_limit_per_s = 0.01;
+        s.http.rate_limit_burst = 3;
+    })
+    .await;
+    let over = |r: reqwest::Response, what: &'static str| async move {
+        let retry = header(&r, "retry-after").map(str::to_owned);
+        assert!(
+            retry
+                .as_deref()
+                .and_then(|v| v.parse::<u64>().ok())
+                .is_some_and(|s| s >= 1),
+            "{what}: Retry-After {retry:?}"
+        );
+        assert_problem(
+            r,
+            StatusCode::TOO_MANY_REQUESTS,
+            Some("Authorization"),
+            what,
+        )
+        .await;
+    };
+    let start = app.store.key_lookups();
+    for i in 0..3 {
+        let r = app.get("/v1/vehicles", Some(&app.key_a)).await;
+        assert_eq!(r.status(), StatusCode::OK, "request {i} of key A's burst");
+    }
+    let looked_up = app.store.key_lookups() - start;
+    assert!(
+        (1..=3).contains(&looked_up),
+        "{looked_up} lookups for 3 requests"
+    );
+    let before = app.store.key_lookups();
+    for _ in 0..20 {
+        over(
+            app.get("/v1/vehicles", Some(&app.key_a)).await,
+            "key A over",
+        )
+        .await;
+    }
+    assert_eq!(
+        app.store.key_lookups(),
+        before,
+        "over-quota requests of a known key queried the database"
+    );
+    // Made-up keys: the first sight of key A took one of the address's 3 lookups.
+    let before = app.store.key_lookups();
+    let mut statuses = Vec::new();
+    for i in 0..20u32 {
+        let made_up = format!("pw_{i:064x}");
+        let r = app.get("/v1/vehicles", Some(&made_up)).await;
+        statuses.push(r.status());
+        if r.status() == StatusCode::TOO_MANY_REQUESTS {
+            over(r, "made-up key").await;
+        }
+    }
+    let lookups = app.store.key_lookups() - before;
+    assert_eq!(
+        statuses
+            .iter()
+            .filter(|s| **s == StatusCode::UNAUTHORIZED)
+            .count() as u64,
+        lookups,
+        "{statuses:?}"
+    );
+    assert!(
+        lookups <= 2,
+        "{lookups} lookups for 20 made-up keys: {statuses:?}"
+    );
+    assert!(
+        statuses[lookups as usize..]
+            .iter()
+            .all(|s| *s == StatusCode::TOO_MANY_REQUESTS),
+        "{statuses:?}"
+    );
+    // Key B, never seen: its first request is charged to the address's spent lookup budget
+    // and refused without a query too — a known key's budget is its own, a new one's is not.
+    let before = app.store.key_lookups();
+    over(app.get("/v1/vehicles", Some(&app.key_b)).await, "new key B").await;
+    assert_eq!(app.store.key_lookups(), before, "a refused new key queried");
+    app.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn over_quota_requests_touch_no_database_sqlite() {
+    over_quota_requests_touch_no_database(Backend::Sqlite).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn over_quota_requests_touch_no_database_postgres() {
+    over_quota_requests_touch_no_database(Backend::Postgres).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -252,6 +359,11 @@ async fn cors_allow_list() {
         "allow-headers {headers}"
     );
     assert!(header(&pre, "access-control-max-age").is_some());
+    // Issue 18 (K): the preflight is answered by the CORS layer itself, and still carries the
+    // security headers (they were inside it: its answers went out without them).
+    for (name, value) in pantowatch::api::SECURITY_HEADERS {
+        assert_eq!(header(&pre, name), Some(value), "preflight lacks {name}");
+    }
 
     for method in [Method::GET, Method::OPTIONS] {
         let r = with_origin(&app, method.clone(), "https://evil.example").await;
