@@ -1,7 +1,9 @@
 //! `pantowatch fit TRACE --report report.html`: the residual loop for people — measured, base
 //! fit and augmented fit overlaid; the residual before and after; every candidate effect tried
-//! with its held-out error and criterion. One self-contained HTML file with inline SVG.
+//! with its held-out error and criterion. One self-contained HTML file with inline SVG, written
+//! with `maud` (every text and attribute escaped; the SVG from `plot` is the one raw part).
 
+use maud::{DOCTYPE, Markup, PreEscaped, html};
 use pantowatch_models::report::FitResult;
 use pantowatch_models::residual::Finding;
 use plotters::style::RGBColor;
@@ -9,11 +11,39 @@ use plotters::style::RGBColor;
 use crate::plot::{Series, fit_svg};
 use crate::trace::TraceDoc;
 
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
+const STYLE: &str = "body{font-family:sans-serif;max-width:1150px;margin:2em auto;color:#222}table{border-collapse:collapse}td,th{border:1px solid #bbb;padding:4px 8px;text-align:right}th{background:#eee}td.l{text-align:left}.ok{color:#070}.no{color:#a00}";
+
+/// The report's page around `body`.
+fn page(title: &str, body: Markup) -> String {
+    html! {
+        (DOCTYPE)
+        html lang="en" {
+            head {
+                meta charset="utf-8";
+                title { (title) }
+                style { (PreEscaped(STYLE)) }
+            }
+            body { (body) }
+        }
+    }
+    .into_string()
+}
+
+/// `name (+0.42), …`
+fn correlations(c: &[(String, f64)]) -> String {
+    c.iter()
+        .map(|(n, c)| format!("{n} ({c:+.2})"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A finite number with `digits` decimals, else "—".
+fn num(x: f64, digits: usize) -> String {
+    if x.is_finite() {
+        format!("{x:.digits$}")
+    } else {
+        "—".into()
+    }
 }
 
 /// Build the report for a document from its fit and the residual loop's finding (no refit).
@@ -76,95 +106,78 @@ pub fn html(doc: &TraceDoc, result: &FitResult, f: &Finding) -> anyhow::Result<S
             .collect::<Vec<_>>()
             .join(", ")
     };
-    let mut h = String::new();
-    h += "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>pantowatch residual report</title><style>body{font-family:sans-serif;max-width:1150px;margin:2em auto;color:#222}table{border-collapse:collapse}td,th{border:1px solid #bbb;padding:4px 8px;text-align:right}th{background:#eee}td.l{text-align:left}.ok{color:#070}.no{color:#a00}</style></head><body>";
-    h += &format!("<h1>Residual report: {}</h1>", esc(&id));
-    h += &format!(
-        "<p>Vehicle {}, pantograph {} {}, {} test of {}, recorded {}.</p>",
-        esc(&doc.vehicle_id),
-        esc(&doc.pantograph_model),
-        esc(doc.pantograph_serial.as_deref().unwrap_or("")),
-        doc.kind.as_str(),
-        esc(&baseline.joint),
-        esc(&doc.recorded_at)
-    );
-    h += &format!("<h2>Finding: {}</h2>", esc(&found));
-    if let Some(v) = &r.verdict {
-        let corr: Vec<String> = r
-            .correlates_with
-            .iter()
-            .map(|(n, c)| format!("{} ({c:+.2})", esc(n)))
-            .collect();
-        h += &format!(
-            "<p class=\"no\"><b>{}</b>: structure remains that no candidate explains. The residual correlates most with {}.</p>",
-            esc(v),
-            corr.join(", ")
-        );
-    }
-    h += &format!(
-        "<table><tr><th></th><th>fitted part ({unit})</th><th>held-out part ({unit})</th></tr><tr><td class=\"l\">base model</td><td>{:.4}</td><td>{:.4}</td></tr><tr><td class=\"l\">with effects</td><td>{:.4}</td><td>{:.4}</td></tr></table>",
-        r.rmse_before, r.holdout_rmse_before, r.rmse_after, r.holdout_rmse_after
-    );
-    for e in &r.effects {
-        h += &format!(
-            "<p><b>{}</b>: <code>{}</code></p>",
-            esc(&e.name),
-            esc(&serde_json::Value::Object(e.params.clone()).to_string())
-        );
-    }
-    h += &format!(
-        "<figure>{svg}<figcaption>Measured motion, the base model and the model with the accepted effects, fitted on the first {:.0} % and predicted after; below, the residual of each.</figcaption></figure>",
-        100.0 * (1.0 - pantowatch_models::residual::HOLDOUT_FRACTION)
-    );
     let d = &f.diagnosis;
-    h += &format!(
-        "<h2>Diagnosis of the base residual</h2><p>Ljung–Box Q = {:.1} over {} lags (white below {:.1}): <b>{}</b>. Sensor noise from first differences: {:.4} {unit}.</p>",
-        d.ljung_box_q,
-        d.ljung_box_lags,
-        d.ljung_box_critical,
-        if d.white {
-            "white"
-        } else {
-            "structure present"
-        },
-        d.noise_sigma
-    );
-    h += "<table><tr><th>signal</th><th>correlation with the residual</th></tr>";
-    for (n, c) in &d.correlations {
-        h += &format!("<tr><td class=\"l\">{}</td><td>{c:+.3}</td></tr>", esc(n));
-    }
-    h += "</table><h2>Candidates tried</h2><table><tr><th>effects</th><th>score / dof</th><th>RMSE fitted</th><th>RMSE held out</th><th>BIC</th><th>accepted</th><th class=\"l\">why</th></tr>";
-    h += &format!(
-        "<tr><td class=\"l\">base</td><td>—</td><td>{:.4}</td><td>{:.4}</td><td>—</td><td>—</td><td class=\"l\">reference</td></tr>",
-        r.rmse_before, r.holdout_rmse_before
-    );
-    for c in &f.candidates {
-        let names: Vec<&str> = c.effects.iter().map(|e| e.name()).collect();
-        let fmt = |x: f64| {
-            if x.is_finite() {
-                format!("{x:.4}")
-            } else {
-                "—".into()
+    let body = html! {
+        h1 { "Residual report: " (id) }
+        p {
+            "Vehicle " (doc.vehicle_id) ", pantograph " (doc.pantograph_model) " "
+            (doc.pantograph_serial.as_deref().unwrap_or("")) ", " (doc.kind.as_str())
+            " test of " (baseline.joint) ", recorded " (doc.recorded_at) "."
+        }
+        h2 { "Finding: " (found) }
+        @if let Some(v) = &r.verdict {
+            p.no {
+                b { (v) } ": structure remains that no candidate explains. The residual correlates most with "
+                (correlations(&r.correlates_with)) "."
             }
-        };
-        h += &format!(
-            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"{}\">{}</td><td class=\"l\">{}</td></tr>",
-            names.join(" + "),
-            c.score.map_or("—".into(), |s| format!("{s:.1}")),
-            fmt(c.rmse_fit),
-            fmt(c.rmse_holdout),
-            if c.bic.is_finite() {
-                format!("{:.0}", c.bic)
-            } else {
-                "—".into()
-            },
-            if c.accepted { "ok" } else { "no" },
-            if c.accepted { "yes" } else { "no" },
-            esc(&c.reason)
-        );
-    }
-    h += "</table><p>Acceptance: BIC lower by ≥ 10, held-out RMSE lower by ≥ 2 %, the effect's 95 % interval excluding its null, and the accepted effects explaining ≥ 75 % of the held-out excess over the sensor noise; otherwise <i>unexplained</i>.</p></body></html>";
-    Ok(h)
+        }
+        table {
+            tr { th {} th { "fitted part (" (unit) ")" } th { "held-out part (" (unit) ")" } }
+            tr { td.l { "base model" } td { (num(r.rmse_before, 4)) } td { (num(r.holdout_rmse_before, 4)) } }
+            tr { td.l { "with effects" } td { (num(r.rmse_after, 4)) } td { (num(r.holdout_rmse_after, 4)) } }
+        }
+        @for e in &r.effects {
+            p { b { (e.name) } ": " code { (serde_json::Value::Object(e.params.clone()).to_string()) } }
+        }
+        figure {
+            (PreEscaped(svg))
+            figcaption {
+                "Measured motion, the base model and the model with the accepted effects, fitted on the first "
+                (format!("{:.0}", 100.0 * (1.0 - pantowatch_models::residual::HOLDOUT_FRACTION)))
+                " % and predicted after; below, the residual of each."
+            }
+        }
+        h2 { "Diagnosis of the base residual" }
+        p {
+            "Ljung–Box Q = " (format!("{:.1}", d.ljung_box_q)) " over " (d.ljung_box_lags)
+            " lags (white below " (format!("{:.1}", d.ljung_box_critical)) "): "
+            b { @if d.white { "white" } @else { "structure present" } }
+            ". Sensor noise from first differences: " (format!("{:.4}", d.noise_sigma)) " " (unit) "."
+        }
+        table {
+            tr { th { "signal" } th { "correlation with the residual" } }
+            @for (n, c) in &d.correlations {
+                tr { td.l { (n) } td { (format!("{c:+.3}")) } }
+            }
+        }
+        h2 { "Candidates tried" }
+        table {
+            tr {
+                th { "effects" } th { "score / dof" } th { "RMSE fitted" } th { "RMSE held out" }
+                th { "BIC" } th { "accepted" } th.l { "why" }
+            }
+            tr {
+                td.l { "base" } td { "—" } td { (num(r.rmse_before, 4)) }
+                td { (num(r.holdout_rmse_before, 4)) } td { "—" } td { "—" } td.l { "reference" }
+            }
+            @for c in &f.candidates {
+                tr {
+                    td.l { (c.effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(" + ")) }
+                    td { (c.score.map_or("—".into(), |s| format!("{s:.1}"))) }
+                    td { (num(c.rmse_fit, 4)) }
+                    td { (num(c.rmse_holdout, 4)) }
+                    td { (num(c.bic, 0)) }
+                    td class=(if c.accepted { "ok" } else { "no" }) { (if c.accepted { "yes" } else { "no" }) }
+                    td.l { (c.reason) }
+                }
+            }
+        }
+        p {
+            "Acceptance: BIC lower by ≥ 10, held-out RMSE lower by ≥ 2 %, the effect's 95 % interval excluding its null, and the accepted effects explaining ≥ 75 % of the held-out excess over the sensor noise; otherwise "
+            i { "unexplained" } "."
+        }
+    };
+    Ok(page("pantowatch residual report", body))
 }
 
 /// The lift's residual report (issue 16, point 5): measured H, the plain model and, when an
@@ -242,99 +255,107 @@ pub fn html_lift(
     } else {
         "none: the plain model explains the trace to within the noise".into()
     };
-    let mut s = String::new();
-    s += "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>pantowatch lift residual report</title><style>body{font-family:sans-serif;max-width:1150px;margin:2em auto;color:#222}table{border-collapse:collapse}td,th{border:1px solid #bbb;padding:4px 8px;text-align:right}th{background:#eee}td.l{text-align:left}.ok{color:#070}.no{color:#a00}</style></head><body>";
-    s += &format!("<h1>Lift residual report: {}</h1>", esc(&id));
-    s += &format!(
-        "<p>Vehicle {}, pantograph {} {}, lift test recorded {}.</p>",
-        esc(&doc.vehicle_id),
-        esc(&doc.pantograph_model),
-        esc(doc.pantograph_serial.as_deref().unwrap_or("")),
-        esc(&doc.recorded_at)
-    );
-    s += &format!("<h2 id=\"verdict\">Finding: {}</h2>", esc(&found));
-    for e in &r.effects {
-        s += &format!(
-            "<p id=\"accepted\"><b>Accepted: {}</b> <code>{}</code>. The fit result's joints come from the fit with it.</p>",
-            esc(&e.name),
-            esc(&serde_json::Value::Object(e.params.clone()).to_string())
-        );
-    }
-    if r.verdict.is_some() {
-        let corr: Vec<String> = r
-            .correlates_with
-            .iter()
-            .map(|(n, c)| format!("{} ({c:+.2})", esc(n)))
-            .collect();
-        s += &format!(
-            "<p class=\"no\"><b>unexplained</b>: no effect of the lift vocabulary explains the residual by the margins below. It follows {}.</p>",
-            corr.join(", ")
-        );
-    }
-    if let Some(w) = &r.joints_withheld {
-        s += &format!(
-            "<p class=\"no\" id=\"withheld\"><b>Joint statuses withheld:</b> {}.</p>",
-            esc(w)
-        );
-    }
-    if let Some(w) = &r.holdout_note {
-        s += &format!("<p>{}.</p>", esc(w));
-    }
-    s += &format!(
-        "<table><tr><th>H RMSE (mm)</th><th>whole trace</th><th>held-out blocks</th></tr><tr><td class=\"l\">plain model</td><td>{:.3}</td><td>{:.3}</td></tr><tr><td class=\"l\">{}</td><td>{:.3}</td><td>{:.3}</td></tr></table>",
-        r.rmse_before * 1e3,
-        r.holdout_rmse_before * 1e3,
-        if named {
-            "with the named effect"
-        } else {
-            "nothing named (same)"
-        },
-        r.rmse_after * 1e3,
-        r.holdout_rmse_after * 1e3
-    );
-    s += &format!(
-        "<figure>{svg}<figcaption>Measured H, the plain model and (when named) the model with the effect; below, the residual of each (model − measured), mm.</figcaption></figure>"
-    );
-    s += &format!(
-        "<h2>Diagnosis of the plain model's residual</h2><p>RMS {:.3} mm against a sensor noise of {:.3} mm (from first differences, floored at the fit's σ_H {:.2} mm): <b>{:.2}×</b>. Effects are tried above {:.1}×; above {:.0}× the joints are withheld unless an effect is named. Ljung–Box Q over 20 lags at 50 Hz: {:.1} (reported, not a gate: the inputs' smoothed noise makes it fail on correct lifts).</p>",
-        d.rms_m * 1e3,
-        d.noise_m * 1e3,
-        floor * 1e3,
-        d.excess_ratio,
-        residual::EFFECT_TRY_RATIO,
-        residual::MODEL_ERROR_RATIO,
-        d.ljung_box_q
-    );
     let dt = if t.len() > 1 {
         (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64
     } else {
         1.0
     };
-    s += "<table><tr><th>lag (s)</th><th>autocorrelation, plain</th><th>autocorrelation, with effect</th></tr>";
-    for lag_s in residual::ACF_LAGS_S {
-        let k = ((lag_s / dt).round() as usize).max(1);
-        s += &format!(
-            "<tr><td>{lag_s}</td><td>{:+.3}</td><td>{}</td></tr>",
-            residual::acf(&plain_res, k),
-            if named {
-                format!("{:+.3}", residual::acf(&aug_res, k))
-            } else {
-                "—".into()
+    let body = html! {
+        h1 { "Lift residual report: " (id) }
+        p {
+            "Vehicle " (doc.vehicle_id) ", pantograph " (doc.pantograph_model) " "
+            (doc.pantograph_serial.as_deref().unwrap_or("")) ", lift test recorded " (doc.recorded_at) "."
+        }
+        h2 #verdict { "Finding: " (found) }
+        @for e in &r.effects {
+            p #accepted {
+                b { "Accepted: " (e.name) } " " code { (serde_json::Value::Object(e.params.clone()).to_string()) }
+                ". The fit result's joints come from the fit with it."
             }
+        }
+        @if r.verdict.is_some() {
+            p.no {
+                b { "unexplained" } ": no effect of the lift vocabulary explains the residual by the margins below. It follows "
+                (correlations(&r.correlates_with)) "."
+            }
+        }
+        @if let Some(w) = &r.joints_withheld {
+            p.no #withheld { b { "Joint statuses withheld:" } " " (w) "." }
+        }
+        @if let Some(w) = &r.holdout_note {
+            p { (w) "." }
+        }
+        table {
+            tr { th { "H RMSE (mm)" } th { "whole trace" } th { "held-out blocks" } }
+            tr { td.l { "plain model" } td { (num(r.rmse_before * 1e3, 3)) } td { (num(r.holdout_rmse_before * 1e3, 3)) } }
+            tr {
+                td.l { (if named { "with the named effect" } else { "nothing named (same)" }) }
+                td { (num(r.rmse_after * 1e3, 3)) } td { (num(r.holdout_rmse_after * 1e3, 3)) }
+            }
+        }
+        figure {
+            (PreEscaped(svg))
+            figcaption { "Measured H, the plain model and (when named) the model with the effect; below, the residual of each (model − measured), mm." }
+        }
+        h2 { "Diagnosis of the plain model's residual" }
+        p {
+            "RMS " (format!("{:.3}", d.rms_m * 1e3)) " mm against a sensor noise of " (format!("{:.3}", d.noise_m * 1e3))
+            " mm (from first differences, floored at the fit's σ_H " (format!("{:.2}", floor * 1e3)) " mm): "
+            b { (format!("{:.2}×", d.excess_ratio)) }
+            ". Effects are tried above " (format!("{:.1}", residual::EFFECT_TRY_RATIO)) "×; above "
+            (format!("{:.0}", residual::MODEL_ERROR_RATIO))
+            "× the joints are withheld unless an effect is named. Ljung–Box Q over 20 lags at 50 Hz: "
+            (format!("{:.1}", d.ljung_box_q))
+            " (reported, not a gate: the inputs' smoothed noise makes it fail on correct lifts)."
+        }
+        table {
+            tr { th { "lag (s)" } th { "autocorrelation, plain" } th { "autocorrelation, with effect" } }
+            @for lag_s in residual::ACF_LAGS_S {
+                @let k = ((lag_s / dt).round() as usize).max(1);
+                tr {
+                    td { (lag_s) }
+                    td { (format!("{:+.3}", residual::acf(&plain_res, k))) }
+                    td { (if named { format!("{:+.3}", residual::acf(&aug_res, k)) } else { "—".into() }) }
+                }
+            }
+        }
+        table {
+            tr { th { "signal" } th { "correlation with the plain residual" } }
+            @for (n, c) in &d.correlates_with {
+                tr { td.l { (n) } td { (format!("{c:+.3}")) } }
+            }
+        }
+        h2 { "Acceptance" }
+        p {
+            "The vocabulary (" code { "quadratic_drag" } ", " code { "sensor_delay" } ", " code { "sensor_offset" } ", "
+            code { "stribeck" } " at J1+J3; one fit each, " code { "sensor_delay" }
+            " first where the plain residual follows the strip speed most) is tried; a candidate passes when its refit is back under "
+            (format!("{:.0}", residual::MODEL_ERROR_RATIO)) "× the noise, its RMSE at most "
+            (format!("{:.0}", effects::MIN_IMPROVEMENT * 100.0)) " % of the plain fit's, its held-out RMSE (every "
+            (holdout::HOLD_EVERY) "th " (holdout::BLOCK_S) " s block left out of a refit) at most "
+            (format!("{:.0}", holdout::MAX_HOLDOUT_RATIO * 100.0)) " % of the plain model's or within "
+            (format!("{:.2}", holdout::HOLDOUT_NOISE_RATIO))
+            "× the noise and below it, and its 95 % interval excludes 0. Of those that pass the lowest BIC is named; the search stops at one whose refit is at the noise. Otherwise the finding stays as the plain fit left it."
+        }
+    };
+    Ok(page("pantowatch lift residual report", body))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_in_a_report_is_escaped_and_the_svg_kept() {
+        let hostile = "EN57 </title><script>alert('x')</script> & \"q\"";
+        let out = page(
+            hostile,
+            html! { h1 { (hostile) } figure { (PreEscaped("<svg id=\"plot\"></svg>")) } },
         );
+        assert!(!out.contains("<script>"), "{out}");
+        assert!(out.contains("&lt;/title&gt;&lt;script&gt;"), "{out}");
+        assert!(out.contains("&amp; &quot;q&quot;"), "{out}");
+        assert!(out.contains("<svg id=\"plot\"></svg>"), "{out}");
+        assert!(out.starts_with("<!DOCTYPE html>"), "{out}");
     }
-    s += "</table><table><tr><th>signal</th><th>correlation with the plain residual</th></tr>";
-    for (n, c) in &d.correlates_with {
-        s += &format!("<tr><td class=\"l\">{}</td><td>{c:+.3}</td></tr>", esc(n));
-    }
-    s += &format!(
-        "</table><h2>Acceptance</h2><p>The vocabulary (<code>quadratic_drag</code>, <code>sensor_delay</code>, <code>sensor_offset</code>, <code>stribeck</code> at J1+J3; one fit each, <code>sensor_delay</code> first where the plain residual follows the strip speed most) is tried; a candidate passes when its refit is back under {:.0}× the noise, its RMSE at most {:.0} % of the plain fit's, its held-out RMSE (every {}th {} s block left out of a refit) at most {:.0} % of the plain model's or within {:.2}× the noise and below it, and its 95 % interval excludes 0. Of those that pass the lowest BIC is named; the search stops at one whose refit is at the noise. Otherwise the finding stays as the plain fit left it.</p></body></html>",
-        residual::MODEL_ERROR_RATIO,
-        effects::MIN_IMPROVEMENT * 100.0,
-        holdout::HOLD_EVERY,
-        holdout::BLOCK_S,
-        holdout::MAX_HOLDOUT_RATIO * 100.0,
-        holdout::HOLDOUT_NOISE_RATIO
-    );
-    Ok(s)
 }
