@@ -72,7 +72,7 @@ mod tests;
 use std::str::FromStr;
 use std::time::Duration;
 
-use chrono::{DateTime, SubsecRound, Utc};
+use chrono::{DateTime, Datelike, SubsecRound, Utc};
 use serde::{Deserialize, Serialize};
 
 pub use fault::DbFault;
@@ -1196,6 +1196,12 @@ async fn prepare_trace(t: NewTrace) -> Result<PreparedTrace> {
     non_empty("test.kind", &t.kind)?;
     if let Some(s) = &t.serial {
         non_empty("pantograph.serial", s)?;
+    }
+    // Every backend stores years 1–9999 (SQLite as RFC 3339 text, PostgreSQL as timestamptz);
+    // a year outside would be written and then unreadable, making its vehicle answer 500
+    // (issue 18). The upload refuses it first; this keeps any other writer from storing one.
+    if !(1..=9999).contains(&t.recorded_at.year()) {
+        return Err(refused("recorded_at", "is outside the years 1 to 9999"));
     }
     let sha = t.content_sha256.to_ascii_lowercase();
     if sha.len() != 64 || !sha.bytes().all(|b| b.is_ascii_hexdigit()) {

@@ -436,6 +436,19 @@ async fn failed_insert_writes_nothing(store: &Store) {
         "content_sha256"
     );
     t.content_sha256 = sha('a');
+    // A year the backends cannot read back (issue 18: year 10000 made its vehicle answer 500).
+    for year in [10_000, 0] {
+        let mut y = t.clone();
+        y.recorded_at = chrono::NaiveDate::from_ymd_opt(year, 1, 1)
+            .and_then(|d| d.and_hms_opt(0, 30, 0))
+            .expect("a date")
+            .and_utc();
+        assert_eq!(
+            refused(store.insert_trace(y).await),
+            "recorded_at",
+            "year {year}"
+        );
+    }
     t.channels[1].1.pop();
     assert_eq!(refused(store.insert_trace(t).await), "channels");
     // A failure on an existing vehicle leaves the vehicle as it was and adds nothing else.
