@@ -92,9 +92,23 @@ async fn every_job_ends(b: Backend) {
     let env = [("PANTOWATCH__WORKER__FIT_MAX_EVALUATIONS", "100")];
     let mut w = procs::spawn(
         "worker-budget",
-        &["worker", "--workers", "1"],
+        &[
+            "worker",
+            "--workers",
+            "1",
+            "--metrics-listen",
+            "127.0.0.1:0",
+        ],
         &db.url,
         &env,
+    );
+    let line = w.wait_line(
+        "pantowatch worker metrics on http://",
+        Duration::from_secs(30),
+    );
+    let metrics_url = format!(
+        "{}/metrics",
+        line.rsplit(' ').next().expect("address").trim()
     );
     let ids = ["absurd-stored", "unfittable", "runaway", "valid"];
     let ended = wait_until("every job ended", Duration::from_secs(120), || async {
@@ -124,6 +138,27 @@ async fn every_job_ends(b: Backend) {
     for j in &ended {
         assert_eq!(j.attempts, 1, "each job ran once: {j:?}");
     }
+    // The worker's metrics count each failure under its reason.
+    let text = reqwest::get(&metrics_url)
+        .await
+        .expect("GET /metrics")
+        .text()
+        .await
+        .expect("body");
+    let failed = |reason: &str| {
+        crate::metrics::sample(
+            &text,
+            &format!("pantowatch_jobs_failed_total{{reason=\"{reason}\"}}"),
+        )
+        .unwrap_or(0.0)
+    };
+    assert_eq!(failed("evaluations"), 1.0, "{text}");
+    assert!(failed("invalid") >= 1.0, "{text}");
+    assert_eq!(
+        failed("invalid") + failed("model"),
+        2.0,
+        "the stored absurd pin and the two-sample lift: {text}"
+    );
     assert!(w.terminate(Duration::from_secs(30)).success());
 
     // A fit stopped by SIGTERM (grace 0) at every attempt: its attempts are counted when

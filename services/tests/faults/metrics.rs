@@ -13,7 +13,7 @@ use crate::harness::{Backend, fresh_db};
 use crate::procs::{self, shared_json, wait_until, with_id};
 
 /// The value of the first sample line starting with `name` (labels included in `name`).
-fn sample(text: &str, name: &str) -> Option<f64> {
+pub(crate) fn sample(text: &str, name: &str) -> Option<f64> {
     text.lines()
         .find(|l| l.starts_with(name))
         .and_then(|l| l.rsplit(' ').next())
@@ -99,6 +99,8 @@ async fn a_worker_process_serves_its_metrics() {
             1.0,
         ),
         ("pantowatch_jobs_processed_total{outcome=\"done\"}", 2.0),
+        ("pantowatch_job_attempts_total{attempt=\"1\"}", 2.0),
+        ("pantowatch_fit_evaluations_count{kind=\"pendulum\"}", 1.0),
         ("pantowatch_jobs{state=\"done\"}", 2.0),
         ("pantowatch_jobs{state=\"queued\"}", 0.0),
         ("pantowatch_queue_oldest_job_age_seconds", 0.0),
