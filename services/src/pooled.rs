@@ -118,6 +118,8 @@ pub async fn after_lift(
         .map_err(StoreError::Invalid)?;
     let budget = Budget::new(limits.max_evaluations);
     let stop = budget.canceller();
+    let spent = budget.clone();
+    let t0 = std::time::Instant::now();
     let task = tokio::task::spawn_blocking(move || {
         let channels = docs
             .iter()
@@ -140,6 +142,11 @@ pub async fn after_lift(
             ))
         }
     };
+    // Timed like a job's fit, under its own kind.
+    metrics::histogram!("pantowatch_fit_duration_seconds", "kind" => "lift_pooled")
+        .record(t0.elapsed().as_secs_f64());
+    metrics::histogram!("pantowatch_fit_evaluations", "kind" => "lift_pooled")
+        .record(spent.evaluations() as f64);
     let result = match fitted {
         Ok(r) => r,
         Err(e) => {
