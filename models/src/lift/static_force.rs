@@ -572,9 +572,14 @@ mod tests {
         let p = predict(g, data, &base).unwrap();
         assert_eq!(p.curve.heights_m.len(), 14);
         assert!(p.findings.is_empty(), "{:?}", p.findings);
+        let mut mild = base;
+        mild[RevJoint::J3.index()].value *= 1.8;
+        let p = predict(g, data, &mild).unwrap();
+        assert!(p.findings.is_empty(), "J3 x1.8: {:?}", p.findings);
         let mut worn = base;
         worn[RevJoint::J3.index()].value *= 3.0;
         let p = predict(g, data, &worn).unwrap();
+        eprintln!("J3 x3: {:?}", p.findings.first());
         assert!(
             p.findings.iter().any(|f| f.what == "difference_above_max"),
             "{:?}",
