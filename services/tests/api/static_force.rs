@@ -115,8 +115,14 @@ pub async fn static_force_is_predicted_and_judged_against_the_limits(b: Backend)
     assert_eq!(static_force_alerts(&alerts, "160EC-SF-1"), 0, "{alerts}");
     // The pantograph page plots it: raise and lower with their bands and the limit lines.
     let html = app.web_page("/pantographs/160EC-SF-3").await;
-    let section = html.split("id=\"static-force\"").nth(1).expect("static force section");
-    assert!(section.contains("<svg") && section.contains("<polygon"), "{section}");
+    let section = html
+        .split("id=\"static-force\"")
+        .nth(1)
+        .expect("static force section");
+    assert!(
+        section.contains("<svg") && section.contains("<polygon"),
+        "{section}"
+    );
     assert!(section.contains("leaves the limits"), "{section}");
     // No such pantograph: 404.
     let (s, _) = app.get_json("/v1/pantographs/NOPE-1/static-force").await;
