@@ -141,6 +141,27 @@ pub struct PantographType {
     /// table borrows the built-in 160EC's ([`PantographType::rig_limits`]).
     #[serde(default, rename = "rig_limits")]
     pub rig_limits_data: Option<RigLimits>,
+    /// The static contact force's working range and limits (`[static_force]`, issue 20); a
+    /// type without the table has no static-force prediction.
+    #[serde(default)]
+    pub static_force: Option<StaticForceData>,
+}
+
+/// `[static_force]`: where the characteristic is computed and what it must stay within. Limits
+/// are the operator's; the built-in values are placeholders derived from the paper's lift states.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StaticForceData {
+    pub source: String,
+    /// Strip heights [lowest, highest], m.
+    pub working_height_m: [f64; 2],
+    pub height_step_m: f64,
+    /// The nominal force at two heights, `[[H m, F N], [H m, F N]]`, linear in between.
+    pub nominal_force_points: [[f64; 2]; 2],
+    /// Allowed deviation either side of the nominal force, N.
+    pub tolerance_n: f64,
+    /// Largest lowering − raising force difference, N.
+    pub max_raise_lower_difference_n: f64,
 }
 
 /// The span a test rig's stated values and recorded channels can physically have (issue 18):
@@ -363,6 +384,38 @@ impl PantographType {
             ));
         }
         positive("gravity_m_s2", self.gravity_m_s2)?;
+        if let Some(sf) = &self.static_force {
+            let [a, b] = sf.working_height_m;
+            positive("static_force.working_height_m", a)?;
+            if !(b.is_finite() && b > a) {
+                return Err(invalid(
+                    "static_force.working_height_m",
+                    "must be [lowest, highest] with highest > lowest",
+                ));
+            }
+            positive("static_force.height_step_m", sf.height_step_m)?;
+            if (b - a) / sf.height_step_m > 1000.0 {
+                return Err(invalid(
+                    "static_force.height_step_m",
+                    "more than 1000 heights",
+                ));
+            }
+            let [[h0, f0], [h1, f1]] = sf.nominal_force_points;
+            for v in [h0, f0, h1, f1] {
+                positive("static_force.nominal_force_points", v)?;
+            }
+            if h0 == h1 {
+                return Err(invalid(
+                    "static_force.nominal_force_points",
+                    "the two heights must differ",
+                ));
+            }
+            positive("static_force.tolerance_n", sf.tolerance_n)?;
+            positive(
+                "static_force.max_raise_lower_difference_n",
+                sf.max_raise_lower_difference_n,
+            )?;
+        }
         if let Some(l) = &self.rig_limits_data {
             l.validate()?;
         }

@@ -163,7 +163,72 @@ pub async fn after_fit(
     if meta.kind == "lift" {
         actions.extend(lift_sensor_finding(store, &meta, serial, trace_id, fit_id, result).await?);
     }
+    actions.extend(static_force_finding(store, &meta, serial, trace_id, fit_id).await?);
     Ok(actions)
+}
+
+/// The predicted static contact force against the type's limits (issue 20, point 2): a 95 %
+/// band that leaves them opens (or updates) one `watch` alert named
+/// [`STATIC_FORCE_ALERT`](crate::static_force::STATIC_FORCE_ALERT) — a pseudo-joint, as the
+/// lift's `H sensor` finding is, so the alert table, its events and webhooks need no change; a
+/// later fit whose prediction is back within the limits resolves it. Recomputed after every fit of
+/// the pantograph (any test can change a parameter it uses). A type without a static-force model
+/// has none; a prediction the models cannot compute is logged and raises nothing.
+async fn static_force_finding(
+    store: &Store,
+    meta: &crate::store::TraceMeta,
+    serial: &str,
+    trace_id: &str,
+    fit_id: i64,
+) -> Result<Vec<AlertAction>, StoreError> {
+    use crate::static_force::{PredictError, STATIC_FORCE_ALERT, predict};
+    let v = match predict(store, serial).await {
+        Ok(v) => v,
+        Err(PredictError::Store(e)) => return Err(e),
+        Err(PredictError::NoModel(_) | PredictError::NoPantograph(_)) => return Ok(Vec::new()),
+        Err(e) => {
+            tracing::warn!(serial, error = %e, "static force not predicted");
+            return Ok(Vec::new());
+        }
+    };
+    if let Some(first) = v.findings.first() {
+        let reason = format!(
+            "static force: predicted band leaves the limits at {} height(s); first {} at H = {:.2} m \
+             ({:.1} N against {:.1} N)",
+            v.findings.len(),
+            first.what,
+            first.height_m,
+            first.value_n,
+            first.limit_n
+        );
+        let evidence = json!({
+            "fit_id": fit_id,
+            "trace_id": trace_id,
+            "recorded_at": meta.recorded_at,
+            "findings": v.findings,
+            "parameters": v.parameters,
+            "limits": v.limits,
+        });
+        let new = NewAlert {
+            serial: serial.to_owned(),
+            joint: STATIC_FORCE_ALERT.to_owned(),
+            vehicle_id: Some(meta.vehicle_id.clone()),
+            severity: Severity::Watch,
+            reason,
+            evidence,
+            trace_id: trace_id.to_owned(),
+        };
+        return Ok(vec![raise_logged(store, &new).await?]);
+    }
+    let note = format!("static force within the limits after test {trace_id}");
+    if let Some(a) = store
+        .resolve_joint_alert(serial, STATIC_FORCE_ALERT, trace_id, &note)
+        .await?
+    {
+        tracing::info!(alert = a.id, serial, "static force finding resolved");
+        return Ok(vec![AlertAction::Resolved { alert_id: a.id }]);
+    }
+    Ok(Vec::new())
 }
 
 /// Raise (or update) `new`, logging a newly opened or escalated alert.

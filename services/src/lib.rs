@@ -13,6 +13,7 @@ pub mod json_keys;
 pub mod plot;
 pub mod pooled;
 pub mod server;
+pub mod static_force;
 pub mod store;
 pub mod trace;
 pub mod trace_csv;

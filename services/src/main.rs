@@ -35,6 +35,9 @@ enum Command {
     /// Design an on-vehicle lift test: D-optimal drive moves within the stand's limits, and
     /// what it and the raise and lower tell per Table 4 parameter (issue 15).
     DesignTest(cli::design::DesignArgs),
+    /// The predicted static contact force over the working range, raising and lowering, with
+    /// 95 % bands and the type's limits, from a trace (fitted first) or a fit result (issue 20).
+    StaticForce(cli::static_force::StaticForceArgs),
     /// Write a synthetic trace document.
     Simulate(Box<cli::simulate::SimulateArgs>),
     /// Time the identification of trace files.
@@ -73,6 +76,10 @@ fn main() {
         // The suite's in-process service would log every timed request: bench sets its own.
         Command::Bench(a) => cli::bench::run(a),
         Command::DesignTest(a) => cli::design::run(&a),
+        Command::StaticForce(a) => {
+            init_logging(&LogSettings::default());
+            cli::static_force::run(a, &thresholds)
+        }
         Command::Examples => {
             init_logging(&LogSettings::default());
             cli::examples::run(&thresholds)

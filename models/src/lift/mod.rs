@@ -7,6 +7,7 @@
 //! - [`kinematics`] — loop closure in closed form, derivatives in α.
 //! - [`dynamics`] — equations of motion in (α, h), reactions, friction from the reactions.
 //! - [`statics`] — static drive torque (frictionless or at impending motion), equilibria.
+//! - [`static_force`] — the strip force over height, raising and lowering (EN 50206-1), with a band.
 //! - [`simulate`] — a lift test driven by its recorded inputs, with dissipated energies.
 //! - [`protocol`] — a lift test as the stand records it (drive damper, spring, cut weight).
 //! - [`design`] — what a protocol tells (Fisher, predicted sds), the stand's limits, D-optimal moves.
@@ -43,6 +44,7 @@ pub mod residual;
 pub mod sensitivity;
 pub mod sensors;
 pub mod simulate;
+pub mod static_force;
 pub mod statics;
 pub mod topology;
 pub mod vec2;

@@ -268,6 +268,20 @@ impl IntoResponse for AppError {
     }
 }
 
+impl From<crate::static_force::PredictError> for AppError {
+    fn from(e: crate::static_force::PredictError) -> Self {
+        use crate::static_force::PredictError as P;
+        match e {
+            P::NoPantograph(_) | P::NoModel(_) => AppError::NotFound(e.to_string()),
+            P::Model(_) => AppError::Invalid {
+                field: Some("parameters".to_owned()),
+                detail: e.to_string(),
+            },
+            P::Store(s) => s.into(),
+        }
+    }
+}
+
 impl From<StoreError> for AppError {
     fn from(e: StoreError) -> Self {
         match e {

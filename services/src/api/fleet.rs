@@ -27,6 +27,31 @@ pub fn router() -> OpenApiRouter<AppState> {
         .routes(routes!(get_vehicle))
         .routes(routes!(joint_history))
         .routes(routes!(fleet_health))
+        .routes(routes!(static_force))
+}
+
+/// The predicted static contact force of a pantograph over its type's working range, raising and
+/// lowering, with 95 % bands from its current dry-friction intervals (each from the latest test
+/// that informed it) and the findings against the type's limits (issue 20).
+#[utoipa::path(get, path = "/v1/pantographs/{serial}/static-force", tag = "fleet",
+    params(("serial" = String, Path, description = "pantograph serial")),
+    responses(
+        (status = 200, body = crate::static_force::StaticForceView),
+        (status = 400, description = "Malformed serial", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No such pantograph, or its type has no static-force model", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "The stored parameters give no static equilibrium", body = Problem, content_type = "application/problem+json"),
+    ),
+    security(("bearer" = [])))]
+pub async fn static_force(
+    State(st): State<AppState>,
+    _auth: Reader,
+    ApiPath(serial): ApiPath<String>,
+) -> Result<Json<crate::static_force::StaticForceView>, AppError> {
+    let serial = Serial::parse("serial", &serial).map_err(AppError::parameter_id)?;
+    crate::static_force::predict(&st.store, serial.as_str())
+        .await
+        .map(Json)
+        .map_err(AppError::from)
 }
 
 /// Every vehicle.

@@ -13,6 +13,7 @@ pub mod refit;
 pub mod report;
 pub mod serve;
 pub mod simulate;
+pub mod static_force;
 
 use std::path::Path;
 

@@ -760,6 +760,8 @@ pub(crate) trait Backend {
     fn queue_stats(&self) -> impl Future<Output = Result<QueueStats>> + Send;
     fn counts(&self) -> impl Future<Output = Result<Counts>> + Send;
     fn pantograph_exists(&self, serial: &str) -> impl Future<Output = Result<bool>> + Send;
+    fn pantograph_model(&self, serial: &str)
+    -> impl Future<Output = Result<Option<String>>> + Send;
     fn insert_api_key(
         &self,
         prefix: &str,
@@ -1020,6 +1022,11 @@ impl Store {
     /// True when a pantograph with this serial is stored.
     pub async fn pantograph_exists(&self, serial: &str) -> Result<bool> {
         dispatch!(self, s => s.pantograph_exists(serial).await)
+    }
+
+    /// The pantograph's type (`160EC`), `None` when no such pantograph is stored.
+    pub async fn pantograph_model(&self, serial: &str) -> Result<Option<String>> {
+        dispatch!(self, s => s.pantograph_model(serial).await)
     }
 
     /// Rows per table.

@@ -1002,6 +1002,15 @@ impl Backend for PgStore {
         counts_from(&r)
     }
 
+    async fn pantograph_model(&self, serial: &str) -> Result<Option<String>> {
+        Ok(
+            query_scalar::<_, String>("SELECT model FROM pantographs WHERE serial = $1")
+                .bind(serial)
+                .fetch_optional(&self.pool)
+                .await?,
+        )
+    }
+
     async fn pantograph_exists(&self, serial: &str) -> Result<bool> {
         let n: i64 = query_scalar("SELECT count(*) FROM pantographs WHERE serial = $1")
             .bind(serial)

@@ -86,6 +86,21 @@ impl Frame {
         });
     }
 
+    /// A band between two curves over the same x (`lower` and `upper` as (x, y) points), filled.
+    pub fn band(&mut self, lower: &[(f64, f64)], upper: &[(f64, f64)], fill: &str, label: &str) {
+        let points: Vec<String> = lower
+            .iter()
+            .chain(upper.iter().rev())
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .map(|(x, y)| format!("{},{}", px(self.sx(*x)), px(self.sy(*y))))
+            .collect();
+        self.body.push(html! {
+            polygon points=(points.join(" ")) fill=(fill) stroke="none" {
+                title { (label) }
+            }
+        });
+    }
+
     /// One test's value with its interval as a vertical bar, coloured by `status` through the
     /// status's class (the badges' class); `trace_id` names the test, `label` is the tooltip.
     pub fn point(

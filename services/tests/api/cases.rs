@@ -23,6 +23,7 @@ pub use crate::lift::{
     bad_lift_inputs_are_refused_naming_the_sample, lift_trace_is_fitted_with_every_joint,
     recent_lifts_are_pooled,
 };
+pub use crate::static_force::static_force_is_predicted_and_judged_against_the_limits;
 
 const J3_DRY: &str = "J3_dry_x1.8.json";
 
@@ -307,6 +308,13 @@ pub async fn every_route_every_role(b: Backend) {
         (
             Method::GET,
             "/v1/pantographs/S-1/joints/J1/history".into(),
+            None,
+            Role::Reader,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/pantographs/S-1/static-force".into(),
             None,
             Role::Reader,
             StatusCode::OK,

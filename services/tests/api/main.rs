@@ -13,6 +13,7 @@ mod harness;
 mod lift;
 mod quadrangle;
 mod security;
+mod static_force;
 
 use harness::Backend;
 
@@ -60,6 +61,7 @@ suite!(
     edge_dates_never_break_their_vehicle,
     hostile_requests_answer_problems_naming_their_field,
     a_release_is_found_or_stated_and_reported,
+    static_force_is_predicted_and_judged_against_the_limits,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).

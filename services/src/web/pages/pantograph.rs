@@ -189,6 +189,98 @@ fn describe(joint: &str, tr: &ParamTrend, pts: &[(DateTime<Utc>, f64)]) -> Strin
     d
 }
 
+/// The predicted static contact force (issue 20): raising and lowering with their 95 % bands,
+/// the frictionless curve, and the type's limits (nominal, min, max) over strip height.
+fn static_force_chart(v: &crate::static_force::StaticForceView) -> Markup {
+    let h = &v.heights_m;
+    let (Some(&h0), Some(&h1)) = (h.first(), h.last()) else {
+        return html! {};
+    };
+    let xy =
+        |ys: &[f64]| -> Vec<(f64, f64)> { h.iter().copied().zip(ys.iter().copied()).collect() };
+    let all = [
+        &v.raise_lo_n,
+        &v.lower_hi_n,
+        &v.limits.min_n,
+        &v.limits.max_n,
+    ];
+    let ylo = all
+        .iter()
+        .flat_map(|s| s.iter())
+        .copied()
+        .fold(f64::INFINITY, f64::min);
+    let yhi = all
+        .iter()
+        .flat_map(|s| s.iter())
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    let mut f = Frame::new((h0, h1), (ylo, yhi));
+    f.band(
+        &xy(&v.raise_lo_n),
+        &xy(&v.raise_hi_n),
+        "#bbdefb",
+        "raising, 95 % band",
+    );
+    f.band(
+        &xy(&v.lower_lo_n),
+        &xy(&v.lower_hi_n),
+        "#ffe0b2",
+        "lowering, 95 % band",
+    );
+    f.polyline(&xy(&v.limits.min_n), "#c62828", 1.5, true);
+    f.polyline(&xy(&v.limits.max_n), "#c62828", 1.5, true);
+    f.polyline(&xy(&v.limits.nominal_n), "#2e7d32", 1.0, true);
+    f.polyline(&xy(&v.frictionless_n), "#9e9e9e", 1.0, true);
+    f.polyline(&xy(&v.raise_n), "#1565c0", 2.0, false);
+    f.polyline(&xy(&v.lower_n), "#e65100", 2.0, false);
+    let i0 = 0;
+    let i1 = h.len() - 1;
+    let mut desc = format!(
+        "Predicted static contact force of {} from {} m to {} m: raising {} N to {} N, lowering {} N \
+         to {} N (95 % bands shaded); limits {} N to {} N at {} m",
+        v.serial,
+        fmt_num(h0),
+        fmt_num(h1),
+        fmt_num(v.raise_n[i0]),
+        fmt_num(v.raise_n[i1]),
+        fmt_num(v.lower_n[i0]),
+        fmt_num(v.lower_n[i1]),
+        fmt_num(v.limits.min_n[i0]),
+        fmt_num(v.limits.max_n[i0]),
+        fmt_num(h0),
+    );
+    if v.findings.is_empty() {
+        desc.push_str("; every band within the limits.");
+    } else {
+        let _ = write!(
+            desc,
+            "; the band leaves the limits at {} point(s), first {} at {} m.",
+            v.findings.len(),
+            v.findings[0].what,
+            fmt_num(v.findings[0].height_m)
+        );
+    }
+    let x_labels = vec![
+        (h0, format!("{} m", fmt_num(h0))),
+        (h1, format!("{} m", fmt_num(h1))),
+    ];
+    html! {
+        section id="static-force" {
+            h2 { "Static contact force" }
+            figure.chart data-param="static_force" {
+                (f.finish(&format!("{} static contact force over height", v.serial), &desc, &x_labels, "N"))
+                figcaption { (desc) }
+            }
+            p.note {
+                "Quasi-static strip force for raising (blue) and lowering (orange) with the drive at \
+                 the lift-test line, from each joint's dry friction of the latest test that informed \
+                 it (others at Table 4); shaded: 95 % bands; red dashed: the type's limits; green \
+                 dashed: nominal; grey dashed: without friction."
+            }
+        }
+    }
+}
+
 pub async fn pantograph_page(
     State(st): State<AppState>,
     user: WebUser,
@@ -217,6 +309,15 @@ async fn pantograph(st: &AppState, raw: &str) -> Result<Markup, AppError> {
             ..AlertFilter::default()
         })
         .await?;
+    // The static force prediction; a type without its model shows none, a model failure says so.
+    let static_force = match crate::static_force::predict(&st.store, serial.as_str()).await {
+        Ok(v) => static_force_chart(&v),
+        Err(crate::static_force::PredictError::Store(e)) => return Err(e.into()),
+        Err(crate::static_force::PredictError::Model(e)) => html! {
+            section id="static-force" { h2 { "Static contact force" } p { "Not computed: " (e) } }
+        },
+        Err(_) => html! {},
+    };
     let mut joints = Vec::new();
     for (joint, history) in &by_joint {
         let last = history.last();
@@ -270,5 +371,6 @@ async fn pantograph(st: &AppState, raw: &str) -> Result<Markup, AppError> {
         }
         @for j in &joints { (j) }
         @if by_joint.is_empty() { p { "No fitted tests yet." } }
+        (static_force)
     })
 }

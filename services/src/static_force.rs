@@ -1,0 +1,245 @@
+//! A pantograph's predicted static contact force (issue 20): its current joint friction, each
+//! parameter from the latest test that informed it, mapped into `models::lift::static_force`.
+//!
+//! No physics here: the models compute the characteristic and the findings against the type's
+//! `[static_force]` limits; this module picks the parameters, runs the models off the runtime and
+//! shapes the answer.
+
+use chrono::{DateTime, Utc};
+use pantowatch_models::data;
+use pantowatch_models::lift::geometry::{self, Geometry};
+use pantowatch_models::lift::static_force::{self, LimitFinding, MuEstimate, StaticForceCurve};
+use pantowatch_models::lift::topology::{N_REV, RevJoint};
+use serde::Serialize;
+use utoipa::ToSchema;
+
+use crate::health::Param;
+use crate::store::{JointPoint, Store, StoreError};
+
+/// The alert name of a static-force finding (one live alert per pantograph), a pseudo-joint as
+/// the lift's `H sensor` finding is.
+pub const STATIC_FORCE_ALERT: &str = "static force";
+
+/// Where one joint's dry friction coefficient came from.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct MuSource {
+    pub joint: String,
+    pub dry_mu: f64,
+    /// The 95 % interval of the fit that informed it; `null` for the type's baseline.
+    pub dry_mu_ci95: Option<[f64; 2]>,
+    /// `fit`: the latest test that informed it; `combination J1+J3`: a lift's informed combination
+    /// of joints it cannot tell apart, each member at the level × its baseline; `baseline`: no
+    /// test has (Table 4 value, no band).
+    pub source: String,
+    pub trace_id: Option<String>,
+    pub recorded_at: Option<DateTime<Utc>>,
+}
+
+/// The predicted characteristic: forces on the strip, N, at `heights_m`.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct StaticForceView {
+    pub serial: String,
+    pub model: String,
+    pub heights_m: Vec<f64>,
+    /// The drive torque assumed at each height (the line through the lift-test states), N·m.
+    pub drive_torque_nm: Vec<f64>,
+    pub frictionless_n: Vec<f64>,
+    pub raise_n: Vec<f64>,
+    pub raise_lo_n: Vec<f64>,
+    pub raise_hi_n: Vec<f64>,
+    pub lower_n: Vec<f64>,
+    pub lower_lo_n: Vec<f64>,
+    pub lower_hi_n: Vec<f64>,
+    pub limits: LimitsView,
+    /// Every height and edge where a 95 % band leaves the limits; empty: within them.
+    pub findings: Vec<FindingView>,
+    /// Each revolute joint's dry μ used, with its source.
+    pub parameters: Vec<MuSource>,
+}
+
+/// The type's limits (`[static_force]` of its data file), evaluated at `heights_m`.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct LimitsView {
+    pub nominal_n: Vec<f64>,
+    pub min_n: Vec<f64>,
+    pub max_n: Vec<f64>,
+    pub max_raise_lower_difference_n: f64,
+    pub source: String,
+}
+
+/// A band leaving a limit.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct FindingView {
+    pub height_m: f64,
+    /// `raise_below_min`, `lower_below_min`, `raise_above_max`, `lower_above_max`,
+    /// `difference_above_max`.
+    pub what: String,
+    pub value_n: f64,
+    pub limit_n: f64,
+}
+
+impl From<&LimitFinding> for FindingView {
+    fn from(f: &LimitFinding) -> Self {
+        FindingView {
+            height_m: f.height_m,
+            what: f.what.to_owned(),
+            value_n: f.value_n,
+            limit_n: f.limit_n,
+        }
+    }
+}
+
+/// Why no prediction.
+#[derive(Debug, thiserror::Error)]
+pub enum PredictError {
+    #[error("no pantograph `{0}`")]
+    NoPantograph(String),
+    #[error("pantograph type `{0}` has no complete-pantograph model or no [static_force] limits")]
+    NoModel(String),
+    #[error("the static force could not be computed: {0}")]
+    Model(String),
+    #[error(transparent)]
+    Store(#[from] StoreError),
+}
+
+/// The type's data and lift geometry, when the type has both.
+pub fn type_models(model: &str) -> Option<(&'static data::StaticForceData, &'static Geometry)> {
+    let d = data::builtin(model)?.static_force.as_ref()?;
+    let g = match model {
+        "160EC" => geometry::builtin_160ec(),
+        _ => return None,
+    };
+    Some((d, g))
+}
+
+/// Each revolute joint's dry μ: from the latest test in `history` (oldest first) that informed
+/// it ([`Param::of`], as fleet health takes each parameter), else the type's baseline.
+pub fn current_mu(g: &Geometry, history: &[JointPoint]) -> ([MuEstimate; N_REV], Vec<MuSource>) {
+    let mut mu: [MuEstimate; N_REV] = std::array::from_fn(|i| MuEstimate {
+        value: g.revolute[i].dry_mu,
+        ci95: None,
+    });
+    let mut src: Vec<MuSource> = RevJoint::ALL
+        .iter()
+        .map(|j| MuSource {
+            joint: j.name().to_owned(),
+            dry_mu: g.revolute[j.index()].dry_mu,
+            dry_mu_ci95: None,
+            source: "baseline".to_owned(),
+            trace_id: None,
+            recorded_at: None,
+        })
+        .collect();
+    for p in history {
+        let Some((v, lo, hi)) = Param::Dry.of(p) else {
+            continue;
+        };
+        if !(v >= 0.0 && lo <= v && v <= hi) {
+            continue;
+        }
+        // A lift's combination (`J1+J3`, level × Table 4, issue 15): the members a lift does
+        // not tell apart move together, each at level × its baseline (the level is wᵀx with
+        // Σw = 1, so all members at that level reproduce it), with the level's interval.
+        let members: Vec<RevJoint> = p
+            .fit
+            .joint
+            .split('+')
+            .filter_map(|n| RevJoint::ALL.into_iter().find(|j| j.name() == n))
+            .collect();
+        let combination = members.len() > 1;
+        if members.is_empty() || (!combination && p.fit.joint.contains('+')) {
+            continue;
+        }
+        for j in members {
+            if j == RevJoint::J6 {
+                // Locked in the plane: its friction does no work in the statics.
+                continue;
+            }
+            let i = j.index();
+            let b = g.revolute[i].dry_mu;
+            let (v, lo, hi) = if combination {
+                (v * b, lo * b, hi * b)
+            } else {
+                (v, lo, hi)
+            };
+            mu[i] = MuEstimate {
+                value: v,
+                ci95: Some([lo, hi]),
+            };
+            src[i] = MuSource {
+                joint: j.name().to_owned(),
+                dry_mu: v,
+                dry_mu_ci95: Some([lo, hi]),
+                source: if combination {
+                    format!("combination {}", p.fit.joint)
+                } else {
+                    "fit".to_owned()
+                },
+                trace_id: Some(p.trace_id.clone()),
+                recorded_at: Some(p.recorded_at),
+            };
+        }
+    }
+    (mu, src)
+}
+
+fn view(
+    serial: &str,
+    model: &str,
+    d: &data::StaticForceData,
+    c: StaticForceCurve,
+    findings: &[LimitFinding],
+    parameters: Vec<MuSource>,
+) -> StaticForceView {
+    let lim = static_force::ForceLimits::from(d);
+    let nominal_n: Vec<f64> = c.heights_m.iter().map(|&h| lim.nominal_at_n(h)).collect();
+    StaticForceView {
+        serial: serial.to_owned(),
+        model: model.to_owned(),
+        limits: LimitsView {
+            min_n: nominal_n.iter().map(|n| n - d.tolerance_n).collect(),
+            max_n: nominal_n.iter().map(|n| n + d.tolerance_n).collect(),
+            nominal_n,
+            max_raise_lower_difference_n: d.max_raise_lower_difference_n,
+            source: d.source.clone(),
+        },
+        findings: findings.iter().map(FindingView::from).collect(),
+        parameters,
+        heights_m: c.heights_m,
+        drive_torque_nm: c.drive_torque_nm,
+        frictionless_n: c.frictionless_n,
+        raise_n: c.raise_n,
+        raise_lo_n: c.raise_lo_n,
+        raise_hi_n: c.raise_hi_n,
+        lower_n: c.lower_n,
+        lower_lo_n: c.lower_lo_n,
+        lower_hi_n: c.lower_hi_n,
+    }
+}
+
+/// The prediction for `mu` on the type `model` (blocking: call off the runtime).
+pub fn predict_blocking(
+    serial: &str,
+    model: &str,
+    mu: &[MuEstimate; N_REV],
+    parameters: Vec<MuSource>,
+) -> Result<StaticForceView, PredictError> {
+    let (d, g) = type_models(model).ok_or_else(|| PredictError::NoModel(model.to_owned()))?;
+    let p = static_force::predict(g, d, mu).map_err(|e| PredictError::Model(e.to_string()))?;
+    Ok(view(serial, model, d, p.curve, &p.findings, parameters))
+}
+
+/// A stored pantograph's prediction from its current parameters.
+pub async fn predict(store: &Store, serial: &str) -> Result<StaticForceView, PredictError> {
+    let model = store
+        .pantograph_model(serial)
+        .await?
+        .ok_or_else(|| PredictError::NoPantograph(serial.to_owned()))?;
+    let (_, g) = type_models(&model).ok_or_else(|| PredictError::NoModel(model.clone()))?;
+    let history = store.serial_history(serial).await?;
+    let (mu, sources) = current_mu(g, &history);
+    let serial = serial.to_owned();
+    tokio::task::spawn_blocking(move || predict_blocking(&serial, &model, &mu, sources))
+        .await
+        .map_err(|e| PredictError::Model(e.to_string()))?
+}
