@@ -145,6 +145,10 @@ pub struct PantographType {
     /// type without the table has no static-force prediction.
     #[serde(default)]
     pub static_force: Option<StaticForceData>,
+    /// The paper's whole-pantograph test protocols (`[paper_tests]`); a file without the table
+    /// borrows the built-in 160EC's ([`PantographType::paper_tests`]).
+    #[serde(default, rename = "paper_tests")]
+    pub paper_tests_data: Option<PaperTests>,
 }
 
 /// `[static_force]`: where the characteristic is computed and what it must stay within. Limits
@@ -162,6 +166,26 @@ pub struct StaticForceData {
     pub tolerance_n: f64,
     /// Largest lowering − raising force difference, N.
     pub max_raise_lower_difference_n: f64,
+}
+
+/// The paper's whole-pantograph tests as the reference traces run them: the lower-quadrangle
+/// swing (Fig 12) and the reference lift (Section 5.3). The file gives each value's source.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PaperTests {
+    pub source: String,
+    /// The frame plane's incline in the quadrangle swing test, deg.
+    pub quadrangle_incline_deg: f64,
+    /// The quadrangle's release as a deflection from its rest angle, deg.
+    pub quadrangle_deflection_deg: f64,
+    /// The reference lift's recording: start, end (s) and sampling rate (Hz).
+    pub lift_t_start_s: f64,
+    pub lift_t_end_s: f64,
+    pub lift_sample_hz: f64,
+    /// The lift drive's torque-step time constant, s.
+    pub lift_drive_tau_s: f64,
+    /// The lift drive's damping, N·m·s/rad.
+    pub lift_drive_damping_nms_per_rad: f64,
 }
 
 /// The span a test rig's stated values and recorded channels can physically have (issue 18):
@@ -363,6 +387,17 @@ impl PantographType {
                 .rig_limits_data
                 .as_ref()
                 .expect("models/data/160ec.toml has [rig_limits]"),
+        }
+    }
+
+    /// This type's paper test protocols, or the built-in 160EC's when its file has none.
+    pub fn paper_tests(&self) -> &PaperTests {
+        match &self.paper_tests_data {
+            Some(p) => p,
+            None => builtin_160ec()
+                .paper_tests_data
+                .as_ref()
+                .expect("models/data/160ec.toml has [paper_tests]"),
         }
     }
 

@@ -148,7 +148,7 @@ impl PendulumSpec {
         let g = self
             .gravity_m_s2
             .or(data.map(|d| d.gravity_m_s2))
-            .unwrap_or(9.81);
+            .unwrap_or(builtin_160ec().gravity_m_s2);
         let rig = PendulumRig::compose(body, &attachments, r, g)
             .map_err(|e| err(&format!("test.rig.{}", e.field), e.message))?;
         if rig.com_distance_m <= 0.0 {
@@ -240,11 +240,12 @@ impl SliderSpec {
         let k = self
             .spring_stiffness_n_per_mm
             .or(sd.map(|s| s.spring_stiffness_n_per_mm))
-            .unwrap_or(4.0);
+            .unwrap_or(builtin_160ec().slider.spring_stiffness_n_per_mm);
         let fnn = self
             .normal_force_n
             .or(jd.and_then(|j| j.normal_force_n))
-            .unwrap_or(4.05);
+            .or_else(|| builtin_160ec().joint("J8").and_then(|j| j.normal_force_n))
+            .unwrap_or_default();
         let rig = SliderRig::new(m, springs, k, fnn)
             .map_err(|e| err(&format!("test.rig.{}", e.field), e.message))?;
         let baseline = Baseline {

@@ -3,7 +3,8 @@
 
 use std::fmt;
 
-use crate::trace::MAX_STRING;
+/// Longest accepted identifier or free-text string, characters.
+pub const MAX_STRING: usize = 256;
 
 /// An identifier that failed to parse: which field, and why.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

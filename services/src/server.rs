@@ -11,7 +11,7 @@ use tokio::net::TcpListener;
 use tokio::sync::{Notify, watch};
 
 use crate::alerts::AlertOptions;
-use crate::api::{self, AppState};
+use crate::api::AppState;
 use crate::config::Settings;
 use crate::store::{BackendKind, Store};
 use crate::webhooks::{self, DeliveryOptions};
@@ -91,7 +91,8 @@ pub async fn run(
         model_version = MODEL_VERSION, "pantowatch serving");
     let mut stop = stop_rx;
     // Connect info: the rate limit charges callers without a key to their peer address.
-    let app = api::router(state).into_make_service_with_connect_info::<std::net::SocketAddr>();
+    let app =
+        crate::app::router(state).into_make_service_with_connect_info::<std::net::SocketAddr>();
     let served = axum::serve(listener, app)
         .with_graceful_shutdown(async move {
             let _ = stop.wait_for(|s| *s).await;

@@ -15,12 +15,12 @@ use pantowatch_models::rig::BodySpec;
 use pantowatch_models::testspec::{Baseline, PendulumSpec, SliderSpec};
 use serde_json::{Map, Value};
 
+use crate::ids::MAX_STRING;
+
 /// The format tag every document carries.
 pub const FORMAT: &str = "pantograph-trace/1";
 /// Longest accepted channel, samples (a 30 min recording at 500 Hz is 900 000).
 pub const MAX_SAMPLES: usize = 2_000_000;
-/// Longest accepted identifier or free-text string, characters.
-pub const MAX_STRING: usize = 256;
 /// The lower-quadrangle swing kind (docs/TRACE_FORMAT.md, paper Fig 12).
 pub const QUADRANGLE_SWING: &str = "quadrangle_swing";
 /// Most channels in one document.

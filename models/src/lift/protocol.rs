@@ -60,18 +60,19 @@ pub struct Move {
 
 impl LiftProtocol {
     /// The paper's test as the reference trace runs it: states and spring from the geometry
-    /// file's `[lift_test]` (Section 5.3); τ = 0.8 s and c = 330 N·m·s/rad from
-    /// `shared/reference/lift-example.meta.json` (tuned there so the head rests at 1.84 m).
+    /// file's `[lift_test]` (Section 5.3); the recording, τ and c from `[paper_tests]` of
+    /// models/data/160ec.toml (from `shared/reference/lift-example.meta.json`).
     pub fn reference(g: &Geometry) -> Self {
         let lt = &g.lift_test;
+        let pt = crate::data::builtin_160ec().paper_tests();
         Self {
-            t_start_s: -0.5,
-            t_end_s: 7.5,
-            sample_hz: 500.0,
+            t_start_s: pt.lift_t_start_s,
+            t_end_s: pt.lift_t_end_s,
+            sample_hz: pt.lift_sample_hz,
             torque_initial_nm: lt.initial.t_nm,
             torque_final_nm: lt.final_.t_nm,
-            tau_s: 0.8,
-            drive_damping_nms_per_rad: 330.0,
+            tau_s: pt.lift_drive_tau_s,
+            drive_damping_nms_per_rad: pt.lift_drive_damping_nms_per_rad,
             spring: StripSpring {
                 force_at_ref_n: lt.initial.fs_n,
                 stiffness_n_per_m: lt.external_spring_n_per_m,

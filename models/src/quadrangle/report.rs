@@ -23,12 +23,21 @@ use crate::report::{
 };
 use crate::stats::Z95;
 
-/// The paper's incline of the frame plane in the Fig 12 test, deg.
-pub const PAPER_INCLINE_DEG: f64 = 70.0;
-/// The paper's release in the Fig 12 test, deg: α₀ = −10.1°. Its geometry is not published and
-/// the assumed one does not assemble there with a rest position at 70° (`model` doc), so the
-/// default release is this deflection from the loop's own rest angle.
-pub const PAPER_DEFLECTION_DEG: f64 = -10.1;
+/// The paper's incline of the frame plane in the Fig 12 test, deg (`[paper_tests]` of
+/// models/data/160ec.toml).
+pub fn paper_incline_deg() -> f64 {
+    crate::data::builtin_160ec()
+        .paper_tests()
+        .quadrangle_incline_deg
+}
+
+/// The paper's release in the Fig 12 test as a deflection from the loop's own rest angle, deg
+/// (`[paper_tests]` of models/data/160ec.toml, which says why a deflection).
+pub fn paper_deflection_deg() -> f64 {
+    crate::data::builtin_160ec()
+        .paper_tests()
+        .quadrangle_deflection_deg
+}
 
 /// The test stand as a document describes it (`test.rig`), defaults the paper's.
 #[derive(Debug, Clone, PartialEq)]
@@ -41,7 +50,7 @@ pub struct QuadRig {
 impl Default for QuadRig {
     fn default() -> Self {
         Self {
-            incline_deg: PAPER_INCLINE_DEG,
+            incline_deg: paper_incline_deg(),
             gravity_m_s2: builtin_160ec().gravity_m_s2,
             attachments: Vec::new(),
         }
@@ -260,7 +269,7 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
 
 /// A swing as the stand records it: the quadrangle on `rig` with friction `scale`d per
 /// parameter from Table 4, released at rest from `release_deg` (default: 10.1° below the
-/// frictionless rest angle, [`PAPER_DEFLECTION_DEG`]), sampled at `fs_hz` for
+/// frictionless rest angle, [`paper_deflection_deg`]), sampled at `fs_hz` for
 /// `duration_s`, both channels with Gaussian noise `noise_deg` and sensor zeros `zeros_deg`.
 #[derive(Debug, Clone)]
 pub struct SwingRecipe {
@@ -295,7 +304,7 @@ pub fn record_swing(r: &SwingRecipe) -> Result<SwingRecord, QuadReportError> {
         None => {
             m.rest_alpha_rad(0.4).ok_or(QuadReportError::NoRest {
                 incline_deg: r.rig.incline_deg,
-            })? + PAPER_DEFLECTION_DEG.to_radians()
+            })? + paper_deflection_deg().to_radians()
         }
     };
     let n = (r.duration_s * r.fs_hz).round() as usize + 1;

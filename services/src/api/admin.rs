@@ -11,10 +11,10 @@ use utoipa::ToSchema;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
-use super::AppState;
 use super::auth::Admin;
 use super::error::{AppError, Problem};
 use super::extract::{ApiJson, ApiPath};
+use super::state::AppState;
 use crate::ids::VehicleId;
 use crate::store::{ApiKey, Role};
 

@@ -8,10 +8,10 @@ use utoipa::{IntoParams, ToSchema};
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
-use super::AppState;
 use super::auth::{Reader, Writer};
 use super::error::{AppError, Problem};
 use super::extract::{ApiJson, ApiPath, ApiQuery};
+use super::state::AppState;
 use crate::ids::VehicleId;
 use crate::store::{Alert, AlertEvent, AlertFilter, AlertState, ApiKey, Severity, Transition};
 

@@ -1,17 +1,19 @@
 //! Access: every `/v1` handler takes one of [`Reader`], [`Writer`], [`Admin`], extractors that
 //! check `Authorization: Bearer <key>` against the store and the key's role.
 //!
-//! No or unknown/revoked key → 401; a key whose role is too low → 403.
+//! No or unknown/revoked key → 401; a key whose role is too low → 403. The web pages take
+//! [`WebUser`]: a signed session cookie (`super::session`) whose key is still unrevoked.
 
 use std::marker::PhantomData;
 
 use axum::extract::FromRequestParts;
 use axum::http::header::AUTHORIZATION;
 use axum::http::request::Parts;
+use axum::response::{IntoResponse, Redirect, Response};
 
-use super::AppState;
 use super::error::AppError;
-use super::ratelimit::VerifiedKey;
+use super::session::cookie_value;
+use super::state::AppState;
 use crate::store::{ApiKey, Role};
 
 /// The least role a route needs.
@@ -89,5 +91,47 @@ impl<R: MinRole> FromRequestParts<AppState> for Auth<R> {
             key,
             _role: PhantomData,
         })
+    }
+}
+
+/// The outcome of checking the request's bearer key (`None`: unknown or revoked), left in the
+/// request's extensions by `ratelimit::identify` for the `Auth` extractor.
+#[derive(Debug, Clone)]
+pub struct VerifiedKey(pub Option<ApiKey>);
+
+/// A signed-in person: the key they signed in with (still unrevoked).
+pub struct WebUser {
+    pub key: ApiKey,
+}
+
+/// Not signed in: to the sign-in page.
+pub struct SignIn;
+
+impl IntoResponse for SignIn {
+    fn into_response(self) -> Response {
+        Redirect::to("/").into_response()
+    }
+}
+
+/// The unrevoked key a request's session cookie names, if any (a store failure is logged and
+/// read as "not signed in").
+pub async fn signed_in(parts: &Parts, st: &AppState) -> Option<ApiKey> {
+    let id = cookie_value(parts).and_then(|v| st.sessions.verify(&v))?;
+    let keys = st
+        .store
+        .list_api_keys()
+        .await
+        .map_err(|e| tracing::error!(error = %e, "session check failed"))
+        .ok()?;
+    keys.into_iter()
+        .find(|k| k.id == id && k.revoked_at.is_none())
+}
+
+impl FromRequestParts<AppState> for WebUser {
+    type Rejection = SignIn;
+
+    async fn from_request_parts(parts: &mut Parts, st: &AppState) -> Result<Self, SignIn> {
+        let key = signed_in(parts, st).await.ok_or(SignIn)?;
+        Ok(WebUser { key })
     }
 }

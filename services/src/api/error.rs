@@ -7,12 +7,13 @@
 
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
+use chrono::{DateTime, Utc};
 use serde::Serialize;
 use utoipa::ToSchema;
 
 use crate::ids::IdError;
 use crate::ingest::IngestError;
-use crate::store::{DbFault, StoreError};
+use crate::store::{DbFault, Job, JobState, StoreError};
 use crate::trace::TraceError;
 
 /// Media type of every error answer.
@@ -40,7 +41,7 @@ pub struct Problem {
     pub parameter: Option<String>,
     /// For `GET /v1/traces/{trace_id}/fit` before the fit exists: the trace's fit job.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub job: Option<super::traces::JobView>,
+    pub job: Option<JobView>,
 }
 
 /// Everything a handler can answer besides success.
@@ -73,7 +74,7 @@ pub enum AppError {
     #[error("{detail}")]
     FitNotReady {
         detail: String,
-        job: Option<super::traces::JobView>,
+        job: Option<JobView>,
     },
     /// The request contradicts what is stored; `field` names the part that does.
     #[error("{detail}")]
@@ -346,6 +347,31 @@ impl From<IngestError> for AppError {
                 ),
             },
             IngestError::Store(s) => s.into(),
+        }
+    }
+}
+
+/// A fit job, as shown with a trace.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct JobView {
+    pub id: i64,
+    pub state: JobState,
+    pub attempts: i64,
+    pub model_version: String,
+    /// Why the last attempt failed (e.g. `lift` traces cannot be fitted yet).
+    pub last_error: Option<String>,
+    pub updated_at: DateTime<Utc>,
+}
+
+impl From<Job> for JobView {
+    fn from(j: Job) -> Self {
+        JobView {
+            id: j.id,
+            state: j.state,
+            attempts: j.attempts,
+            model_version: j.model_version,
+            last_error: j.last_error,
+            updated_at: j.updated_at,
         }
     }
 }

@@ -9,8 +9,8 @@ use axum::http::header::CONTENT_TYPE;
 use axum::http::request::Parts;
 use serde::de::DeserializeOwned;
 
-use super::AppState;
 use super::error::AppError;
+use super::state::AppState;
 use crate::ingest::BodyFormat;
 
 fn read_error(e: BytesRejection, limit: usize) -> AppError {

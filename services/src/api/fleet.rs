@@ -8,10 +8,10 @@ use utoipa::{IntoParams, ToSchema};
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
-use super::AppState;
 use super::auth::Reader;
 use super::error::{AppError, Problem};
 use super::extract::{ApiPath, ApiQuery};
+use super::state::AppState;
 use crate::health::{self, Param, ParamTrend};
 use crate::ids::{JointName, Serial, VehicleId};
 use crate::store::{

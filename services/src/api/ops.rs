@@ -11,8 +11,8 @@ use utoipa::ToSchema;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
-use super::AppState;
 use super::error::{AppError, Problem};
+use super::state::AppState;
 use crate::store::{BackendKind, Store};
 
 pub fn router() -> OpenApiRouter<AppState> {

@@ -2,7 +2,7 @@
 //! it authenticates with (bearer header or web session), or to its peer IP when it has no valid
 //! key; over the quota → 429.
 //!
-//! [`gate`] charges in this order (issue 18, point H: the key lookup, one database query, ran
+//! [`gate`](super::gate::gate) charges in this order (issue 18, point H: the key lookup, one database query, ran
 //! before anything was charged, so a flood of over-quota or made-up keys cost a query each):
 //! 1. Before the database: a bearer key this process has verified before ([`KnownKeys`], by the
 //!    SHA-256 of the presented text) is charged to that key; a web session (signed, checked
@@ -27,13 +27,11 @@
 //! not trusted: any client could forge them).
 
 use std::collections::HashMap;
-use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::net::IpAddr;
 use std::sync::{Arc, Mutex, Weak};
 use std::time::Duration;
 
-use axum::extract::{ConnectInfo, Request, State};
 use axum::http::{HeaderValue, StatusCode, header};
-use axum::middleware::Next;
 use axum::response::Response;
 use governor::clock::{Clock, QuantaInstant};
 use governor::middleware::NoOpMiddleware;
@@ -42,12 +40,8 @@ use tower_governor::GovernorError;
 use tower_governor::governor::{GovernorConfigBuilder, SharedRateLimiter};
 use tower_governor::key_extractor::KeyExtractor;
 
-use super::AppState;
-use super::auth::bearer;
 use super::error::{Problem, problem_response};
 use crate::config::HttpSettings;
-use crate::store::ApiKey;
-use crate::web::session;
 
 /// Paths that are never limited: liveness, readiness and metrics must answer their probes.
 pub const EXEMPT_PATHS: [&str; 3] = ["/healthz", "/readyz", "/metrics"];
@@ -74,7 +68,7 @@ pub const KNOWN_KEYS_MAX: usize = 10_000;
 pub struct KnownKeys(Arc<Mutex<HashMap<[u8; 32], i64>>>);
 
 impl KnownKeys {
-    fn digest(secret: &str) -> [u8; 32] {
+    pub(super) fn digest(secret: &str) -> [u8; 32] {
         Sha256::digest(secret.as_bytes()).into()
     }
 
@@ -83,11 +77,11 @@ impl KnownKeys {
         self.0.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    fn get(&self, digest: &[u8; 32]) -> Option<i64> {
+    pub(super) fn get(&self, digest: &[u8; 32]) -> Option<i64> {
         self.lock().get(digest).copied()
     }
 
-    fn learn(&self, digest: [u8; 32], found: Option<i64>) {
+    pub(super) fn learn(&self, digest: [u8; 32], found: Option<i64>) {
         let mut m = self.lock();
         match found {
             Some(id) => {
@@ -102,11 +96,6 @@ impl KnownKeys {
         }
     }
 }
-
-/// The outcome of checking the request's bearer key (`None`: unknown or revoked), left in the
-/// request's extensions by [`identify`] for the `Auth` extractor.
-#[derive(Debug, Clone)]
-pub struct VerifiedKey(pub Option<ApiKey>);
 
 /// tower_governor key extractor: the [`RateKey`] that [`identify`] put on the request.
 #[derive(Debug, Clone, Copy)]
@@ -129,7 +118,7 @@ pub struct RateLimit {
     limiter: SharedRateLimiter<RateKey, NoOpMiddleware<QuantaInstant>>,
     burst: u32,
     per_s: f64,
-    known: KnownKeys,
+    pub(super) known: KnownKeys,
 }
 
 impl std::fmt::Debug for RateLimit {
@@ -196,77 +185,6 @@ impl RateLimit {
     }
 }
 
-/// Charges the request before any database work, looks its bearer key up, then charges the
-/// budget the lookup names (module doc); answers 429 when one is spent. Leaves the request's
-/// [`RateKey`] and, for a bearer key, the [`VerifiedKey`] for `Auth`. A store failure while
-/// verifying leaves the error to `Auth` (it asks again and answers 503). Without a limiter, or
-/// on an exempt path, the request passes untouched.
-pub async fn gate(State(st): State<AppState>, req: Request, next: Next) -> Response {
-    let Some(rl) = st.rate_limit.clone() else {
-        return next.run(req).await;
-    };
-    if EXEMPT_PATHS.contains(&req.uri().path()) {
-        return next.run(req).await;
-    }
-    let peer = peer_ip(&req);
-    let (mut parts, body) = req.into_parts();
-    let presented = bearer(&parts)
-        .ok()
-        .map(|secret| (secret.to_owned(), KnownKeys::digest(secret)));
-    // 1. What the request can be told apart by without the database.
-    let first = match &presented {
-        Some((_, digest)) => rl
-            .known
-            .get(digest)
-            .map_or(RateKey::Lookup(peer), RateKey::Key),
-        None => session::cookie_value(&parts)
-            .and_then(|v| st.sessions.verify(&v))
-            // A signed session names its key; `WebUser` still checks that it is unrevoked.
-            .map_or(RateKey::Peer(peer), RateKey::Key),
-    };
-    if let Err(wait) = rl.check(&first) {
-        return refuse(first, wait, &rl);
-    }
-    // 2. The lookup; 3. the budget it names, when step 1 charged another.
-    let mut key = first;
-    if let Some((secret, digest)) = presented
-        && let Ok(found) = st.store.verify_api_key(&secret).await
-    {
-        rl.known.learn(digest, found.as_ref().map(|k| k.id));
-        key = found
-            .as_ref()
-            .map_or(RateKey::Peer(peer), |k| RateKey::Key(k.id));
-        parts.extensions.insert(VerifiedKey(found));
-        if key != first
-            && let Err(wait) = rl.check(&key)
-        {
-            return refuse(key, wait, &rl);
-        }
-    }
-    let mut req = Request::from_parts(parts, body);
-    req.extensions_mut().insert(key);
-    next.run(req).await
-}
-
-fn peer_ip(req: &Request) -> IpAddr {
-    req.extensions()
-        .get::<ConnectInfo<SocketAddr>>()
-        .map_or(IpAddr::V4(Ipv4Addr::UNSPECIFIED), |ConnectInfo(a)| a.ip())
-}
-
-fn refuse(key: RateKey, wait: Duration, rl: &RateLimit) -> Response {
-    match key {
-        RateKey::Key(id) => tracing::debug!(key_id = id, "rate limit exceeded"),
-        RateKey::Lookup(_) => {
-            tracing::debug!("rate limit of key lookups exceeded for an address")
-        }
-        RateKey::Peer(_) => {
-            tracing::debug!("rate limit exceeded for a caller without a valid key")
-        }
-    }
-    too_many_requests(wait, rl)
-}
-
 /// The 429 problem answer; `Retry-After` is `wait` rounded up to whole seconds (never 0).
 pub fn too_many_requests(wait: Duration, rl: &RateLimit) -> Response {
     let secs = wait.as_secs() + u64::from(wait.subsec_nanos() > 0);
@@ -293,6 +211,7 @@ pub fn too_many_requests(wait: Duration, rl: &RateLimit) -> Response {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::net::Ipv4Addr;
 
     fn limit(per_s: f64, burst: u32) -> RateLimit {
         RateLimit::from_settings(&HttpSettings {

@@ -14,13 +14,13 @@ use utoipa::ToSchema;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
-use super::AppState;
 use super::auth::{Reader, Writer};
-use super::error::{AppError, Problem};
+use super::error::{AppError, JobView, Problem};
 use super::extract::{ApiPath, TraceUpload};
+use super::state::AppState;
 use crate::ids::TraceId;
 use crate::ingest::{self, Accepted};
-use crate::store::{Job, JobState, Status, TraceMeta};
+use crate::store::{JobState, Status, TraceMeta};
 use crate::trace_csv;
 
 pub fn router() -> OpenApiRouter<AppState> {
@@ -65,31 +65,6 @@ impl From<Accepted> for TraceAccepted {
             links: TraceLinks::of(&a.trace_id),
             trace_id: a.trace_id,
             status: a.job_state,
-        }
-    }
-}
-
-/// A fit job, as shown with a trace.
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
-pub struct JobView {
-    pub id: i64,
-    pub state: JobState,
-    pub attempts: i64,
-    pub model_version: String,
-    /// Why the last attempt failed (e.g. `lift` traces cannot be fitted yet).
-    pub last_error: Option<String>,
-    pub updated_at: DateTime<Utc>,
-}
-
-impl From<Job> for JobView {
-    fn from(j: Job) -> Self {
-        JobView {
-            id: j.id,
-            state: j.state,
-            attempts: j.attempts,
-            model_version: j.model_version,
-            last_error: j.last_error,
-            updated_at: j.updated_at,
         }
     }
 }

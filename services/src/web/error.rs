@@ -10,10 +10,10 @@ use maud::{Markup, html};
 use serde::de::DeserializeOwned;
 
 use super::layout::page;
-use super::session::{WebUser, signed_in};
-use crate::api::AppState;
+use crate::api::auth::{WebUser, signed_in};
 use crate::api::error::{AppError, Problem};
 use crate::api::extract::{ApiPath, ApiQuery};
+use crate::api::state::AppState;
 use crate::store::ApiKey;
 
 /// An [`AppError`] as an HTML page with the same status; `user` adds the navigation.

@@ -10,7 +10,6 @@
 pub mod error;
 pub mod layout;
 pub mod pages;
-pub mod session;
 pub mod svg;
 
 use axum::Router;
@@ -21,11 +20,11 @@ use axum::routing::{get, post};
 use chrono::{DateTime, Utc};
 use maud::Markup;
 
-use crate::api::AppState;
+use crate::api::auth::WebUser;
 use crate::api::error::AppError;
+use crate::api::state::AppState;
 use crate::store::{AlertFilter, Severity};
 pub use error::WebError;
-use session::WebUser;
 
 /// The pages (no OpenAPI: they are for people).
 pub fn router() -> Router<AppState> {

@@ -361,7 +361,7 @@ async fn cors_allow_list() {
     assert!(header(&pre, "access-control-max-age").is_some());
     // Issue 18 (K): the preflight is answered by the CORS layer itself, and still carries the
     // security headers (they were inside it: its answers went out without them).
-    for (name, value) in pantowatch::api::SECURITY_HEADERS {
+    for (name, value) in pantowatch::app::SECURITY_HEADERS {
         assert_eq!(header(&pre, name), Some(value), "preflight lacks {name}");
     }
 

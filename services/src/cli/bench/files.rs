@@ -11,7 +11,7 @@ use serde_json::json;
 
 use crate::trace::{Kind, TraceDoc};
 
-use super::{BenchArgs, median};
+use super::table::{BenchArgs, median};
 
 /// Times every file of `a.files` and prints a table or JSON lines.
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {

@@ -11,10 +11,7 @@ use std::time::Instant;
 use pantowatch_models::identify::{FitOptions, fit_base};
 use serde_json::{Value, json};
 
-use super::median;
-use super::suite::{Row, Sizes, SuiteArgs};
-use crate::cli::simulate::{SimulateArgs, simulate_doc};
-use crate::trace::TraceDoc;
+use super::table::{Row, Sizes, SuiteArgs, median};
 
 /// Target speed-up over the SciPy peer for single joints.
 const RATIO_TARGET: f64 = 200.0;
@@ -279,36 +276,4 @@ fn kind_row(measure: &str, ts: &[Timed], peer_note: Option<&str>) -> Row {
         unit: "× peer".into(),
         detail: json!(per_file),
     }
-}
-
-/// `pantowatch simulate`'s defaults for every option a caller does not set.
-pub fn simulate_defaults() -> anyhow::Result<SimulateArgs> {
-    #[derive(clap::Parser)]
-    struct Defaults {
-        #[command(flatten)]
-        args: SimulateArgs,
-    }
-    Ok(<Defaults as clap::Parser>::try_parse_from(["simulate"])?.args)
-}
-
-/// A raise-and-lower lift trace (8 s at 500 Hz, H noise 1 mm) with J3's dry friction at
-/// `j3_dry` × Table 4, as the demo's fleet records it.
-pub fn lift_doc(seed: u64, j3_dry: f64, serial: &str, trace_id: &str) -> anyhow::Result<TraceDoc> {
-    let d = simulate_defaults()?;
-    let args = SimulateArgs {
-        kind: "lift".into(),
-        protocol: "raise-and-lower".into(),
-        scale_joints: if j3_dry == 1.0 {
-            Vec::new()
-        } else {
-            vec![format!("J3:dry={j3_dry}")]
-        },
-        h_noise_mm: 1.0,
-        fs: 500.0,
-        seed,
-        serial: serial.into(),
-        trace_id: Some(trace_id.into()),
-        ..d
-    };
-    simulate_doc(&args)
 }

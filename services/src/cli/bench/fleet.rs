@@ -11,12 +11,10 @@ use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::lift::batch;
 use serde_json::json;
 
-use super::lift::noisy_lift_doc;
-use super::suite::{Row, Sizes};
+use super::docs::noisy_lift_doc;
+use super::table::{FLEET_YEAR, Row, Sizes};
 use crate::trace::TraceDoc;
 
-/// A year of monthly lift tests for 1,000 pantographs.
-pub const FLEET_YEAR: usize = 12_000;
 /// Target for re-processing [`FLEET_YEAR`] traces on 2 cores, s.
 const TARGET_S: f64 = 600.0;
 /// Traces synthesised, then fitted, at a time (bounds memory with `--full`: ~0.2 MB each).

@@ -10,9 +10,9 @@ use serde_json::{Value, json};
 use tokio::sync::Semaphore;
 use tokio::task::JoinSet;
 
-use super::fits::{lift_doc, simulate_defaults};
+use super::docs::{lift_doc, simulate_defaults};
 use super::harness::{FreshPg, Server};
-use super::suite::{Row, Sizes, SuiteArgs};
+use super::table::{Row, Sizes, SuiteArgs};
 use crate::cli::simulate::{SimulateArgs, simulate_doc};
 use crate::store::{Role, Store};
 use crate::trace::TraceDoc;

@@ -9,11 +9,9 @@ use std::time::Instant;
 use pantowatch_models::drift::DriftThresholds;
 use serde_json::json;
 
-use super::fits::simulate_defaults;
-use super::suite::{Row, Sizes};
-use super::{median, quantile};
+use super::docs::{noisy_lift_doc, simulate_defaults};
+use super::table::{Row, Sizes, median, quantile};
 use crate::cli::simulate::{SimulateArgs, simulate_doc};
-use crate::trace::TraceDoc;
 
 /// Target time of one lift fit on one core, s (issue 15: p50, on realistic and 2× noise).
 pub const LIFT_TARGET_S: f64 = 0.3;
@@ -28,32 +26,6 @@ const LEVELS: [(f64, &str); 3] = [
 /// Friction of the simulated pantograph, cycled over the lifts of a level: Table 4, J3 dry
 /// ×1.8, J5 viscous ×2.5, J2 dry ×1.5 (`simulate --scale-joint`).
 const CASES: [&[&str]; 4] = [&[], &["J3:dry=1.8"], &["J5:viscous=2.5"], &["J2:dry=1.5"]];
-
-/// A raise-and-lower lift trace (8 s at 500 Hz) with `scale_joints` drifted and K × the
-/// stand's sensor noise on every channel (H 0.5 mm, T 1 N·m, Fs/Fm 0.2 N at K = 1). K = 0:
-/// clean inputs and H with 1 mm noise, as the project's simulated lifts were before issue 15.
-pub fn noisy_lift_doc(
-    seed: u64,
-    scale_joints: &[&str],
-    sensor_noise: f64,
-    serial: &str,
-    trace_id: &str,
-) -> anyhow::Result<TraceDoc> {
-    let d = simulate_defaults()?;
-    let args = SimulateArgs {
-        kind: "lift".into(),
-        protocol: "raise-and-lower".into(),
-        scale_joints: scale_joints.iter().map(|s| s.to_string()).collect(),
-        h_noise_mm: if sensor_noise > 0.0 { 0.0 } else { 1.0 },
-        sensor_noise,
-        fs: 500.0,
-        seed,
-        serial: serial.into(),
-        trace_id: Some(trace_id.into()),
-        ..d
-    };
-    simulate_doc(&args)
-}
 
 /// One row per noise level: p50 and p95 of `sizes.lift_seeds` lift fits; then the residual
 /// loop's row against the realistic level's p50 ([`loop_row`]).

@@ -12,8 +12,7 @@ use tokio::sync::Semaphore;
 use tokio::task::JoinSet;
 
 use super::harness::{FreshPg, Server};
-use super::quantile;
-use super::suite::{Row, Sizes, SuiteArgs};
+use super::table::{Row, Sizes, SuiteArgs, quantile};
 use crate::store::{FleetFilter, NewFit, NewTrace, Page, Role, Status, Store};
 
 /// Target p99 of one fleet-health page, s.

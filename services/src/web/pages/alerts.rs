@@ -9,13 +9,13 @@ use axum::response::IntoResponse;
 use maud::{Markup, html};
 use serde::Deserialize;
 
-use crate::api::AppState;
 use crate::api::alerts::{acknowledge, parse_id};
+use crate::api::auth::WebUser;
 use crate::api::error::AppError;
+use crate::api::state::AppState;
 use crate::store::{Alert, AlertFilter, AlertState, Role};
 use crate::web::error::{WebPath, WebQuery};
 use crate::web::layout::sev_badge;
-use crate::web::session::WebUser;
 use crate::web::{PageResult, WebError, day, form, seg, signed_in_page};
 
 #[derive(Deserialize, Default)]

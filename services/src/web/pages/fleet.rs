@@ -7,11 +7,11 @@ use axum::extract::State;
 use chrono::{DateTime, Utc};
 use maud::{Markup, html};
 
-use crate::api::AppState;
+use crate::api::auth::WebUser;
 use crate::api::error::AppError;
+use crate::api::state::AppState;
 use crate::store::{Alert, AlertFilter, FleetFilter, Page, Status};
 use crate::web::layout::badge;
-use crate::web::session::WebUser;
 use crate::web::{PageResult, day, seg, signed_in_page};
 
 /// Earliest forecast crossing in a live alert's evidence.

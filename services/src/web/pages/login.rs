@@ -9,9 +9,9 @@ use axum::response::{IntoResponse, Redirect, Response};
 use maud::{Markup, html};
 use serde::Deserialize;
 
-use crate::api::AppState;
+use crate::api::session::{self, SessionKey, clear_cookie};
+use crate::api::state::AppState;
 use crate::web::layout::page;
-use crate::web::session::{self, SessionKey, clear_cookie};
 use crate::web::{PageResult, WebError, form};
 
 #[derive(Deserialize)]

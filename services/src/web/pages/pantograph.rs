@@ -12,14 +12,14 @@ use chrono::{DateTime, Utc};
 use maud::{Markup, html};
 use pantowatch_models::drift::DriftThresholds;
 
-use crate::api::AppState;
+use crate::api::auth::WebUser;
 use crate::api::error::AppError;
+use crate::api::state::AppState;
 use crate::health::{self, Param, ParamTrend};
 use crate::ids::Serial;
 use crate::store::{AlertFilter, JointPoint, Status};
 use crate::web::error::WebPath;
 use crate::web::layout::{badge, sev_badge};
-use crate::web::session::WebUser;
 use crate::web::svg::{Frame, fmt_num};
 use crate::web::{PageResult, day, seg, signed_in_page};
 

@@ -6,13 +6,13 @@ use axum::extract::State;
 use maud::{Markup, html};
 use pantowatch_models::drift::DriftThresholds;
 
-use crate::api::AppState;
+use crate::api::auth::WebUser;
 use crate::api::error::AppError;
+use crate::api::state::AppState;
 use crate::ingest::stored_doc;
 use crate::store::TraceMeta;
 use crate::web::error::WebPath;
 use crate::web::layout::badge;
-use crate::web::session::WebUser;
 use crate::web::svg::{Frame, fmt_num, thin};
 use crate::web::{PageResult, seg, signed_in_page};
 

@@ -1,16 +1,13 @@
 //! Web sign-in: an API key exchanged for a signed session cookie (`key id . expiry . HMAC`;
 //! `HttpOnly; Secure; SameSite=Strict` — browsers keep `Secure` cookies on http://localhost and
 //! 127.0.0.1, so the demo signs in without TLS), and
-//! the [`WebUser`] extractor that checks it — and that the key is still unrevoked — on every page.
+//! the check of a cookie's value; `auth::WebUser` is the extractor that asks it — and that the
+//! key is still unrevoked — on every page.
 
-use axum::extract::FromRequestParts;
 use axum::http::header::COOKIE;
 use axum::http::request::Parts;
-use axum::response::{IntoResponse, Redirect, Response};
 use chrono::Utc;
 
-use crate::api::AppState;
-use crate::store::ApiKey;
 use crate::webhooks::{hmac_sha256, hmac_sha256_hex};
 
 /// Name of the session cookie.
@@ -94,43 +91,6 @@ pub fn cookie_value(parts: &Parts) -> Option<String> {
         .filter_map(|c| c.trim().split_once('='))
         .find(|(n, _)| *n == COOKIE_NAME)
         .map(|(_, v)| v.to_owned())
-}
-
-/// A signed-in person: the key they signed in with (still unrevoked).
-pub struct WebUser {
-    pub key: ApiKey,
-}
-
-/// Not signed in: to the sign-in page.
-pub struct SignIn;
-
-impl IntoResponse for SignIn {
-    fn into_response(self) -> Response {
-        Redirect::to("/").into_response()
-    }
-}
-
-/// The unrevoked key a request's session cookie names, if any (a store failure is logged and
-/// read as "not signed in").
-pub async fn signed_in(parts: &Parts, st: &AppState) -> Option<ApiKey> {
-    let id = cookie_value(parts).and_then(|v| st.sessions.verify(&v))?;
-    let keys = st
-        .store
-        .list_api_keys()
-        .await
-        .map_err(|e| tracing::error!(error = %e, "session check failed"))
-        .ok()?;
-    keys.into_iter()
-        .find(|k| k.id == id && k.revoked_at.is_none())
-}
-
-impl FromRequestParts<AppState> for WebUser {
-    type Rejection = SignIn;
-
-    async fn from_request_parts(parts: &mut Parts, st: &AppState) -> Result<Self, SignIn> {
-        let key = signed_in(parts, st).await.ok_or(SignIn)?;
-        Ok(WebUser { key })
-    }
 }
 
 #[cfg(test)]
