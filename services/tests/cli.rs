@@ -484,3 +484,65 @@ fn a_lift_with_head_drag_is_named_and_reported() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("a lift takes"));
 }
+
+/// `static-force --trace`: the lift is fitted, then the characteristic printed (issue 20). A
+/// lift with J3 dry friction ×3 lowers the raising curve, widens the raise/lower gap and leaves
+/// the type's limits; the baseline lift stays within them. The table names its columns.
+#[test]
+fn static_force_from_a_lift_trace_widens_with_j3_friction() {
+    let predict = |name: &str, scale: Option<&str>| -> serde_json::Value {
+        let trace = tmp(name);
+        let mut sim = bin();
+        sim.args(["simulate", "--kind", "lift", "--seed", "4", "-o"])
+            .arg(&trace);
+        if let Some(s) = scale {
+            sim.args(["--scale-joint", s]);
+        }
+        run_ok(&mut sim);
+        let out = run_ok(
+            bin()
+                .args(["static-force", "--json", "--trace"])
+                .arg(&trace),
+        );
+        serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"))
+    };
+    let arr = |v: &serde_json::Value, k: &str| -> Vec<f64> {
+        serde_json::from_value(v[k].clone()).unwrap_or_else(|e| panic!("{k}: {e}"))
+    };
+    let base = predict("sf-base.json", None);
+    let worn = predict("sf-j3x3.json", Some("J3:dry=3"));
+    let heights = arr(&base, "heights_m");
+    assert!(heights.len() >= 5, "{base}");
+    let gap = |v: &serde_json::Value| -> Vec<f64> {
+        arr(v, "lower_n")
+            .iter()
+            .zip(arr(v, "raise_n"))
+            .map(|(l, r)| l - r)
+            .collect()
+    };
+    for (i, (g0, g3)) in gap(&base).iter().zip(gap(&worn)).enumerate() {
+        assert!(
+            *g0 > 0.0,
+            "lowering needs more force than raising at {}",
+            heights[i]
+        );
+        assert!(
+            g3 > g0 + 5.0,
+            "J3 ×3 widens the gap at {} m: {g0} → {g3}",
+            heights[i]
+        );
+    }
+    assert_eq!(base["findings"].as_array().map(Vec::len), Some(0), "{base}");
+    assert!(
+        worn["findings"].as_array().is_some_and(|f| !f.is_empty()),
+        "{worn}"
+    );
+    let trace = tmp("sf-base.json");
+    let table = run_ok(bin().args(["static-force", "--trace"]).arg(&trace));
+    assert!(
+        table.contains("F_raise")
+            && table.contains("F_lower")
+            && table.lines().count() > heights.len(),
+        "{table}"
+    );
+}

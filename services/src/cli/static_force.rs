@@ -14,14 +14,14 @@ use pantowatch_models::drift::DriftThresholds;
 use crate::static_force::{StaticForceView, current_mu, predict_blocking, type_models};
 use crate::store::{JointPoint, NewFit};
 
+/// Exactly one of `--trace` and `--fit`; `--model` and `--json` go with either.
 #[derive(Debug, clap::Args)]
-#[group(required = true, multiple = false)]
 pub struct StaticForceArgs {
     /// A trace document to fit first (pantograph-trace/1 JSON).
-    #[arg(long, group = "input")]
+    #[arg(long, required_unless_present = "fit", conflicts_with = "fit")]
     pub trace: Option<PathBuf>,
     /// A fit result (the contract's JSON, `pantowatch fit --json`).
-    #[arg(long, group = "input")]
+    #[arg(long)]
     pub fit: Option<PathBuf>,
     /// Pantograph type of a `--fit` result (a trace names its own).
     #[arg(long, default_value = "160EC")]
@@ -84,7 +84,9 @@ pub fn run(a: StaticForceArgs, thresholds: &DriftThresholds) -> anyhow::Result<(
     let (result, model, name) = match (&a.trace, &a.fit) {
         (Some(path), _) => {
             let doc = super::read_trace(path)?;
-            let (r, _) = super::fit::fit_doc(&doc, thresholds)?;
+            // Any kind: a lift, a pendulum or a swing informs the joints it informs.
+            let r = crate::fitting::fit_document(&doc, thresholds)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
             let name = doc
                 .pantograph_serial
                 .clone()
