@@ -209,15 +209,7 @@ async fn static_force_finding(
             "parameters": v.parameters,
             "limits": v.limits,
         });
-        let new = NewAlert {
-            serial: serial.to_owned(),
-            joint: STATIC_FORCE_ALERT.to_owned(),
-            vehicle_id: Some(meta.vehicle_id.clone()),
-            severity: Severity::Watch,
-            reason,
-            evidence,
-            trace_id: trace_id.to_owned(),
-        };
+        let new = finding_alert(serial, STATIC_FORCE_ALERT, meta, trace_id, reason, evidence);
         return Ok(vec![raise_logged(store, &new).await?]);
     }
     let note = format!("static force within the limits after test {trace_id}");
@@ -232,6 +224,27 @@ async fn static_force_finding(
 }
 
 /// Raise (or update) `new`, logging a newly opened or escalated alert.
+/// A `watch` alert on a pantograph-level finding (a pseudo-joint such as `H sensor` or
+/// `static force`) raised from test `trace_id`.
+fn finding_alert(
+    serial: &str,
+    finding: &str,
+    meta: &crate::store::TraceMeta,
+    trace_id: &str,
+    reason: String,
+    evidence: serde_json::Value,
+) -> NewAlert {
+    NewAlert {
+        serial: serial.to_owned(),
+        joint: finding.to_owned(),
+        vehicle_id: Some(meta.vehicle_id.clone()),
+        severity: Severity::Watch,
+        reason,
+        evidence,
+        trace_id: trace_id.to_owned(),
+    }
+}
+
 async fn raise_logged(store: &Store, new: &NewAlert) -> Result<AlertAction, StoreError> {
     let out = store.raise_alert(new).await?;
     if !matches!(out, RaiseOutcome::Updated(_)) {
@@ -328,15 +341,7 @@ async fn lift_sensor_finding(
             "effect": e,
             "residual": residual,
         });
-        let new = NewAlert {
-            serial: serial.to_owned(),
-            joint: LIFT_H_SENSOR.to_owned(),
-            vehicle_id: Some(meta.vehicle_id.clone()),
-            severity: Severity::Watch,
-            reason,
-            evidence,
-            trace_id: trace_id.to_owned(),
-        };
+        let new = finding_alert(serial, LIFT_H_SENSOR, meta, trace_id, reason, evidence);
         return Ok(vec![raise_logged(store, &new).await?]);
     }
     let explained = residual
