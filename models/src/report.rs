@@ -1,7 +1,7 @@
 //! The fit result of the trace format (contract `Fit result`): each joint's parameters with
 //! 95 % intervals, baseline, identifiability and drift status; the RMSE; the residual block.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::drift::{DriftThresholds, Status};
 use crate::friction::DynParam;
@@ -147,6 +147,75 @@ pub struct FitResult {
     pub combinations: Vec<CombinationResult>,
 }
 
+/// Measured vs fitted model of one fit, stored with the fit so a page draws it without
+/// refitting (issue 19, point 4). Thinned to at most [`FitCurve::MAX_POINTS`] samples, evenly
+/// by index (first and last kept): a plot's width, not the record.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct FitCurve {
+    /// What the channel is (`alpha_deg`, `H_m`, …) and its unit (`deg`, `m`).
+    pub channel: String,
+    pub unit: String,
+    pub t_s: Vec<f64>,
+    pub measured: Vec<f64>,
+    pub model: Vec<f64>,
+}
+
+impl FitCurve {
+    /// Samples kept: ~3 KB per 100 points as JSON; 600 points draw a 1,000 px chart smoothly.
+    pub const MAX_POINTS: usize = 600;
+
+    /// The curve over the fitted samples; `None` when the three series do not line up or hold
+    /// fewer than 2 finite points (nothing to draw).
+    pub fn thinned(
+        channel: &str,
+        unit: &str,
+        t_s: &[f64],
+        measured: &[f64],
+        model: &[f64],
+    ) -> Option<Self> {
+        let n = t_s.len().min(measured.len()).min(model.len());
+        if n < 2 {
+            return None;
+        }
+        let idx: Vec<usize> = if n <= Self::MAX_POINTS {
+            (0..n).collect()
+        } else {
+            (0..Self::MAX_POINTS)
+                .map(|k| k * (n - 1) / (Self::MAX_POINTS - 1))
+                .collect()
+        };
+        let keep: Vec<usize> = idx
+            .into_iter()
+            .filter(|&i| t_s[i].is_finite() && measured[i].is_finite() && model[i].is_finite())
+            .collect();
+        if keep.len() < 2 {
+            return None;
+        }
+        Some(Self {
+            channel: channel.to_owned(),
+            unit: unit.to_owned(),
+            t_s: keep.iter().map(|&i| t_s[i]).collect(),
+            measured: keep.iter().map(|&i| measured[i]).collect(),
+            model: keep.iter().map(|&i| model[i]).collect(),
+        })
+    }
+
+    /// Model − measured at every kept sample, channel units.
+    pub fn residual(&self) -> Vec<f64> {
+        self.model
+            .iter()
+            .zip(&self.measured)
+            .map(|(m, y)| m - y)
+            .collect()
+    }
+
+    /// Root-mean-square of [`FitCurve::residual`].
+    pub fn rmse(&self) -> f64 {
+        let r = self.residual();
+        (r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64).sqrt()
+    }
+}
+
 /// The tests a pooled fit combined: the friction shared, one torque offset per test.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct PooledTests {
@@ -244,5 +313,29 @@ pub fn details(
             (Some(a), Some(b)) => corr[(a, b)],
             _ => f64::NAN,
         },
+    }
+}
+
+#[cfg(test)]
+mod curve_tests {
+    use super::FitCurve;
+
+    #[test]
+    fn a_long_record_is_thinned_to_the_plot_width_with_its_ends_kept() {
+        let n = 5_000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 0.002).collect();
+        let y: Vec<f64> = t.iter().map(|t| t.sin()).collect();
+        let m: Vec<f64> = y.iter().map(|v| v + 0.01).collect();
+        let c = FitCurve::thinned("alpha_deg", "deg", &t, &y, &m).unwrap();
+        assert_eq!(c.t_s.len(), FitCurve::MAX_POINTS);
+        assert_eq!(c.t_s[0], 0.0);
+        assert_eq!(*c.t_s.last().unwrap(), t[n - 1]);
+        assert!((c.rmse() - 0.01).abs() < 1e-12);
+        // A short record is kept whole; mismatched or empty series give nothing to draw.
+        let s = FitCurve::thinned("H_m", "m", &t[..10], &y[..10], &m[..10]).unwrap();
+        assert_eq!(s.t_s, t[..10].to_vec());
+        assert!(FitCurve::thinned("H_m", "m", &t[..1], &y[..1], &m[..1]).is_none());
+        let nan = vec![f64::NAN; 10];
+        assert!(FitCurve::thinned("H_m", "m", &t[..10], &nan, &m[..10]).is_none());
     }
 }

@@ -16,12 +16,29 @@ use std::path::{Path, PathBuf};
 /// protocols; and gravity.
 const PAPER_SECTIONS: [&str; 5] = ["bodies", "joints", "rigs", "slider", "paper_tests"];
 
+/// The sections of the geometry file (`160ec-geometry.toml`) scanned likewise; left out:
+/// `meta` (labels), `checks` and `reference_pose` (values computed from the file, for its
+/// tests), `design` (a record of what was tuned) and `assembly` (branch signs ±1).
+const GEOMETRY_SECTIONS: [&str; 8] = [
+    "ground",
+    "bodies",
+    "joints",
+    "head_suspension",
+    "range",
+    "drive",
+    "stand",
+    "lift_test",
+];
+
 /// Values of those sections that code uses for reasons of its own (unit factors, grids of
 /// trial factors, integrator coefficients such as Dormand–Prince's 500/1113, kernel exponents):
 /// too round to mean the paper. The paper's values among them (τ = 0.8 s, 500 Hz, −0.5 s, k =
 /// 4.0 N/mm) are still read from the data file; this test just cannot tell them apart.
-const ROUND: [f64; 14] = [
-    0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 10.0, 0.001, 0.01, 0.05, 0.2, 0.8, 500.0,
+/// The geometry file adds 0.4 (τ's lower limit), 1.5, 1.8 (Table 1's top), 12, 30 (the stand's
+/// longest test) and 0.99, each also an iteration count, a drift band, a clamp or a bit shift.
+const ROUND: [f64; 20] = [
+    0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 10.0, 0.001, 0.01, 0.05, 0.2, 0.8, 500.0, 0.4, 1.5, 1.8,
+    12.0, 30.0, 0.99,
 ];
 
 fn root() -> PathBuf {
@@ -54,6 +71,17 @@ fn paper_numbers() -> BTreeSet<u64> {
         collect_numbers(section, &mut out, s);
     }
     collect_numbers(&doc["gravity_m_s2"], &mut out, "gravity_m_s2");
+    // The complete pantograph's file: the paper's lift states (Section 5.3), the drive's and
+    // the stand's stated limits, the operating range (Table 1), the head suspension (Section
+    // 4.2), the bodies' and joints' geometry.
+    let text = std::fs::read_to_string(root().join("data/160ec-geometry.toml")).expect("geometry");
+    let doc: toml::Value = toml::from_str(&text).expect("geometry file parses");
+    for s in GEOMETRY_SECTIONS {
+        let section = doc
+            .get(s)
+            .unwrap_or_else(|| panic!("geometry file has [{s}]"));
+        collect_numbers(section, &mut out, s);
+    }
     for r in ROUND {
         out.remove(&r.to_bits());
         out.remove(&(-r).to_bits());
@@ -156,7 +184,9 @@ fn the_scanner_reads_literals_as_code_writes_them() {
         .collect();
     assert_eq!(found, vec![-10.1, 330.0, 1000.0, 2e-3, 0.5]);
     let numbers = paper_numbers();
-    for v in [70.0f64, -10.1, 330.0, 18.8, 0.802, 0.034, 4.05, 9.81] {
+    for v in [
+        70.0f64, -10.1, 330.0, 18.8, 0.802, 0.034, 4.05, 9.81, 1.84, 1110.0, 2220.0, 986.0,
+    ] {
         assert!(numbers.contains(&v.to_bits()), "{v} is a paper number");
     }
 }

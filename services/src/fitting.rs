@@ -7,7 +7,7 @@ use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::identify::{FitOptions, FitOutcome};
 use pantowatch_models::lift::report::{LiftReport, fit_lift_trace};
 use pantowatch_models::quadrangle::report::{QuadReport, fit_quadrangle_trace};
-use pantowatch_models::report::FitResult;
+use pantowatch_models::report::{FitCurve, FitResult};
 use pantowatch_models::residual::Finding;
 
 use crate::trace::{Kind, TraceDoc, TraceError};
@@ -53,24 +53,92 @@ pub struct FitLimits {
 
 /// [`fit_document`] under `budget` (`models::budget`): at most its model evaluations, and
 /// stopped within ~1 ms of its canceller firing (the caller's wall-time limit or a shutdown).
-/// Every fitter charges the same budget, so no document can hold a worker for good.
+/// Every fitter charges the same budget, so no document can hold a worker for good. Returns the
+/// curve too: the worker stores it with the fit.
 pub fn fit_document_within(
     doc: &TraceDoc,
     thresholds: &DriftThresholds,
     budget: &Budget,
-) -> Result<FitResult, FitFailure> {
-    pantowatch_models::budget::run(budget, || fit_document(doc, thresholds))
+) -> Result<Fitted, FitFailure> {
+    pantowatch_models::budget::run(budget, || fit_document_with_curve(doc, thresholds))
         .unwrap_or_else(|e| Err(FitFailure::Budget(e)))
+}
+
+/// A fit as the worker stores it: the contract's result and the measured-vs-model curve that
+/// pages draw (issue 19, point 4: stored with the fit, never refitted to draw).
+#[derive(Debug, Clone)]
+pub struct Fitted {
+    pub result: FitResult,
+    /// `None` when the fit has no curve to draw (fewer than 2 finite fitted samples).
+    pub curve: Option<FitCurve>,
 }
 
 /// Fits a validated document and returns the contract's fit result.
 pub fn fit_document(doc: &TraceDoc, thresholds: &DriftThresholds) -> Result<FitResult, FitFailure> {
+    fit_document_with_curve(doc, thresholds).map(|f| f.result)
+}
+
+/// [`fit_document`] with the fit's curve: the fitted channel measured and modelled over the
+/// fitted samples (pendulum and slider: the joint's channel from the release; lift: `H_m`;
+/// quadrangle swing: `alpha_deg`).
+pub fn fit_document_with_curve(
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+) -> Result<Fitted, FitFailure> {
     match doc.kind {
-        Kind::Lift => return fit_lift(doc, thresholds).map(|r| r.result),
-        Kind::QuadrangleSwing => return fit_quadrangle(doc, thresholds).map(|r| r.result),
-        Kind::Pendulum | Kind::Slider => {}
+        Kind::Lift => {
+            let rep = fit_lift(doc, thresholds)?;
+            let ch = doc.lift_channels().map_err(FitFailure::Invalid)?;
+            let curve =
+                FitCurve::thinned("H_m", "m", ch.t_s, ch.strip_height_m, &rep.fitted_height_m);
+            Ok(Fitted {
+                result: rep.result,
+                curve,
+            })
+        }
+        Kind::QuadrangleSwing => {
+            let rep = fit_quadrangle(doc, thresholds)?;
+            let (ch, _) = doc.quadrangle_channels().map_err(FitFailure::Invalid)?;
+            let model: Vec<f64> = rep
+                .fit
+                .fitted_alpha_rad
+                .iter()
+                .map(|v| v.to_degrees())
+                .collect();
+            let curve = FitCurve::thinned("alpha_deg", "deg", ch.t_s, ch.alpha_deg, &model);
+            Ok(Fitted {
+                result: rep.result,
+                curve,
+            })
+        }
+        Kind::Pendulum | Kind::Slider => {
+            let (test, _) = doc.joint_test().map_err(FitFailure::Invalid)?;
+            let (result, o) = fit_with_outcome(doc, thresholds)?;
+            let end = (o.start + o.n_fit)
+                .min(test.t_s.len())
+                .min(test.y.len())
+                .min(o.start + o.model_y.len());
+            // The contract's channel of each kind (`TRACE_FORMAT.md`): deg is a pendulum's α,
+            // mm a slider's h.
+            let channel = if test.unit == "deg" {
+                "alpha_deg"
+            } else {
+                "h_mm"
+            };
+            let curve = (end > o.start)
+                .then(|| {
+                    FitCurve::thinned(
+                        channel,
+                        test.unit,
+                        &test.t_s[o.start..end],
+                        &test.y[o.start..end],
+                        &o.model_y[..end - o.start],
+                    )
+                })
+                .flatten();
+            Ok(Fitted { result, curve })
+        }
     }
-    fit_with_outcome(doc, thresholds).map(|(r, _)| r)
 }
 
 /// Fits a `lift` document: the complete-pantograph MAP identification (Table 4 prior), every

@@ -289,7 +289,7 @@ pub async fn process_next(
     metrics::histogram!("pantowatch_fit_duration_seconds", "kind" => kind).record(fit_seconds);
     // What the evaluation budget is measured against (worker.fit_max_evaluations).
     metrics::histogram!("pantowatch_fit_evaluations", "kind" => kind).record(evaluations as f64);
-    let result = match fitted {
+    let fitted = match fitted {
         Ok(Ok(r)) => r,
         Ok(Err(f)) => {
             let msg = match &f {
@@ -311,10 +311,10 @@ pub async fn process_next(
                 .map(Some);
         }
     };
-    let json = serde_json::to_value(&result)
+    let json = serde_json::to_value(&fitted.result)
         .map_err(|e| StoreError::Invalid(format!("fit result: {e}")))?;
     let fit = match NewFit::from_result(json) {
-        Ok(f) => f,
+        Ok(f) => f.with_curve(fitted.curve),
         Err(e) => {
             return fail_because(store, worker, job.id, trace_id, e.to_string(), "result")
                 .await

@@ -28,76 +28,11 @@
 use nalgebra::DMatrix;
 
 use super::dynamics::LiftModel;
-use super::identify::{LiftFit, ParamEstimate};
+pub use super::fit::{AttributionOptions, Combination};
+use super::fit::{LiftFit, ParamEstimate};
 use super::sensitivity::LiftParam;
 use crate::drift::{DriftThresholds, Status};
 use crate::stats::Z95;
-
-/// Settings of the attribution.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AttributionOptions {
-    /// A parameter whose squared component in an informed direction reaches this share is a
-    /// member of that direction's combination.
-    pub min_share: f64,
-}
-
-impl Default for AttributionOptions {
-    /// 0.01: a member whose component is a tenth of the direction's norm. Measured on
-    /// realistic-noise raise-and-lower lifts (`examples/lift_coverage`): the informed direction
-    /// is J3 dry 0.87 and J1 dry 0.13 of the level (components 0.99 and 0.15), so a J1 ×3 drift
-    /// reads as the level +27 %, where it read as J3 +25 % before.
-    fn default() -> Self {
-        Self { min_share: 0.01 }
-    }
-}
-
-/// A combination of friction parameters the test informs together.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Combination {
-    /// Members, in the fit's parameter order.
-    pub params: Vec<LiftParam>,
-    /// Each member's weight (Σ = 1): its share of the level the data pin.
-    pub weights: Vec<f64>,
-    /// Weighted level relative to Table 4 (1 = every member at baseline).
-    pub value: f64,
-    /// Posterior sd of the level.
-    pub posterior_sd: f64,
-    /// The prior's sd of the level (‖w‖ × the members' relative prior sd).
-    pub prior_sd: f64,
-    pub ci95: [f64; 2],
-    /// Contracted by the data (posterior sd < prior sd / informed factor).
-    pub informed: bool,
-    /// Drift status of the level against 1 (`unknown` unless informed).
-    pub status: Status,
-}
-
-impl Combination {
-    /// A reader's name: `J1+J3 dry`, or `J3 dry+J8 viscous` when the kinds differ.
-    pub fn label(&self) -> String {
-        let kind = self.params[0].kind();
-        if self.params.iter().all(|p| p.kind() == kind) {
-            let joints: Vec<&str> = self.params.iter().map(|p| p.joint()).collect();
-            format!("{} {kind}", joints.join("+"))
-        } else {
-            let parts: Vec<String> = self
-                .params
-                .iter()
-                .map(|p| format!("{} {}", p.joint(), p.kind()))
-                .collect();
-            parts.join("+")
-        }
-    }
-
-    /// The level the combination would read for a model whose members are at `relative`
-    /// (each over its baseline): the truth a test of its interval compares against.
-    pub fn level_of(&self, relative: impl Fn(LiftParam) -> f64) -> f64 {
-        self.params
-            .iter()
-            .zip(&self.weights)
-            .map(|(p, w)| w * relative(*p))
-            .sum()
-    }
-}
 
 /// The outcome: per parameter whether it is separately identified, and the combinations.
 #[derive(Debug, Clone, PartialEq)]

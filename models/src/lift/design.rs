@@ -40,11 +40,15 @@ pub struct ProtocolLimits {
 impl ProtocolLimits {
     /// The stated stand (type doc) for geometry `g`.
     pub fn stand(g: &Geometry) -> Self {
+        let s = g
+            .stand
+            .or(super::geometry::builtin_160ec().stand)
+            .expect("the built-in geometry file states [stand] (geometry::tests)");
         Self {
-            height_range_m: [0.8, 1.84],
-            tau_range_s: [0.4, 4.0],
-            dwell_min_s: 1.0,
-            duration_max_s: 30.0,
+            height_range_m: s.height_range_m,
+            tau_range_s: s.tau_range_s,
+            dwell_min_s: s.dwell_min_s,
+            duration_max_s: s.duration_max_s,
             torque_range_nm: g.drive_torque_range_nm.unwrap_or([0.0, f64::INFINITY]),
         }
     }

@@ -37,13 +37,13 @@
 //! second candidate is judged: `report::fit_lift_trace`.
 
 use super::dynamics::LiftModel;
-use super::identify::{LiftFit, LiftFitError, LiftFitOptions, LiftTrace, effect_prior, fit_map};
+use super::fit::{LiftFit, LiftFitError, LiftFitOptions, LiftTrace, effect_prior};
+use super::identify::fit_map;
 use super::sensitivity::LiftParam;
 use super::topology::RevJoint;
 use crate::stats::Z95;
 
-/// Longest delay tried, s: a logger's H lag is tens of ms; 0.2 s is a slow filter, not a lag.
-pub const MAX_DELAY_S: f64 = 0.2;
+pub use super::fit::MAX_DELAY_S;
 /// Shortest delay named, s: one sample at the stand's 500 Hz.
 pub const MIN_DELAY_S: f64 = 0.002;
 /// The refit must bring the H residual RMS to at most this share of the base fit's.

@@ -172,6 +172,25 @@ impl LiftState {
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
+struct StandFile {
+    height_range_m: [f64; 2],
+    tau_range_s: [f64; 2],
+    dwell_min_s: f64,
+    duration_max_s: f64,
+}
+
+/// The test stand's limits for a designed lift protocol (`[stand]`, assumed; read by
+/// `lift::design::ProtocolLimits::stand`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StandData {
+    pub height_range_m: [f64; 2],
+    pub tau_range_s: [f64; 2],
+    pub dwell_min_s: f64,
+    pub duration_max_s: f64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct LiftTestFile {
     #[serde(rename = "external_spring_N_per_m")]
     external_spring_n_per_m: f64,
@@ -227,6 +246,8 @@ struct GeometryFile {
     assembly: AssemblyFile,
     range: RangeFile,
     drive: DriveFile,
+    #[serde(default)]
+    stand: Option<StandFile>,
     lift_test: LiftTestFile,
     #[serde(default)]
     #[allow(dead_code)]
@@ -335,6 +356,9 @@ pub struct Geometry {
     /// The drive torque the pantograph's drive can make, N·m (`[drive] torque_range_Nm`);
     /// `None`: the file states no range.
     pub drive_torque_range_nm: Option<[f64; 2]>,
+    /// The test stand's protocol limits (`[stand]`); `None`: the file states none (the
+    /// built-in file's apply, `ProtocolLimits::stand`).
+    pub stand: Option<StandData>,
     pub lift_test: LiftTestData,
     pub checks: Checks,
     pub reference_poses: Vec<ReferencePose>,
@@ -786,6 +810,27 @@ impl Geometry {
                         "drive.torque_range_Nm",
                         format!("must be [low, high] with low < high, got {r:?}"),
                     ));
+                }
+                None => None,
+            },
+            stand: match f.stand {
+                Some(s) => {
+                    let range = |key: &str, r: [f64; 2]| {
+                        if r[0].is_finite() && r[1].is_finite() && 0.0 < r[0] && r[0] < r[1] {
+                            Ok(r)
+                        } else {
+                            Err(invalid(
+                                key,
+                                format!("must be [low, high] with 0 < low < high, got {r:?}"),
+                            ))
+                        }
+                    };
+                    Some(StandData {
+                        height_range_m: range("stand.height_range_m", s.height_range_m)?,
+                        tau_range_s: range("stand.tau_range_s", s.tau_range_s)?,
+                        dwell_min_s: positive("stand.dwell_min_s", s.dwell_min_s)?,
+                        duration_max_s: positive("stand.duration_max_s", s.duration_max_s)?,
+                    })
                 }
                 None => None,
             },

@@ -4,7 +4,7 @@
 use nalgebra::DMatrix;
 
 use super::dynamics::LiftModel;
-use super::identify::{LiftFitError, LiftFitOptions, LiftTrace};
+use super::fit::{LiftFitError, LiftFitOptions, LiftTrace};
 use super::inputs::{InputReconstruction, reconstruct};
 use super::sensitivity::simulate_sensitivities;
 use super::simulate::{LiftInputs, SimError, SimOptions};

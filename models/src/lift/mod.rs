@@ -30,6 +30,7 @@ pub mod batch;
 pub mod design;
 pub mod dynamics;
 pub mod effects;
+pub mod fit;
 pub mod geometry;
 pub mod holdout;
 pub mod identify;

@@ -29,6 +29,7 @@ pub fn router() -> OpenApiRouter<AppState> {
         .routes(routes!(get_trace))
         .routes(routes!(get_samples))
         .routes(routes!(get_fit))
+        .routes(routes!(get_fit_curve))
 }
 
 /// Links of a trace.
@@ -38,6 +39,7 @@ pub struct TraceLinks {
     pub self_: String,
     pub samples: String,
     pub fit: String,
+    pub curve: String,
 }
 
 impl TraceLinks {
@@ -46,6 +48,7 @@ impl TraceLinks {
             self_: format!("/v1/traces/{id}"),
             samples: format!("/v1/traces/{id}/samples"),
             fit: format!("/v1/traces/{id}/fit"),
+            curve: format!("/v1/traces/{id}/fit/curve"),
         }
     }
 }
@@ -359,4 +362,58 @@ pub async fn get_fit(
         None => format!("no fit of `{id}` is queued (an admin can re-queue it)"),
     };
     Err(AppError::FitNotReady { detail, job })
+}
+
+/// Measured vs model of a fit, as stored with it (thinned to a plot's width).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct CurveView {
+    pub trace_id: String,
+    pub fit_id: i64,
+    /// The fitted channel (`alpha_deg`, `h_mm`, `H_m`) and its unit.
+    pub channel: String,
+    pub unit: String,
+    pub t_s: Vec<f64>,
+    pub measured: Vec<f64>,
+    pub model: Vec<f64>,
+    /// Model − measured at each sample.
+    pub residual: Vec<f64>,
+}
+
+/// The measured and model curves of a trace's current fit, stored when it was fitted (no
+/// refit). 404 when the trace has no fit, or its fit was stored without a curve (fits written
+/// before curves were kept, pooled fits).
+#[utoipa::path(get, path = "/v1/traces/{trace_id}/fit/curve", tag = "traces",
+    params(("trace_id" = String, Path, description = "trace id")),
+    responses(
+        (status = 200, body = CurveView),
+        (status = 400, description = "Malformed trace id", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No such trace, no fit, or a fit without a curve", body = Problem, content_type = "application/problem+json"),
+    ),
+    security(("bearer" = [])))]
+pub async fn get_fit_curve(
+    State(st): State<AppState>,
+    _auth: Reader,
+    ApiPath(raw): ApiPath<String>,
+) -> Result<Json<CurveView>, AppError> {
+    let id = trace_id(&raw)?;
+    let Some(f) = st.store.get_fit(id.as_str()).await? else {
+        return Err(AppError::NotFound(format!("no fit of trace `{id}`")));
+    };
+    let Some(c) = st.store.fit_curve(f.id).await? else {
+        return Err(AppError::NotFound(format!(
+            "fit {} of trace `{id}` was stored without a curve",
+            f.id
+        )));
+    };
+    let residual = c.residual();
+    Ok(Json(CurveView {
+        trace_id: f.trace_id,
+        fit_id: f.id,
+        channel: c.channel,
+        unit: c.unit,
+        t_s: c.t_s,
+        measured: c.measured,
+        model: c.model,
+        residual,
+    }))
 }

@@ -73,6 +73,7 @@ use std::str::FromStr;
 use std::time::Duration;
 
 use chrono::{DateTime, Datelike, SubsecRound, Utc};
+use pantowatch_models::report::FitCurve;
 use serde::{Deserialize, Serialize};
 
 pub use fault::DbFault;
@@ -388,9 +389,17 @@ pub struct NewFit {
     pub result: serde_json::Value,
     pub rmse: Option<f64>,
     pub joints: Vec<JointFit>,
+    /// Measured vs model, stored beside the fit (table `fit_curves`) for pages to draw.
+    pub curve: Option<FitCurve>,
 }
 
 impl NewFit {
+    /// This fit with its curve.
+    pub fn with_curve(mut self, curve: Option<FitCurve>) -> Self {
+        self.curve = curve;
+        self
+    }
+
     /// Extracts `rmse.value` and every `joints[]` entry from a contract fit result.
     pub fn from_result(result: serde_json::Value) -> Result<Self> {
         let bad = |m: String| StoreError::Invalid(format!("fit result: {m}"));
@@ -446,6 +455,7 @@ impl NewFit {
             result,
             rmse,
             joints,
+            curve: None,
         })
     }
 
@@ -702,6 +712,7 @@ pub(crate) trait Backend {
         fit: &NewFit,
     ) -> impl Future<Output = Result<FitWrite>> + Send;
     fn get_fit(&self, trace_id: &str) -> impl Future<Output = Result<Option<FitRecord>>> + Send;
+    fn fit_curve(&self, fit_id: i64) -> impl Future<Output = Result<Option<FitCurve>>> + Send;
     fn list_vehicles(&self) -> impl Future<Output = Result<Vec<VehicleSummary>>> + Send;
     fn get_vehicle(&self, id: &str) -> impl Future<Output = Result<Option<VehicleDetail>>> + Send;
     fn joint_history(
@@ -912,6 +923,12 @@ impl Store {
     /// The trace's current fit (the most recently written, whatever the model version).
     pub async fn get_fit(&self, trace_id: &str) -> Result<Option<FitRecord>> {
         dispatch!(self, s => s.get_fit(trace_id).await)
+    }
+
+    /// The measured-vs-model curve stored with a fit (`None`: the fit was written without one,
+    /// before migration 0006, or had nothing to draw).
+    pub async fn fit_curve(&self, fit_id: i64) -> Result<Option<FitCurve>> {
+        dispatch!(self, s => s.fit_curve(fit_id).await)
     }
 
     /// All vehicles, by id.

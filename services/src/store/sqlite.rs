@@ -373,6 +373,15 @@ async fn insert_fit_tx(
         .execute(&mut *conn)
         .await?;
     }
+    if let Some(curve) = &fit.curve {
+        let json = serde_json::to_string(curve)
+            .map_err(|e| StoreError::Invalid(format!("fit curve: {e}")))?;
+        query("INSERT INTO fit_curves (fit_id, curve_json) VALUES ($1, $2)")
+            .bind(fit_id)
+            .bind(json)
+            .execute(&mut *conn)
+            .await?;
+    }
     refresh_health(conn, trace_id).await?;
     Ok(FitWrite {
         fit_id,
@@ -550,6 +559,19 @@ impl Backend for SqliteStore {
         let w = insert_fit_tx(&mut tx, trace_id, model_version, fit).await?;
         tx.commit().await?;
         Ok(w)
+    }
+
+    async fn fit_curve(&self, fit_id: i64) -> Result<Option<FitCurve>> {
+        let json: Option<String> =
+            query_scalar("SELECT curve_json FROM fit_curves WHERE fit_id = $1")
+                .bind(fit_id)
+                .fetch_optional(&self.pool)
+                .await?;
+        json.map(|j| {
+            serde_json::from_str(&j)
+                .map_err(|e| StoreError::Corrupt(format!("fit {fit_id}: curve: {e}")))
+        })
+        .transpose()
     }
 
     async fn get_fit(&self, trace_id: &str) -> Result<Option<FitRecord>> {

@@ -136,6 +136,7 @@ macro_rules! contract {
 contract!(
     connect_migrate_ping,
     samples_roundtrip_and_metadata,
+    fit_curve_is_stored_with_its_fit,
     corrupt_samples_are_an_error,
     idempotent_insert_and_conflict,
     failed_insert_writes_nothing,
@@ -223,6 +224,7 @@ async fn count(store: &Store, table: &str) -> i64 {
         "traces" => "SELECT count(*) FROM traces",
         "fits" => "SELECT count(*) FROM fits",
         "fit_joints" => "SELECT count(*) FROM fit_joints",
+        "fit_curves" => "SELECT count(*) FROM fit_curves",
         "jobs" => "SELECT count(*) FROM jobs",
         other => panic!("no table {other}"),
     };
@@ -403,6 +405,56 @@ async fn idempotent_insert_and_conflict(store: &Store) {
     }
     assert_eq!(created, 1);
     assert_eq!(count(store, "pantograph_mounts").await, 2);
+}
+
+/// The measured-vs-model curve is written with its fit, in the same transaction, read back
+/// bit for bit, kept once per fit (a repeated write keeps the first) and deleted with it.
+async fn fit_curve_is_stored_with_its_fit(store: &Store) {
+    let (id, _) = insert_ok(
+        store,
+        trace("curve", "V-1", Some("S-1"), "2026-03-02T07:00:00Z"),
+    )
+    .await;
+    let t: Vec<f64> = (0..1000).map(|k| f64::from(k) * 0.002).collect();
+    let y: Vec<f64> = t.iter().map(|t| (3.0 * t).sin() + 0.1 + 0.2).collect();
+    let m: Vec<f64> = y.iter().map(|v| v - 1e-17).collect();
+    let curve = pantowatch_models::report::FitCurve::thinned("alpha_deg", "deg", &t, &y, &m)
+        .expect("a curve");
+    let f = fit(&id, &[("J1", Status::Ok)]).with_curve(Some(curve.clone()));
+    let w = store.insert_fit(&id, "v1", &f).await.expect("fit");
+    assert_eq!(
+        store.fit_curve(w.fit_id).await.expect("read"),
+        Some(curve.clone())
+    );
+    // The first write wins, curve included.
+    let other = fit(&id, &[("J1", Status::Ok)]);
+    assert!(
+        !store
+            .insert_fit(&id, "v1", &other)
+            .await
+            .expect("again")
+            .created
+    );
+    assert_eq!(store.fit_curve(w.fit_id).await.expect("read"), Some(curve));
+    // A fit without a curve has none; the curve goes with its fit.
+    let w2 = store.insert_fit(&id, "v2", &other).await.expect("v2");
+    assert_eq!(store.fit_curve(w2.fit_id).await.expect("read"), None);
+    assert_eq!(count(store, "fit_curves").await, 1);
+    let del = "DELETE FROM fits WHERE id = $1";
+    let deleted = match store {
+        Store::Sqlite(s) => sqlx::query(del)
+            .bind(w.fit_id)
+            .execute(s.pool())
+            .await
+            .map(|r| r.rows_affected()),
+        Store::Postgres(s) => sqlx::query(del)
+            .bind(w.fit_id)
+            .execute(s.pool())
+            .await
+            .map(|r| r.rows_affected()),
+    };
+    assert_eq!(deleted.expect("delete the fit"), 1);
+    assert_eq!(count(store, "fit_curves").await, 0);
 }
 
 async fn failed_insert_writes_nothing(store: &Store) {

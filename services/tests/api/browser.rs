@@ -566,6 +566,8 @@ pub async fn web_pages_in_headless_chromium() {
         "{ldom}"
     );
     assert!(ldom.contains(&format!("<h1>Trace {lift}</h1>")), "{ldom}");
+    // Its measured and model H, from the curve stored with the fit (issue 19, point 4).
+    assert!(ldom.contains("Measured vs model"), "{ldom}");
     for internal in [
         "No model curve",
         "not a single-joint",

@@ -69,6 +69,53 @@ pub async fn upload_fit_status_history_fleet(b: Backend) {
     assert!(fit["rmse"]["value"].is_number() && fit["residual"].is_object());
     assert_eq!(fit["status"], "watch");
 
+    // The curve stored with the fit (issue 19, point 4): the fitted channel measured and
+    // modelled, thinned to a plot's width; its measured points are the upload's own samples
+    // and its residual is the fit's.
+    let (s, c) = app
+        .get_json("/v1/traces/example-J3_dry_x1.8/fit/curve")
+        .await;
+    assert_eq!(s, StatusCode::OK, "{c}");
+    assert_eq!(
+        (c["channel"].as_str(), c["unit"].as_str()),
+        (Some("alpha_deg"), Some("deg"))
+    );
+    let col = |k: &str| -> Vec<f64> {
+        c[k].as_array()
+            .expect(k)
+            .iter()
+            .map(|v| v.as_f64().expect("number"))
+            .collect()
+    };
+    let (ct, cy, cm, cr) = (col("t_s"), col("measured"), col("model"), col("residual"));
+    assert!((100..=600).contains(&ct.len()), "{} points", ct.len());
+    assert!(ct.len() == cy.len() && cy.len() == cm.len() && cm.len() == cr.len());
+    let doc: Value = serde_json::from_slice(&example(J3_DRY)).expect("example json");
+    let (t_all, a_all) = (
+        doc["channels"]["t_s"].as_array().expect("t_s"),
+        doc["channels"]["alpha_deg"].as_array().expect("alpha"),
+    );
+    for (k, t) in ct.iter().enumerate() {
+        let i = t_all
+            .iter()
+            .position(|v| v.as_f64() == Some(*t))
+            .unwrap_or_else(|| panic!("curve time {t} is not a sample time"));
+        assert_eq!(a_all[i].as_f64(), Some(cy[k]), "sample {i}");
+        assert!((cr[k] - (cm[k] - cy[k])).abs() < 1e-12);
+    }
+    let rms = (cr.iter().map(|r| r * r).sum::<f64>() / cr.len() as f64).sqrt();
+    let fit_rmse = fit["rmse"]["value"].as_f64().expect("rmse");
+    assert!(
+        (rms / fit_rmse - 1.0).abs() < 0.15,
+        "curve residual RMS {rms} against the fit's {fit_rmse}"
+    );
+    // The trace page draws that stored curve.
+    let page = app.web_page("/traces/example-J3_dry_x1.8").await;
+    assert!(
+        page.contains("Measured vs model") && page.contains(&format!("over {} samples", ct.len())),
+        "{page}"
+    );
+
     let (s, t) = app.get_json("/v1/traces/example-J3_dry_x1.8").await;
     assert_eq!(s, StatusCode::OK);
     assert_eq!(t["job"]["state"], "done");

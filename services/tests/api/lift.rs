@@ -44,6 +44,24 @@ pub async fn lift_trace_is_fitted_with_every_joint(b: Backend) {
     assert_eq!(fit["rmse"]["unit"], "m");
     assert!(fit["rmse"]["value"].as_f64().expect("rmse") < 1e-3, "{fit}");
     assert_eq!(fit["residual"]["effects"], json!([]));
+    // The lift's stored curve is H measured and modelled; its page draws it (no refit).
+    let (s, c) = app.get_json(&format!("/v1/traces/{id}/fit/curve")).await;
+    assert_eq!(s, StatusCode::OK, "{c}");
+    assert_eq!(c["channel"], "H_m");
+    let res = c["residual"].as_array().expect("residual");
+    let rms = (res
+        .iter()
+        .map(|r| r.as_f64().unwrap_or(f64::NAN).powi(2))
+        .sum::<f64>()
+        / res.len() as f64)
+        .sqrt();
+    let fit_rmse = fit["rmse"]["value"].as_f64().expect("rmse");
+    assert!(
+        rms < 2.0 * fit_rmse + 1e-6,
+        "curve RMS {rms} against the fit's {fit_rmse}"
+    );
+    let page = app.web_page(&format!("/traces/{id}")).await;
+    assert!(page.contains("Measured vs model"), "{page}");
     // The joint history holds the lift's verdicts like any other fit's.
     let (s, h) = app
         .get_json("/v1/pantographs/160EC-REFERENCE/joints/J3/history")

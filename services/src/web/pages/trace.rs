@@ -1,15 +1,13 @@
 //! One trace: what was tested (the kind, the joint or assembly, the pantograph and vehicle), its
-//! current fit's parameters, the residual finding and — for a single-joint test — measured vs
-//! model. A fault while drawing is logged and told in a plain sentence, never as error text.
+//! current fit's parameters, the residual finding and measured vs model (the curve stored with
+//! the fit, never a refit). A fault while drawing is logged and told in a plain sentence, never as error text.
 
 use axum::extract::State;
 use maud::{Markup, html};
-use pantowatch_models::drift::DriftThresholds;
 
 use crate::api::auth::WebUser;
 use crate::api::error::AppError;
 use crate::api::state::AppState;
-use crate::ingest::stored_doc;
 use crate::store::TraceMeta;
 use crate::web::error::WebPath;
 use crate::web::layout::badge;
@@ -67,7 +65,7 @@ async fn trace(st: &AppState, id: &str) -> Result<Markup, AppError> {
         .and_then(|v| v.as_array())
         .cloned()
         .unwrap_or_default();
-    let charts = trace_charts(st, &meta).await;
+    let charts = trace_charts(st, &meta, fit.id).await;
     Ok(html! {
         h1 { "Trace " (meta.trace_id) }
         (tested)
@@ -225,59 +223,38 @@ fn no_curve(trace_id: &str, error: &str) -> Markup {
     }
 }
 
-/// Measured vs model and the residual. The model curve comes from re-running the fit on the
-/// stored samples off the runtime (5–30 ms; the same code and data give the stored fit).
-async fn trace_charts(st: &AppState, meta: &TraceMeta) -> Markup {
-    if !matches!(meta.kind.as_str(), "pendulum" | "slider") {
-        return html! {
-            p {
-                "The measured and model curves of a " (meta.kind) " test are drawn by "
-                code { "pantowatch fit TRACE --plot" } "; this page lists its parameters."
-            }
-        };
-    }
-    let channels = match st.store.get_samples(&meta.trace_id).await {
+/// Measured vs model and the residual, drawn from the curve stored with the fit (issue 19,
+/// point 4: a page never refits; `fitting::fit_document_with_curve` made it when the worker
+/// fitted the trace).
+async fn trace_charts(st: &AppState, meta: &TraceMeta, fit_id: i64) -> Markup {
+    let curve = match st.store.fit_curve(fit_id).await {
         Ok(Some(c)) => c,
-        Ok(None) => return no_curve(&meta.trace_id, "the samples are missing"),
-        Err(e) => return no_curve(&meta.trace_id, &format!("samples unreadable: {e}")),
+        Ok(None) => {
+            return html! {
+                p #no-curve {
+                    "This fit was stored without its measured and model curves (fits written \
+                     before curves were kept, and pooled fits, have none); "
+                    code { "pantowatch fit TRACE --plot" } " draws them."
+                }
+            };
+        }
+        Err(e) => return no_curve(&meta.trace_id, &format!("curve unreadable: {e}")),
     };
-    let doc = match stored_doc(meta, channels) {
-        Ok(d) => d,
-        Err(e) => return no_curve(&meta.trace_id, &e),
-    };
-    let run = tokio::task::spawn_blocking(move || {
-        let (test, _) = doc.joint_test().map_err(|e| e.to_string())?;
-        let (_, o) = crate::fitting::fit_with_outcome(&doc, &DriftThresholds::default())
-            .map_err(|e| e.to_string())?;
-        Ok::<_, String>((test, o))
-    })
-    .await;
-    let (test, o) = match run {
-        Ok(Ok(x)) => x,
-        Ok(Err(e)) => return no_curve(&meta.trace_id, &e),
-        Err(e) => return no_curve(&meta.trace_id, &e.to_string()),
-    };
-    let end = (o.start + o.n_fit)
-        .min(test.t_s.len())
-        .min(test.y.len())
-        .min(o.start + o.model_y.len());
-    if end <= o.start {
-        return no_curve(&meta.trace_id, "the fitted window is empty");
+    let (t, y, m) = (&curve.t_s, &curve.measured, &curve.model);
+    let n = t.len().min(y.len()).min(m.len());
+    if n < 2 {
+        return no_curve(&meta.trace_id, "the stored curve is empty");
     }
-    let t = &test.t_s[o.start..end];
-    let y = &test.y[o.start..end];
-    let m = &o.model_y[..end - o.start];
-    let idx = thin(t.len(), 1200);
+    let (t, y, m) = (&t[..n], &y[..n], &m[..n]);
+    let unit = curve.unit.as_str();
+    let idx = thin(n, 1200);
     let (lo, hi) = y
         .iter()
         .chain(m)
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
             (a.min(*v), b.max(*v))
         });
-    let (t0, t1) = (
-        t.first().copied().unwrap_or(0.0),
-        t.last().copied().unwrap_or(1.0),
-    );
+    let (t0, t1) = (t[0], t[n - 1]);
     let mut f = Frame::new((t0, t1), (lo, hi));
     f.polyline(
         &idx.iter().map(|&i| (t[i], y[i])).collect::<Vec<_>>(),
@@ -294,15 +271,16 @@ async fn trace_charts(st: &AppState, meta: &TraceMeta) -> Markup {
     let xl = vec![(t0, format!("{t0:.2} s")), (t1, format!("{t1:.2} s"))];
     let desc = format!(
         "Measured {} (wide grey) and the fitted model (thin blue) over {} samples from {:.2} s to {:.2} s; RMSE {} {}.",
-        test.unit,
-        t.len(),
+        curve.channel,
+        n,
         t0,
         t1,
-        fmt_num(o.rmse),
-        test.unit
+        fmt_num(curve.rmse()),
+        unit
     );
-    let top = f.finish("Measured vs model", &desc, &xl, test.unit);
-    let res: Vec<f64> = m.iter().zip(y).map(|(a, b)| a - b).collect();
+    let top = f.finish("Measured vs model", &desc, &xl, unit);
+    let res = curve.residual();
+    let res = &res[..n.min(res.len())];
     let (rlo, rhi) = res
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
@@ -320,9 +298,9 @@ async fn trace_charts(st: &AppState, meta: &TraceMeta) -> Markup {
         "Residual (model − measured) from {} to {} {}.",
         fmt_num(rlo),
         fmt_num(rhi),
-        test.unit
+        unit
     );
-    let bottom = g.finish("Residual", &rdesc, &xl, test.unit);
+    let bottom = g.finish("Residual", &rdesc, &xl, unit);
     html! {
         h2 { "Measured vs model" }
         figure { (top) figcaption { (desc) } }

@@ -1,0 +1,217 @@
+//! The layout's invariants (issue 19, points 3 and 4; ARCHITECTURE.md "Invariants"): no circle
+//! between the source files of `models` or of `services`, and the web pages never fit.
+//!
+//! The graph: file A depends on file B when A's code (outside `#[cfg(test)]`, `//` comments
+//! left out) names B's module by a `crate::…` or `super::…` path. A circle is a strongly
+//! connected set of more than one file (Tarjan).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).expect("read dir") {
+        let p = e.expect("entry").path();
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// Module path of each file under `src` (`lift::identify`; `lib.rs` and `main.rs` are the
+/// root, ""), with its code.
+fn modules(src: &Path) -> BTreeMap<String, String> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    let mut out = BTreeMap::new();
+    for f in files {
+        let rel = f.strip_prefix(src).expect("under src").with_extension("");
+        let parts: Vec<String> = rel
+            .components()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned())
+            .collect();
+        let mut m = parts.join("::");
+        if m == "lib" || m == "main" {
+            m = String::new();
+        } else if let Some(stripped) = m.strip_suffix("::mod") {
+            m = stripped.to_owned();
+        }
+        let text = std::fs::read_to_string(&f).expect("source");
+        let code: String = text
+            .split("#[cfg(test)]")
+            .next()
+            .unwrap_or("")
+            .lines()
+            .map(|l| l.split("//").next().unwrap_or(""))
+            .collect::<Vec<_>>()
+            .join("\n");
+        out.entry(m).or_insert(code);
+    }
+    out
+}
+
+/// Each file's dependencies on the crate's other files.
+fn graph(mods: &BTreeMap<String, String>) -> BTreeMap<String, BTreeSet<String>> {
+    let mut g = BTreeMap::new();
+    for (m, code) in mods {
+        let parent = m.rsplit_once("::").map_or("", |(p, _)| p).to_owned();
+        let mut deps = BTreeSet::new();
+        for root in ["crate::", "super::"] {
+            for (i, _) in code.match_indices(root) {
+                // Not the tail of a longer path (`pantowatch::crate::` does not occur; an
+                // identifier ending in "crate" or "super" would).
+                if i > 0 && code.as_bytes()[i - 1].is_ascii_alphanumeric() {
+                    continue;
+                }
+                let rest = &code[i + root.len()..];
+                let path: Vec<&str> = rest
+                    .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == ':'))
+                    .next()
+                    .unwrap_or("")
+                    .split("::")
+                    .filter(|s| !s.is_empty())
+                    .collect();
+                let mut cur = if root == "crate::" {
+                    String::new()
+                } else {
+                    parent.clone()
+                };
+                let mut best = None;
+                for seg in path {
+                    cur = if cur.is_empty() {
+                        seg.to_owned()
+                    } else {
+                        format!("{cur}::{seg}")
+                    };
+                    if mods.contains_key(&cur) {
+                        best = Some(cur.clone());
+                    } else {
+                        break;
+                    }
+                }
+                if let Some(b) = best
+                    && &b != m
+                    && !m.starts_with(&format!("{b}::"))
+                    && !b.starts_with(&format!("{m}::"))
+                {
+                    deps.insert(b);
+                }
+            }
+        }
+        g.insert(m.clone(), deps);
+    }
+    g
+}
+
+/// Strongly connected sets of more than one file.
+fn circles(g: &BTreeMap<String, BTreeSet<String>>) -> Vec<Vec<String>> {
+    struct T<'a> {
+        g: &'a BTreeMap<String, BTreeSet<String>>,
+        index: BTreeMap<&'a str, usize>,
+        low: BTreeMap<&'a str, usize>,
+        stack: Vec<&'a str>,
+        on: BTreeSet<&'a str>,
+        next: usize,
+        out: Vec<Vec<String>>,
+    }
+    fn visit<'a>(t: &mut T<'a>, v: &'a str) {
+        t.index.insert(v, t.next);
+        t.low.insert(v, t.next);
+        t.next += 1;
+        t.stack.push(v);
+        t.on.insert(v);
+        let g = t.g;
+        for w in &g[v] {
+            let w = w.as_str();
+            if !t.index.contains_key(w) {
+                visit(t, w);
+                let lw = t.low[w];
+                let lv = t.low.get_mut(v).expect("visited");
+                *lv = (*lv).min(lw);
+            } else if t.on.contains(w) {
+                let iw = t.index[w];
+                let lv = t.low.get_mut(v).expect("visited");
+                *lv = (*lv).min(iw);
+            }
+        }
+        if t.low[v] == t.index[v] {
+            let mut comp = Vec::new();
+            while let Some(w) = t.stack.pop() {
+                t.on.remove(w);
+                comp.push(w.to_owned());
+                if w == v {
+                    break;
+                }
+            }
+            if comp.len() > 1 {
+                comp.sort();
+                t.out.push(comp);
+            }
+        }
+    }
+    let mut t = T {
+        g,
+        index: BTreeMap::new(),
+        low: BTreeMap::new(),
+        stack: Vec::new(),
+        on: BTreeSet::new(),
+        next: 0,
+        out: Vec::new(),
+    };
+    for v in g.keys() {
+        if !t.index.contains_key(v.as_str()) {
+            visit(&mut t, v);
+        }
+    }
+    t.out
+}
+
+fn crate_src(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(name)
+        .join("src")
+}
+
+#[test]
+fn the_finder_sees_a_circle_it_is_shown() {
+    let mut mods = BTreeMap::new();
+    mods.insert("a".to_owned(), "use crate::b::X;".to_owned());
+    mods.insert("b".to_owned(), "use super::c::Y;".to_owned());
+    mods.insert("c".to_owned(), "fn f() { crate::a::g() }".to_owned());
+    mods.insert("d".to_owned(), "use crate::a;".to_owned());
+    assert_eq!(circles(&graph(&mods)), vec![vec!["a", "b", "c"]]);
+    mods.insert("c".to_owned(), String::new());
+    assert!(circles(&graph(&mods)).is_empty());
+}
+
+#[test]
+fn no_circle_between_the_files_of_models_or_services() {
+    for name in ["models", "services"] {
+        let mods = modules(&crate_src(name));
+        assert!(mods.len() > 20, "{name}: {} files", mods.len());
+        let found = circles(&graph(&mods));
+        assert!(found.is_empty(), "{name}: circles {found:?}");
+    }
+}
+
+#[test]
+fn the_web_pages_never_fit() {
+    let mods = modules(&crate_src("services"));
+    let fitters = [
+        "fitting::",
+        "fit_joint_test",
+        "fit_lift_trace",
+        "fit_map",
+        "fit_swing",
+    ];
+    for (m, code) in mods.iter().filter(|(m, _)| m.starts_with("web")) {
+        for f in fitters {
+            assert!(
+                !code.contains(f),
+                "services::{m} calls {f}: a page draws stored fits"
+            );
+        }
+    }
+}
