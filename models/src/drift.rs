@@ -21,7 +21,11 @@ impl Default for DriftThresholds {
 }
 
 /// Drift status of a parameter or joint.
+/// The one status type of pantowatch (issue 19, point 1): the service stores, serves and judges
+/// health with it. Ordered `Unknown < Ok < Watch < Alarm`, so `max` is the worst (`unknown`
+/// says nothing is known to be wrong).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
     /// Not judged: the trace cannot pin the parameter down, or there is no baseline.
@@ -39,6 +43,39 @@ impl Status {
             Status::Watch => "watch",
             Status::Alarm => "alarm",
         }
+    }
+
+    /// Rank used in SQL aggregates: `unknown` 0, `ok` 1, `watch` 2, `alarm` 3.
+    pub fn rank(self) -> i64 {
+        self as i64
+    }
+
+    /// The status of a [`Status::rank`]; `None` for any other number.
+    pub fn from_rank(rank: i64) -> Option<Self> {
+        [Status::Unknown, Status::Ok, Status::Watch, Status::Alarm]
+            .into_iter()
+            .find(|s| s.rank() == rank)
+    }
+}
+
+/// A status word that is none of `unknown`, `ok`, `watch`, `alarm`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown Status {0:?}")]
+pub struct UnknownStatus(pub String);
+
+impl std::str::FromStr for Status {
+    type Err = UnknownStatus;
+    fn from_str(s: &str) -> Result<Self, UnknownStatus> {
+        [Status::Unknown, Status::Ok, Status::Watch, Status::Alarm]
+            .into_iter()
+            .find(|v| v.as_str() == s)
+            .ok_or_else(|| UnknownStatus(s.to_owned()))
+    }
+}
+
+impl std::fmt::Display for Status {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.as_str())
     }
 }
 

@@ -214,13 +214,15 @@ fn no_paper_number_in_code() {
 
 #[test]
 fn dependencies_are_pure() {
-    const ALLOWED: [&str; 6] = [
+    // utoipa: optional (feature `openapi`), schema derives only.
+    const ALLOWED: [&str; 7] = [
         "nalgebra",
         "serde",
         "serde_json",
         "toml",
         "thiserror",
         "statrs",
+        "utoipa",
     ];
     let text = std::fs::read_to_string(root().join("Cargo.toml")).expect("Cargo.toml");
     let doc: toml::Value = toml::from_str(&text).expect("Cargo.toml parses");

@@ -185,20 +185,21 @@ macro_rules! text_enum {
     };
 }
 
-text_enum!(
-    /// Health of a joint; ordered `Unknown < Ok < Watch < Alarm` so `max` is the worst
-    /// (the models' order: `unknown` says nothing is known to be wrong).
-    Status {
-        /// Not judged: the trace cannot pin the joint down, or it has no baseline.
-        Unknown = "unknown",
-        /// Within its baseline.
-        Ok = "ok",
-        /// Drifting: look at it at the next service.
-        Watch = "watch",
-        /// Out of tolerance.
-        Alarm = "alarm",
+/// Health of a joint or parameter: the models' own type (one `Status`, issue 19), stored as its
+/// word (`as_str`) and ranked in SQL aggregates (`rank`).
+pub use pantowatch_models::drift::Status;
+
+impl From<pantowatch_models::drift::UnknownStatus> for StoreError {
+    fn from(e: pantowatch_models::drift::UnknownStatus) -> Self {
+        StoreError::Invalid(e.to_string())
     }
-);
+}
+
+/// The status of a rank read back from SQL.
+fn status_from_rank(r: i64) -> Result<Status> {
+    Status::from_rank(r).ok_or_else(|| StoreError::Corrupt(format!("status rank {r}")))
+}
+
 text_enum!(
     /// Access level of an API key; ordered so `role >= Role::Writer` means "may upload".
     Role {
@@ -248,22 +249,6 @@ pub use alerts::{
     Alert, AlertEvent, AlertFilter, AlertState, AttemptResult, Delivery, DeliveryState,
     DueDelivery, NewAlert, RaiseOutcome, Severity, Transition, Webhook,
 };
-
-impl Status {
-    /// Rank used in SQL aggregates (`unknown` 0, `ok` 1, `watch` 2, `alarm` 3).
-    pub fn rank(self) -> i64 {
-        self as i64
-    }
-    fn from_rank(r: i64) -> Result<Self> {
-        match r {
-            0 => Ok(Status::Unknown),
-            1 => Ok(Status::Ok),
-            2 => Ok(Status::Watch),
-            3 => Ok(Status::Alarm),
-            _ => Err(StoreError::Corrupt(format!("status rank {r}"))),
-        }
-    }
-}
 
 /// Which database a [`Store`] talks to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1312,7 +1297,7 @@ pub(crate) trait RowExt {
     fn opt_ts(&self, c: &str) -> Result<Option<DateTime<Utc>>>;
 }
 
-fn parse_enum<T: FromStr<Err = StoreError>>(s: &str) -> Result<T> {
+fn parse_enum<T: FromStr<Err: std::fmt::Display>>(s: &str) -> Result<T> {
     s.parse::<T>()
         .map_err(|e| StoreError::Corrupt(e.to_string()))
 }
@@ -1481,7 +1466,7 @@ pub(crate) fn fleet_row_from<R: RowExt>(r: &R) -> Result<FleetRow> {
         serial: r.text("serial")?,
         model: r.text("model")?,
         vehicle_id: r.opt_text("vehicle_id")?,
-        worst_status: r.opt_int("worst")?.map(Status::from_rank).transpose()?,
+        worst_status: r.opt_int("worst")?.map(status_from_rank).transpose()?,
         not_ok,
         last_test: r.opt_ts("last_test")?,
     })

@@ -340,6 +340,13 @@ pub async fn every_route_every_role(b: Backend) {
         ),
         (
             Method::GET,
+            "/v1/traces/role-1/fit/curve".into(),
+            None,
+            Role::Reader,
+            StatusCode::NOT_FOUND,
+        ),
+        (
+            Method::GET,
             "/v1/vehicles".into(),
             None,
             Role::Reader,
