@@ -40,7 +40,7 @@ pub struct LiftFitOptions {
     /// residuals count for nothing. `None` (the default): every sample is fitted.
     pub holdout_mask: Option<Vec<bool>>,
     /// H measurement noise σ_H, m: the floor of the interval's noise scale. The fit widens it
-    /// to the residual RMS when that is larger (κ², [`fit_map_in`]), never narrows it.
+    /// to the residual RMS when that is larger (κ², [`super::identify::fit_map_in`]), never narrows it.
     pub h_noise_m: f64,
     /// Prior sd of every friction coefficient as a fraction of its Table 4 value.
     pub prior_relative_sd: f64,
@@ -50,7 +50,7 @@ pub struct LiftFitOptions {
     pub informed_factor: f64,
     pub thresholds: DriftThresholds,
     /// Intervals from the data's information corrected for correlated residuals (input noise,
-    /// model error) by a sandwich (see [`fit_map_in`]); false: the classical JᵀJ/σ².
+    /// model error) by a sandwich (see [`super::identify::fit_map_in`]); false: the classical JᵀJ/σ².
     pub robust_covariance: bool,
     /// Draws of the inputs' sensor noise propagated through the model into the intervals
     /// ([`super::input_noise::covariance`]); 0 (the default): the input noise enters through
