@@ -1,7 +1,6 @@
 //! Alerts and the webhook outbox.
 //! Each case runs on SQLite and on PostgreSQL (`contract!` in `mod.rs`).
 
-
 use super::*;
 
 fn new_alert(serial: &str, joint: &str, sev: Severity, trace_id: &str) -> NewAlert {

@@ -1,7 +1,6 @@
 //! API keys: create, verify, revoke.
 //! Each case runs on SQLite and on PostgreSQL (`contract!` in `mod.rs`).
 
-
 use super::*;
 
 pub(super) async fn api_keys_create_verify_revoke(store: &Store) {

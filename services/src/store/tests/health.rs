@@ -1,7 +1,6 @@
 //! Vehicles, joint history and fleet health: mounts, filters, pages, statuses, the informed verdicts.
 //! Each case runs on SQLite and on PostgreSQL (`contract!` in `mod.rs`).
 
-
 use super::*;
 
 pub(super) async fn history_mounts_and_vehicles(store: &Store) {

@@ -1,7 +1,6 @@
 //! Fit jobs: claims, leases, retries, concurrent workers, re-queues for a new model version.
 //! Each case runs on SQLite and on PostgreSQL (`contract!` in `mod.rs`).
 
-
 use super::*;
 
 pub(super) async fn claim_lease_expiry_and_reclaim(store: &Store) {

@@ -1,7 +1,6 @@
 //! Traces: connection and migrations, lossless samples, idempotent and atomic inserts, fit curves, upgrades.
 //! Each case runs on SQLite and on PostgreSQL (`contract!` in `mod.rs`).
 
-
 use super::*;
 
 pub(super) async fn connect_migrate_ping(store: &Store) {

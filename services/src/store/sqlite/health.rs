@@ -1,0 +1,154 @@
+//! sqlite: vehicles, joint history, joint states and fleet health.
+
+use super::*;
+
+impl HealthBackend for SqliteStore {
+    async fn list_vehicles(&self) -> Result<Vec<VehicleSummary>> {
+        query(concat!(
+            "SELECT v.id, v.created_at,
+                    (SELECT count(*) FROM pantograph_mounts m
+                     WHERE m.vehicle_id = v.id AND ",
+            current_mount!(),
+            ") AS pantographs,
+                    (SELECT count(*) FROM traces t WHERE t.vehicle_id = v.id) AS traces,
+                    (SELECT max(t.recorded_at) FROM traces t WHERE t.vehicle_id = v.id) AS last_test
+             FROM vehicles v ORDER BY v.id"
+        ))
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(vehicle_from)
+        .collect()
+    }
+    async fn get_vehicle(&self, id: &str) -> Result<Option<VehicleDetail>> {
+        let Some(v) = query("SELECT id, created_at FROM vehicles WHERE id = $1")
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?
+        else {
+            return Ok(None);
+        };
+        let mounted = query(concat!(
+            "SELECT p.serial, p.model, m.since,
+                    (SELECT max(t.recorded_at) FROM traces t WHERE t.serial = p.serial) AS last_test
+             FROM pantograph_mounts m JOIN pantographs p ON p.serial = m.serial
+             WHERE m.vehicle_id = $1 AND ",
+            current_mount!(),
+            " ORDER BY p.serial"
+        ))
+        .bind(id)
+        .fetch_all(&self.pool)
+        .await?;
+        let mut points = query(concat!(
+            points_cte!(
+                "AND t.serial IN (SELECT m.serial FROM pantograph_mounts m
+                                  WHERE m.vehicle_id = $1 AND
+                                  m.since = (SELECT max(m2.since) FROM pantograph_mounts m2
+                                             WHERE m2.serial = m.serial))"
+            ),
+            // Each joint's point is the fit that decides its health (`joint_latest`), with the
+            // joint's state as fleet health and the alerts see it.
+            "SELECT pts.serial, pts.vehicle_id, pts.trace_id, pts.recorded_at, pts.model_version,
+                    pts.fit_id, pts.fitted_at, pts.joint, pts.viscous, pts.viscous_lo,
+                    pts.viscous_hi, pts.dry, pts.dry_lo, pts.dry_hi, l.identifiable, l.status,
+                    pts.viscous_informed, pts.viscous_status, pts.dry_informed, pts.dry_status
+             FROM pts JOIN joint_latest l
+               ON l.serial = pts.serial AND l.joint = pts.joint AND l.trace_id = pts.trace_id
+             ORDER BY pts.serial, pts.joint"
+        ))
+        .bind(id)
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(|r| Ok((r.text("serial")?, joint_point_from(r)?)))
+        .collect::<Result<Vec<_>>>()?;
+        let mut pantographs = Vec::with_capacity(mounted.len());
+        for m in &mounted {
+            let serial = m.text("serial")?;
+            let joints = points
+                .extract_if(.., |(s, _)| *s == serial)
+                .map(|(_, p)| p)
+                .collect();
+            let states = self.joint_states(&serial).await?;
+            pantographs.push(pantograph_state(
+                serial,
+                m.text("model")?,
+                m.ts("since")?,
+                m.opt_ts("last_test")?,
+                joints,
+                states,
+            ));
+        }
+        Ok(Some(VehicleDetail {
+            vehicle_id: v.text("id")?,
+            created_at: v.ts("created_at")?,
+            pantographs,
+        }))
+    }
+    async fn joint_history(&self, serial: &str, joint: &str) -> Result<Vec<JointPoint>> {
+        query(concat!(
+            points_cte!("AND t.serial = $1 AND j.joint = $2"),
+            "SELECT * FROM pts ORDER BY recorded_at, trace_id"
+        ))
+        .bind(serial)
+        .bind(joint)
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(joint_point_from)
+        .collect()
+    }
+    async fn fleet_health(&self, filter: &FleetFilter, page: Page) -> Result<FleetPage> {
+        let rank = filter.status.map(Status::rank);
+        // One statement: the page, the total over all pages (a window count before the limit),
+        // and `last_test` looked up for the page's rows only.
+        let found = query(concat!(
+            fleet_sql!(),
+            ", page AS (
+                SELECT fleet.*, count(*) OVER () AS total FROM fleet
+                ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4
+            )
+            SELECT page.*,
+                   (SELECT max(t.recorded_at) FROM traces t WHERE t.serial = page.serial)
+                       AS last_test
+            FROM page ORDER BY worst DESC NULLS LAST, serial"
+        ))
+        .bind(rank)
+        .bind(&filter.vehicle_id)
+        .bind(i64::from(page.limit))
+        .bind(i64::try_from(page.offset).unwrap_or(i64::MAX))
+        .fetch_all(&self.pool)
+        .await?;
+        let total: i64 = match found.first() {
+            Some(r) => r.int("total")?,
+            // Past the last page (or nothing matches): the total needs its own count.
+            None => {
+                query_scalar(concat!(fleet_sql!(), "SELECT count(*) FROM fleet"))
+                    .bind(rank)
+                    .bind(&filter.vehicle_id)
+                    .fetch_one(&self.pool)
+                    .await?
+            }
+        };
+        let rows = found
+            .iter()
+            .map(fleet_row_from)
+            .collect::<Result<Vec<_>>>()?;
+        Ok(FleetPage {
+            total: u64::try_from(total).unwrap_or(0),
+            rows,
+        })
+    }
+    async fn joint_states(&self, serial: &str) -> Result<Vec<JointState>> {
+        query(JOINT_STATES_SQL)
+            .bind(serial)
+            .fetch_all(&self.pool)
+            .await?
+            .iter()
+            .map(joint_state_from)
+            .collect()
+    }
+    async fn serial_history(&self, serial: &str) -> Result<Vec<JointPoint>> {
+        self.a_serial_history(serial).await
+    }
+}
