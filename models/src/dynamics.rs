@@ -89,6 +89,19 @@ impl Dof {
         }
     }
 
+    /// This degree of freedom with a pendulum's inertia about its pin × `scale` (the
+    /// `inertia_error` effect, issue 17: a stated J off by a few per cent sets the swing's
+    /// period wrong). Mass and centre-of-mass distance, hence gravity and the reaction's static
+    /// part, are unchanged. A slider is returned as it is (its moving mass also sets its
+    /// weight: no inertia-only error).
+    pub fn with_inertia_scale(&self, scale: f64) -> Dof {
+        let mut d = self.clone();
+        if let Mechanism::Pendulum(r) = &mut d.mech {
+            r.inertia_kgm2 *= scale;
+        }
+        d
+    }
+
     /// The lever of the dry friction: R (m) for a revolute joint, 1 for a slider.
     pub fn lever(&self) -> f64 {
         match self.mech {

@@ -19,6 +19,9 @@ pub enum SensParam {
     Q0,
     /// Initial rate v0 (rad/s or m/s).
     V0,
+    /// The log of the inertia's scale, ln(J/J_stated) (`inertia_error`, issue 17): ∂a/∂ln J =
+    /// −J·a/f_a from the implicit equation f = J·a − G + T(N(a)) = 0.
+    Inertia,
 }
 
 /// What the simulator reports when it cannot go on.
@@ -116,6 +119,7 @@ impl OdeSystem for Segment<'_> {
             let (sq, sv) = (y[2 + j], y[2 + ns + j]);
             let a_p = match p {
                 SensParam::Dyn(dp) => self.dof.accel_d_param(self.law, &acc, *dp, q, v, self.s),
+                SensParam::Inertia => -self.dof.inertia() * acc.a / acc.f_a,
                 _ => 0.0,
             };
             dy[2 + j] = sv;
@@ -166,7 +170,7 @@ pub fn simulate(
         match p {
             SensParam::Q0 => y[2 + j] = 1.0,
             SensParam::V0 => y[2 + ns + j] = 1.0,
-            SensParam::Dyn(_) => {}
+            SensParam::Dyn(_) | SensParam::Inertia => {}
         }
     }
     let t_end = times[n - 1];
@@ -601,6 +605,7 @@ mod tests {
             SensParam::Dyn(DynParam::Dry),
             SensParam::Q0,
             SensParam::V0,
+            SensParam::Inertia,
         ];
         let opts = SimOptions {
             tol: Tolerances {
@@ -622,12 +627,14 @@ mod tests {
             let run = |sgn: f64| {
                 let mut l = law;
                 let (mut a, mut b) = (q0, v0);
+                let mut d = dof.clone();
                 match p {
                     SensParam::Dyn(dp) => l.set(*dp, law.get(*dp) + sgn * h),
                     SensParam::Q0 => a += sgn * h,
                     SensParam::V0 => b += sgn * h,
+                    SensParam::Inertia => d = dof.with_inertia_scale((sgn * h).exp()),
                 }
-                simulate(&dof, &l, a, b, &t, &plain).unwrap().q
+                simulate(&d, &l, a, b, &t, &plain).unwrap().q
             };
             let (qp, qm) = (run(1.0), run(-1.0));
             let mut worst: f64 = 0.0;

@@ -21,13 +21,27 @@ fn pendulum_test(
     torsion: f64,
     seed: u64,
 ) -> (JointTest, Baseline) {
+    pendulum_test_with_inertia(joint, truth, release_deg, torsion, 1.0, seed)
+}
+
+/// As [`pendulum_test`], the pendulum's true inertia about its pin `inertia_scale` × the rig's
+/// stated one (the test states the rig's value: `inertia_error`, issue 17).
+fn pendulum_test_with_inertia(
+    joint: &str,
+    truth: &Truth,
+    release_deg: f64,
+    torsion: f64,
+    inertia_scale: f64,
+    seed: u64,
+) -> (JointTest, Baseline) {
     let data = builtin_160ec();
     let rig = PendulumRig::paper_default(data, joint).unwrap();
-    let dof = Dof {
+    let stated = Dof {
         mech: Mechanism::Pendulum(rig),
         input: None,
         torsion,
     };
+    let dof = stated.with_inertia_scale(inertia_scale);
     let t = grid(20.0, 500.0);
     let sensor = Sensor {
         scale: DEG,
@@ -40,7 +54,7 @@ fn pendulum_test(
     let jd = data.joint(joint).unwrap();
     let dof = Dof {
         torsion: 0.0,
-        ..dof
+        ..stated
     };
     let b = Baseline {
         joint: joint.into(),
@@ -560,4 +574,115 @@ fn a_pair_refit_never_ends_worse_than_its_single() {
         pairs >= 2,
         "only {pairs} pair refits: the test must reach the pair step"
     );
+}
+
+/// Issue 17, point 1: a pendulum whose true inertia is off its stated value by 1–3 % (either
+/// way; J1, J3, J5; the stand's 0.05° noise and 0.01° steps) swings at another period, which no
+/// friction law can absorb: `inertia_error` is named with J/J_stated's interval holding the
+/// truth, the error at least halves, and the friction comes back within its interval. Off by
+/// 0.1 %, it is named right or not at all.
+#[test]
+fn a_stated_inertia_off_by_1_to_3_percent_is_named_and_the_friction_recovered() {
+    let mut failures = Vec::new();
+    let (mut n, mut covered, mut missed) = (0, 0, Vec::new());
+    for (i, (joint, scale)) in [
+        ("J1", 1.02),
+        ("J3", 0.98),
+        ("J3", 1.03),
+        ("J5", 1.01),
+        ("J5", 0.97),
+        ("J1", 0.99),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        n += 1;
+        let truth = Truth {
+            law: base(joint),
+            readout: Readout::default(),
+            dry_fade: 0.0,
+        };
+        let (test, b) = pendulum_test_with_inertia(joint, &truth, 60.0, 0.0, scale, 40 + i as u64);
+        let r = fit(&test, &b);
+        let res = &r.residual;
+        let got = names(&r);
+        let ratio = res
+            .effects
+            .iter()
+            .find(|e| e.name == "inertia_error")
+            .map(|e| {
+                let v = e.params["inertia_ratio"].as_f64().unwrap();
+                let ci = e.params["inertia_ratio_ci95"].as_array().unwrap();
+                (v, ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap())
+            });
+        let j = &r.joints[0];
+        eprintln!(
+            "inertia ×{scale} on {joint}: {got:?} {ratio:?} rmse {:.4} -> {:.4}, held out {:.4} -> {:.4}; dry {:.4} {:?} (truth {:.4}), viscous {:.4} {:?} (truth {:.4})",
+            res.rmse_before,
+            res.rmse_after,
+            res.holdout_rmse_before,
+            res.holdout_rmse_after,
+            j.dry.value,
+            j.dry.ci95,
+            truth.law.dry,
+            j.viscous.value,
+            j.viscous.ci95,
+            truth.law.viscous
+        );
+        let mut fail = |why: String| failures.push(format!("×{scale} on {joint}: {why}"));
+        if got.first().map(String::as_str) != Some("inertia_error")
+            || got.iter().skip(1).any(|n| n != "sensor_offset")
+        {
+            fail(format!("named {got:?}"));
+        }
+        match ratio {
+            Some((_, lo, hi)) if lo <= scale && scale <= hi => {}
+            other => fail(format!("ratio {other:?} misses {scale}")),
+        }
+        if !(res.rmse_after <= 0.5 * res.rmse_before
+            && res.holdout_rmse_after < res.holdout_rmse_before)
+        {
+            fail(format!(
+                "error {:.4} -> {:.4}, held out {:.4} -> {:.4}",
+                res.rmse_before, res.rmse_after, res.holdout_rmse_before, res.holdout_rmse_after
+            ));
+        }
+        let holds = |ci: [f64; 2], v: f64| ci[0] <= v && v <= ci[1];
+        let friction_held = holds(j.dry.ci95, truth.law.dry)
+            && (!j.viscous.identifiable || holds(j.viscous.ci95, truth.law.viscous));
+        if friction_held {
+            covered += 1;
+        } else {
+            missed.push(format!(
+                "×{scale} on {joint}: dry {:?}, viscous {:?}",
+                j.dry.ci95, j.viscous.ci95
+            ));
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {n}: {failures:#?}",
+        failures.len()
+    );
+    // 95 % intervals over 6 traces: at most one trace may miss (dry and viscous are correlated
+    // −0.9 or more in a swing, so a miss takes both). Measured: 5 of 6 (J1 ×0.99 missed by
+    // 0.0005 in μ and 0.0007 N·m·s/rad).
+    assert!(
+        covered >= n - 1,
+        "friction intervals held the truth in {covered} of {n}: {missed:?}"
+    );
+    // Off by 0.1 %: the right name or none.
+    for (i, joint) in ["J1", "J3", "J5"].into_iter().enumerate() {
+        let truth = Truth {
+            law: base(joint),
+            readout: Readout::default(),
+            dry_fade: 0.0,
+        };
+        let (test, b) = pendulum_test_with_inertia(joint, &truth, 60.0, 0.0, 1.001, 60 + i as u64);
+        let got = names(&fit(&test, &b));
+        assert!(
+            got.is_empty() || got[0] == "inertia_error",
+            "inertia ×1.001 on {joint}: named {got:?}"
+        );
+    }
 }

@@ -55,6 +55,9 @@ pub enum Param {
     Delay,
     /// Backlash half-width b, model units (rad or m).
     Backlash,
+    /// `inertia_error` (issue 17): ln(J/J_stated), the pendulum's inertia about its pin off its
+    /// stated value by this log-ratio (0: as stated).
+    Inertia,
 }
 
 /// What to fit.
@@ -70,6 +73,8 @@ pub struct FitSpec {
     pub delay: Option<f64>,
     /// Fit a backlash half-width, from this starting value (model units).
     pub backlash: Option<f64>,
+    /// Fit the inertia's log-ratio ln(J/J_stated), from this starting value (`inertia_error`).
+    pub inertia: Option<f64>,
 }
 
 impl FitSpec {
@@ -81,12 +86,17 @@ impl FitSpec {
             fit_offset,
             delay: None,
             backlash: None,
+            inertia: None,
         }
     }
 
     pub fn params(&self) -> Vec<Param> {
         let mut p: Vec<Param> = self.free.iter().map(|d| Param::Dyn(*d)).collect();
         p.extend([Param::Q0, Param::V0]);
+        // With the trajectory's sensitivities, before the readout's own columns.
+        if self.inertia.is_some() {
+            p.push(Param::Inertia);
+        }
         if self.delay.is_some() {
             p.push(Param::Delay);
         }
@@ -160,6 +170,8 @@ pub struct FitOutcome {
     pub offset: f64,
     /// Sensor-side effects at the optimum (offset included).
     pub readout: Readout,
+    /// ln(J/J_stated) at the optimum (`inertia_error`); 0 when the inertia was not fitted.
+    pub inertia_log: f64,
     pub start: usize,
     pub n_fit: usize,
     /// Root-mean-square residual over the fitted samples, channel units.
@@ -220,9 +232,10 @@ impl<'a> OutputError<'a> {
         }
     }
 
-    fn unpack(&self, x: &[f64]) -> (FrictionLaw, f64, f64, Readout) {
+    fn unpack(&self, x: &[f64]) -> (FrictionLaw, f64, f64, Readout, f64) {
         let mut law = self.spec.law;
         let (mut q0, mut v0) = (0.0, 0.0);
+        let mut ln_inertia = self.spec.inertia.unwrap_or(0.0);
         let mut ro = Readout {
             offset: 0.0,
             delay_s: self.spec.delay.unwrap_or(0.0),
@@ -236,9 +249,10 @@ impl<'a> OutputError<'a> {
                 Param::Offset => ro.offset = *v,
                 Param::Delay => ro.delay_s = *v,
                 Param::Backlash => ro.backlash = *v,
+                Param::Inertia => ln_inertia = *v,
             }
         }
-        (law, q0, v0, ro)
+        (law, q0, v0, ro, ln_inertia)
     }
 }
 
@@ -250,9 +264,16 @@ impl lm::Problem for OutputError<'_> {
         self.times.len()
     }
     fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
-        let (law, q0, v0, ro) = self.unpack(x);
+        let (law, q0, v0, ro, ln_inertia) = self.unpack(x);
+        let scaled;
+        let dof = if ln_inertia == 0.0 && self.spec.inertia.is_none() {
+            &self.test.dof
+        } else {
+            scaled = self.test.dof.with_inertia_scale(ln_inertia.exp());
+            &scaled
+        };
         let rd = readout::read(
-            &self.test.dof,
+            dof,
             &law,
             q0,
             v0,
@@ -327,6 +348,7 @@ fn sens_params(params: &[Param]) -> Vec<SensParam> {
             Param::Dyn(d) => Some(SensParam::Dyn(*d)),
             Param::Q0 => Some(SensParam::Q0),
             Param::V0 => Some(SensParam::V0),
+            Param::Inertia => Some(SensParam::Inertia),
             Param::Offset | Param::Delay | Param::Backlash => None,
         })
         .collect()
@@ -344,6 +366,7 @@ fn start_vector(params: &[Param], spec: &FitSpec, init: &InitialEstimate) -> Vec
             Param::Offset => init.offset,
             Param::Delay => spec.delay.unwrap_or(0.0),
             Param::Backlash => spec.backlash.unwrap_or(0.0),
+            Param::Inertia => spec.inertia.unwrap_or(0.0),
         })
         .collect()
 }
@@ -378,7 +401,7 @@ pub fn fit_window(
         .zip(&lb)
         .map(|((x, s), l)| [(x - Z95 * s).max(*l), (x + Z95 * s).max(*l)])
         .collect();
-    let (law, q0, v0, readout) = prob.unpack(&rep.x);
+    let (law, q0, v0, readout, inertia_log) = prob.unpack(&rep.x);
     let offset = readout.offset;
     let residual = rep.residuals.clone();
     let model_y: Vec<f64> = residual.iter().zip(y).map(|(r, y)| r + y).collect();
@@ -389,7 +412,7 @@ pub fn fit_window(
         // (with a delay the readout simulates at shifted times: not the sample times)
         Some((x, tr)) if x == rep.x && spec.delay.is_none() => tr,
         _ => simulate(
-            &test.dof,
+            &test.dof.with_inertia_scale(inertia_log.exp()),
             &law,
             q0,
             v0,
@@ -410,6 +433,7 @@ pub fn fit_window(
         v0,
         offset,
         readout,
+        inertia_log,
         start,
         n_fit,
         rmse,
@@ -437,7 +461,7 @@ pub fn predict(
         sens: vec![],
     };
     Ok(readout::read(
-        &test.dof,
+        &test.dof.with_inertia_scale(fit.inertia_log.exp()),
         &fit.law,
         fit.q0,
         fit.v0,

@@ -17,15 +17,21 @@ pub enum Effect {
     Backlash,
     SensorOffset,
     SensorDelay,
+    /// pantowatch's addition (issue 17, point 1): the pendulum's stated inertia about its pin is
+    /// off, J = J_stated·e^λ, so the model swings at the wrong period and the residual grows like
+    /// a phase drift. Body parameters are measured with an uncertainty; a friction law cannot
+    /// absorb a period mismatch. Pendulums only (a slider's moving mass is also its weight).
+    InertiaError,
 }
 
 impl Effect {
-    pub const SEARCHED: [Effect; 5] = [
+    pub const SEARCHED: [Effect; 6] = [
         Effect::Stribeck,
         Effect::QuadraticDrag,
         Effect::PositionFriction,
         Effect::Backlash,
         Effect::SensorDelay,
+        Effect::InertiaError,
     ];
 
     pub fn name(self) -> &'static str {
@@ -36,6 +42,7 @@ impl Effect {
             Effect::Backlash => "backlash",
             Effect::SensorOffset => "sensor_offset",
             Effect::SensorDelay => "sensor_delay",
+            Effect::InertiaError => "inertia_error",
         }
     }
 
@@ -47,6 +54,7 @@ impl Effect {
             Effect::Backlash,
             Effect::SensorOffset,
             Effect::SensorDelay,
+            Effect::InertiaError,
         ]
         .into_iter()
         .find(|e| e.name() == s)
@@ -67,6 +75,7 @@ impl Effect {
             Effect::Backlash => vec![Param::Backlash],
             Effect::SensorOffset => vec![Param::Offset],
             Effect::SensorDelay => vec![Param::Delay],
+            Effect::InertiaError => vec![Param::Inertia],
         }
     }
 
@@ -82,6 +91,7 @@ impl Effect {
             Effect::Backlash => vec![(Param::Backlash, 0.0)],
             Effect::SensorOffset => vec![(Param::Offset, 0.0)],
             Effect::SensorDelay => vec![(Param::Delay, 0.0)],
+            Effect::InertiaError => vec![(Param::Inertia, 0.0)],
         }
     }
 
@@ -125,6 +135,7 @@ impl Effect {
             }
             Effect::SensorDelay => spec.delay = Some(0.0),
             Effect::SensorOffset => spec.fit_offset = true,
+            Effect::InertiaError => spec.inertia = Some(0.0),
         }
     }
 }
@@ -175,6 +186,16 @@ pub(super) fn effect_result(e: Effect, fit: &FitOutcome, test: &JointTest) -> Ef
         Effect::Backlash => put(format!("half_width_{pos}"), Param::Backlash),
         Effect::SensorDelay => put("delay_s".into(), Param::Delay),
         Effect::SensorOffset => put(format!("offset_{}", test.unit), Param::Offset),
+        // Reported as the ratio J/J_stated and its interval (the fit's λ = ln of it).
+        Effect::InertiaError => {
+            if let Some((v, _, ci)) = fit.get(Param::Inertia) {
+                params.insert("inertia_ratio".into(), serde_json::json!(v.exp()));
+                params.insert(
+                    "inertia_ratio_ci95".into(),
+                    serde_json::json!([ci[0].exp(), ci[1].exp()]),
+                );
+            }
+        }
     }
     EffectResult {
         name: e.name().into(),

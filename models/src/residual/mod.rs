@@ -44,6 +44,14 @@ pub const HOLDOUT_FRACTION: f64 = 0.25;
 pub const MAX_CANDIDATES: usize = 3;
 pub const BIC_MARGIN: f64 = 10.0;
 pub const HOLDOUT_MARGIN: f64 = 0.02;
+/// `inertia_error` must predict the held-out swings about as well as it fits the rest: held-out
+/// RMSE at most this × the fitted part's. An inertia error scales the period at every
+/// amplitude alike, so the right scale fits both parts; a frequency error that depends on
+/// amplitude (a torsional spring in the joint, linear in angle where gravity goes as sin) is
+/// fitted by a compromise scale that drifts on the smaller held-out swings. Measured (e2e
+/// `residual`): true 1–3 % inertia errors 0.97–1.02×; the measured encoder pendulum 1.43×; a
+/// 4 N·m/rad spring on J3 3.7× (named `inertia_error` without this rule — a wrong name).
+pub const INERTIA_HOLDOUT_RATIO: f64 = 2.0;
 pub const EXPLAINED_SHARE: f64 = 0.75;
 
 /// One model tried on the split.
@@ -111,6 +119,9 @@ fn warm_effects(spec: &mut FitSpec, from: &FitOutcome) {
     if spec.backlash.is_some() && from.spec_params.contains(&Param::Backlash) {
         spec.backlash = Some(from.readout.backlash);
     }
+    if spec.inertia.is_some() && from.spec_params.contains(&Param::Inertia) {
+        spec.inertia = Some(from.inertia_log);
+    }
 }
 
 fn init_from(f: &FitOutcome) -> InitialEstimate {
@@ -173,6 +184,7 @@ fn base_spec(full: &FitOutcome) -> FitSpec {
         fit_offset: full.spec_params.contains(&Param::Offset),
         delay: None,
         backlash: None,
+        inertia: None,
     }
 }
 
@@ -210,6 +222,10 @@ fn score_tests(
         .unwrap_or_else(|_| DMatrix::zeros(gram.nrows(), gram.ncols()));
     let mut out = Vec::new();
     for e in Effect::SEARCHED {
+        if e == Effect::InertiaError && !matches!(test.dof.mech, Mechanism::Pendulum(_)) {
+            out.push((e, None));
+            continue;
+        }
         let cols: Vec<usize> = params
             .iter()
             .enumerate()
@@ -485,13 +501,20 @@ fn judge(sp: &Split, reference: &Split, bic_ref: f64, effects: &[Effect]) -> (bo
             None => false,
         })
     });
-    let ok = d_bic <= -BIC_MARGIN && gain >= HOLDOUT_MARGIN && significant;
+    let uniform = !effects.contains(&Effect::InertiaError)
+        || sp.rmse_holdout <= INERTIA_HOLDOUT_RATIO * sp.rmse_fit;
+    let ok = d_bic <= -BIC_MARGIN && gain >= HOLDOUT_MARGIN && significant && uniform;
     (
         ok,
         format!(
-            "ΔBIC {d_bic:.1}, held-out RMSE {:+.1} %, effect interval {} its null",
+            "ΔBIC {d_bic:.1}, held-out RMSE {:+.1} %, effect interval {} its null{}",
             -100.0 * gain,
-            if significant { "excludes" } else { "includes" }
+            if significant { "excludes" } else { "includes" },
+            if uniform {
+                ""
+            } else {
+                "; held out over 2× the fitted part's error: the period error depends on amplitude, not an inertia error"
+            }
         ),
     )
 }
