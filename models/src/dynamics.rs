@@ -102,6 +102,19 @@ impl Dof {
         d
     }
 
+    /// This degree of freedom with its measured input read `offset` too low: the force (or
+    /// torque) acting is the recorded one + `offset` (issue 17, point 3: a force sensor's zero
+    /// is not the force's). Without an input it is returned as it is.
+    pub fn with_input_offset(&self, offset: f64) -> Dof {
+        let mut d = self.clone();
+        if let Some(i) = &mut d.input {
+            for v in &mut i.value {
+                *v += offset;
+            }
+        }
+        d
+    }
+
     /// The lever of the dry friction: R (m) for a revolute joint, 1 for a slider.
     pub fn lever(&self) -> f64 {
         match self.mech {

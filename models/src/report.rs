@@ -122,6 +122,12 @@ pub struct FitDetails {
     pub release_rate: Quantity,
     pub sensor_offset: Quantity,
     pub sensor_offset_ci95: Option<[f64; 2]>,
+    /// Input-driven tests whose position has no reference (issue 17, point 3): the measured
+    /// input's zero b — the force or torque acting is the recorded one + b — with its interval.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub input_offset: Option<Quantity>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub input_offset_ci95: Option<[f64; 2]>,
     pub samples_fitted: usize,
     pub termination: String,
     pub iterations: usize,
@@ -304,6 +310,11 @@ pub fn details(
             unit: channel_unit.into(),
         },
         sensor_offset_ci95: off.map(|o| o.2),
+        input_offset: fit.get(Param::InputOffset).map(|(v, _, _)| Quantity {
+            value: v,
+            unit: if model_unit.0 == "rad" { "N·m" } else { "N" }.into(),
+        }),
+        input_offset_ci95: fit.get(Param::InputOffset).map(|o| o.2),
         samples_fitted: fit.n_fit,
         termination: format!("{:?}", fit.termination),
         iterations: fit.iterations,

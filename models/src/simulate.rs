@@ -22,6 +22,9 @@ pub enum SensParam {
     /// The log of the inertia's scale, ln(J/J_stated) (`inertia_error`, issue 17): ∂a/∂ln J =
     /// −J·a/f_a from the implicit equation f = J·a − G + T(N(a)) = 0.
     Inertia,
+    /// An offset b added to the measured input (issue 17, point 3): G gains b, so ∂a/∂b = 1/f_a;
+    /// at a break-away the holding margin h = s·G − capacity gains s·b.
+    InputOffset,
 }
 
 /// What the simulator reports when it cannot go on.
@@ -120,6 +123,7 @@ impl OdeSystem for Segment<'_> {
             let a_p = match p {
                 SensParam::Dyn(dp) => self.dof.accel_d_param(self.law, &acc, *dp, q, v, self.s),
                 SensParam::Inertia => -self.dof.inertia() * acc.a / acc.f_a,
+                SensParam::InputOffset => 1.0 / acc.f_a,
                 _ => 0.0,
             };
             dy[2 + j] = sv;
@@ -170,7 +174,7 @@ pub fn simulate(
         match p {
             SensParam::Q0 => y[2 + j] = 1.0,
             SensParam::V0 => y[2 + ns + j] = 1.0,
-            SensParam::Dyn(_) | SensParam::Inertia => {}
+            SensParam::Dyn(_) | SensParam::Inertia | SensParam::InputOffset => {}
         }
     }
     let t_end = times[n - 1];
@@ -245,6 +249,7 @@ pub fn simulate(
                         SensParam::Dyn(dp) => {
                             -dof.lever() * dof.normal_at_rest(y[0]) * law.d_static_mu(*dp, y[0])
                         }
+                        SensParam::InputOffset => s,
                         _ => 0.0,
                     };
                     let tau_p = if h_t != 0.0 {
@@ -633,6 +638,7 @@ mod tests {
                     SensParam::Q0 => a += sgn * h,
                     SensParam::V0 => b += sgn * h,
                     SensParam::Inertia => d = dof.with_inertia_scale((sgn * h).exp()),
+                    SensParam::InputOffset => d = dof.with_input_offset(sgn * h),
                 }
                 simulate(&d, &l, a, b, &t, &plain).unwrap().q
             };
@@ -653,6 +659,67 @@ mod tests {
             }
             assert!(
                 worst < 1e-4 * scale.max(1e-3),
+                "{p:?}: worst {worst:e} of {scale:e}"
+            );
+        }
+    }
+
+    /// A pendulum driven by a measured torque from rest: the input offset's sensitivity, through
+    /// the break-away from rest and the reversals, agrees with finite differences (issue 17).
+    #[test]
+    fn a_driven_pendulum_s_input_offset_sensitivity_matches_finite_differences() {
+        let mut dof = pendulum(7.415, 4.645, 0.6685, 0.01);
+        let t = grid(6.0, 200.0);
+        dof.input = Some(Input {
+            t_s: t.clone(),
+            value: t.iter().map(|x| 12.0 * (1.3 * x).sin()).collect(),
+        });
+        let law = FrictionLaw::base(0.401, 0.88);
+        let sens = vec![
+            SensParam::Dyn(DynParam::Viscous),
+            SensParam::Dyn(DynParam::Dry),
+            SensParam::InputOffset,
+        ];
+        let opts = SimOptions {
+            tol: Tolerances {
+                rtol: 1e-11,
+                atol: 1e-13,
+                ..Default::default()
+            },
+            sens: sens.clone(),
+        };
+        let base = simulate(&dof, &law, 0.0, 0.0, &t, &opts).unwrap();
+        assert!(
+            base.events
+                .iter()
+                .any(|e| matches!(e, SimEvent::BreakAway { .. })),
+            "the drive breaks it loose"
+        );
+        let plain = SimOptions {
+            sens: vec![],
+            ..opts.clone()
+        };
+        for (j, p) in sens.iter().enumerate() {
+            let h = 1e-6;
+            let run = |sgn: f64| {
+                let mut l = law;
+                let mut d = dof.clone();
+                match p {
+                    SensParam::Dyn(dp) => l.set(*dp, law.get(*dp) + sgn * h),
+                    _ => d = dof.with_input_offset(sgn * h),
+                }
+                simulate(&d, &l, 0.0, 0.0, &t, &plain).unwrap().q
+            };
+            let (qp, qm) = (run(1.0), run(-1.0));
+            let (mut worst, mut scale) = (0.0f64, 0.0f64);
+            for k in 0..t.len() {
+                let fd = (qp[k] - qm[k]) / (2.0 * h);
+                let an = base.dq[k * sens.len() + j];
+                worst = worst.max((fd - an).abs());
+                scale = scale.max(an.abs());
+            }
+            assert!(
+                scale > 0.0 && worst < 1e-4 * scale.max(1e-3),
                 "{p:?}: worst {worst:e} of {scale:e}"
             );
         }

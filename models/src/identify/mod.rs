@@ -7,6 +7,7 @@
 
 pub mod covariance;
 pub mod initial;
+pub mod input_noise;
 pub mod lm;
 pub mod readout;
 pub mod release;
@@ -58,6 +59,9 @@ pub enum Param {
     /// `inertia_error` (issue 17): ln(J/J_stated), the pendulum's inertia about its pin off its
     /// stated value by this log-ratio (0: as stated).
     Inertia,
+    /// The measured input's zero (issue 17, point 3): the force or torque acting is the recorded
+    /// one + b, N or N·m.
+    InputOffset,
 }
 
 /// What to fit.
@@ -75,6 +79,8 @@ pub struct FitSpec {
     pub backlash: Option<f64>,
     /// Fit the inertia's log-ratio ln(J/J_stated), from this starting value (`inertia_error`).
     pub inertia: Option<f64>,
+    /// Fit the measured input's zero, from this starting value (N or N·m).
+    pub input_offset: Option<f64>,
 }
 
 impl FitSpec {
@@ -87,6 +93,7 @@ impl FitSpec {
             delay: None,
             backlash: None,
             inertia: None,
+            input_offset: None,
         }
     }
 
@@ -96,6 +103,9 @@ impl FitSpec {
         // With the trajectory's sensitivities, before the readout's own columns.
         if self.inertia.is_some() {
             p.push(Param::Inertia);
+        }
+        if self.input_offset.is_some() {
+            p.push(Param::InputOffset);
         }
         if self.delay.is_some() {
             p.push(Param::Delay);
@@ -172,6 +182,8 @@ pub struct FitOutcome {
     pub readout: Readout,
     /// ln(J/J_stated) at the optimum (`inertia_error`); 0 when the inertia was not fitted.
     pub inertia_log: f64,
+    /// The measured input's zero at the optimum, N or N·m; 0 when not fitted.
+    pub input_offset: f64,
     pub start: usize,
     pub n_fit: usize,
     /// Root-mean-square residual over the fitted samples, channel units.
@@ -193,6 +205,29 @@ impl FitOutcome {
             .iter()
             .position(|x| *x == p)
             .map(|i| (self.values[i], self.std[i], self.ci95[i]))
+    }
+}
+
+/// What a fit may change of the stated body and drive: the inertia's log-ratio and the input's
+/// zero (both 0: as stated and as recorded).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct BodyTerms {
+    inertia_log: f64,
+    input_offset: f64,
+}
+
+impl BodyTerms {
+    fn apply(&self, dof: &Dof) -> Dof {
+        let d = if self.inertia_log == 0.0 {
+            dof.clone()
+        } else {
+            dof.with_inertia_scale(self.inertia_log.exp())
+        };
+        if self.input_offset == 0.0 {
+            d
+        } else {
+            d.with_input_offset(self.input_offset)
+        }
     }
 }
 
@@ -232,10 +267,13 @@ impl<'a> OutputError<'a> {
         }
     }
 
-    fn unpack(&self, x: &[f64]) -> (FrictionLaw, f64, f64, Readout, f64) {
+    fn unpack(&self, x: &[f64]) -> (FrictionLaw, f64, f64, Readout, BodyTerms) {
         let mut law = self.spec.law;
         let (mut q0, mut v0) = (0.0, 0.0);
-        let mut ln_inertia = self.spec.inertia.unwrap_or(0.0);
+        let mut body = BodyTerms {
+            inertia_log: self.spec.inertia.unwrap_or(0.0),
+            input_offset: self.spec.input_offset.unwrap_or(0.0),
+        };
         let mut ro = Readout {
             offset: 0.0,
             delay_s: self.spec.delay.unwrap_or(0.0),
@@ -249,10 +287,11 @@ impl<'a> OutputError<'a> {
                 Param::Offset => ro.offset = *v,
                 Param::Delay => ro.delay_s = *v,
                 Param::Backlash => ro.backlash = *v,
-                Param::Inertia => ln_inertia = *v,
+                Param::Inertia => body.inertia_log = *v,
+                Param::InputOffset => body.input_offset = *v,
             }
         }
-        (law, q0, v0, ro, ln_inertia)
+        (law, q0, v0, ro, body)
     }
 }
 
@@ -264,13 +303,13 @@ impl lm::Problem for OutputError<'_> {
         self.times.len()
     }
     fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
-        let (law, q0, v0, ro, ln_inertia) = self.unpack(x);
-        let scaled;
-        let dof = if ln_inertia == 0.0 && self.spec.inertia.is_none() {
+        let (law, q0, v0, ro, body) = self.unpack(x);
+        let adjusted;
+        let dof = if self.spec.inertia.is_none() && self.spec.input_offset.is_none() {
             &self.test.dof
         } else {
-            scaled = self.test.dof.with_inertia_scale(ln_inertia.exp());
-            &scaled
+            adjusted = body.apply(&self.test.dof);
+            &adjusted
         };
         let rd = readout::read(
             dof,
@@ -349,6 +388,7 @@ fn sens_params(params: &[Param]) -> Vec<SensParam> {
             Param::Q0 => Some(SensParam::Q0),
             Param::V0 => Some(SensParam::V0),
             Param::Inertia => Some(SensParam::Inertia),
+            Param::InputOffset => Some(SensParam::InputOffset),
             Param::Offset | Param::Delay | Param::Backlash => None,
         })
         .collect()
@@ -367,6 +407,7 @@ fn start_vector(params: &[Param], spec: &FitSpec, init: &InitialEstimate) -> Vec
             Param::Delay => spec.delay.unwrap_or(0.0),
             Param::Backlash => spec.backlash.unwrap_or(0.0),
             Param::Inertia => spec.inertia.unwrap_or(0.0),
+            Param::InputOffset => spec.input_offset.unwrap_or(0.0),
         })
         .collect()
 }
@@ -391,7 +432,25 @@ pub fn fit_window(
     if let Termination::EvaluationFailed(e) = &rep.termination {
         return Err(FitError::Start(e.clone()));
     }
-    let cov = covariance::sandwich(&rep.jacobian, &rep.residuals);
+    let mut cov = covariance::sandwich(&rep.jacobian, &rep.residuals);
+    // A measured input's noise (issue 17, point 3): the parameters' share of it, added.
+    if test.dof.input.is_some() {
+        let (law, q0, v0, ro, body) = prob.unpack(&rep.x);
+        let adjusted = body.apply(&test.dof);
+        let sim = SimOptions {
+            tol: opts.tol,
+            sens: vec![],
+        };
+        let run = |d: &Dof| {
+            readout::read(d, &law, q0, v0, &ro, times, &sim, test.scale, false, false)
+                .ok()
+                .map(|r| r.y)
+        };
+        let y0: Vec<f64> = rep.residuals.iter().zip(y).map(|(r, y)| r + y).collect();
+        if let Some(extra) = input_noise::covariance(&adjusted, &rep.jacobian, &y0, run) {
+            cov.cov += extra;
+        }
+    }
     let lb = lm::Problem::lower_bounds(&prob);
     let std: Vec<f64> = (0..params.len()).map(|i| cov.std(i)).collect();
     let ci95: Vec<[f64; 2]> = rep
@@ -401,7 +460,7 @@ pub fn fit_window(
         .zip(&lb)
         .map(|((x, s), l)| [(x - Z95 * s).max(*l), (x + Z95 * s).max(*l)])
         .collect();
-    let (law, q0, v0, readout, inertia_log) = prob.unpack(&rep.x);
+    let (law, q0, v0, readout, body) = prob.unpack(&rep.x);
     let offset = readout.offset;
     let residual = rep.residuals.clone();
     let model_y: Vec<f64> = residual.iter().zip(y).map(|(r, y)| r + y).collect();
@@ -412,7 +471,7 @@ pub fn fit_window(
         // (with a delay the readout simulates at shifted times: not the sample times)
         Some((x, tr)) if x == rep.x && spec.delay.is_none() => tr,
         _ => simulate(
-            &test.dof.with_inertia_scale(inertia_log.exp()),
+            &body.apply(&test.dof),
             &law,
             q0,
             v0,
@@ -433,7 +492,8 @@ pub fn fit_window(
         v0,
         offset,
         readout,
-        inertia_log,
+        inertia_log: body.inertia_log,
+        input_offset: body.input_offset,
         start,
         n_fit,
         rmse,
@@ -461,7 +521,11 @@ pub fn predict(
         sens: vec![],
     };
     Ok(readout::read(
-        &test.dof.with_inertia_scale(fit.inertia_log.exp()),
+        &BodyTerms {
+            inertia_log: fit.inertia_log,
+            input_offset: fit.input_offset,
+        }
+        .apply(&test.dof),
         &fit.law,
         fit.q0,
         fit.v0,
@@ -528,7 +592,14 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
         test.initial_rate,
         fit_offset,
     );
-    let spec = FitSpec::base(init.viscous, init.dry, fit_offset);
+    let mut spec = FitSpec::base(init.viscous, init.dry, fit_offset);
+    // A measured input's zero is fitted where the position has no reference (no spring): there
+    // a constant force shows as a drift the friction cannot make. With a spring it would only
+    // move the rest position, which the position sensor's zero already absorbs (issue 17,
+    // point 3; the head-drop slider keeps its model).
+    if test.dof.input.is_some() && !fit_offset {
+        spec.input_offset = Some(0.0);
+    }
     let first = fit_window(test, start, n_fit, &spec, &init, opts)?;
     // Stick–slip makes the cost piecewise: which reversal sticks jumps with the parameters, and
     // the time at rest weighs in. A fit that leaves a structured residual may sit in the wrong

@@ -703,6 +703,8 @@ fn build_result(
                 unit: "N·m".into(),
             },
             sensor_offset_ci95: offset.map(|o| o.ci95),
+            input_offset: None,
+            input_offset_ci95: None,
             samples_fitted: trace.strip_height_m.len(),
             termination: format!("{:?}", fit.termination),
             iterations: fit.iterations,

@@ -254,6 +254,8 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
                 unit: "deg".into(),
             },
             sensor_offset_ci95: Some([deg(z.value - Z95 * z.sd), deg(z.value + Z95 * z.sd)]),
+            input_offset: None,
+            input_offset_ci95: None,
             samples_fitted: fit.samples_fitted,
             termination: format!("{:?}", fit.termination),
             iterations: fit.iterations,

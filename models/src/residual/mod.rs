@@ -185,6 +185,10 @@ fn base_spec(full: &FitOutcome) -> FitSpec {
         delay: None,
         backlash: None,
         inertia: None,
+        input_offset: full
+            .spec_params
+            .contains(&Param::InputOffset)
+            .then_some(full.input_offset),
     }
 }
 
