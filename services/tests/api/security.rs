@@ -859,7 +859,7 @@ const DYNAMIC_SQL: [&str; 5] = [
 ];
 
 /// Files of services/src that are compiled only for tests (`#[cfg(test)] mod …;`).
-const TEST_ONLY: [&str; 1] = ["store/tests.rs"];
+const TEST_ONLY: [&str; 1] = ["store/tests"];
 
 /// Reviewed exceptions: (file, exactly this many hits, why). A new hit in such a file fails too.
 const REVIEWED: [(&str, usize, &str); 1] = [(
@@ -921,7 +921,7 @@ fn sql_is_only_constant_text_with_bound_values() {
     let mut queries = 0;
     for f in &files {
         let rel = f.strip_prefix(&src).expect("under src");
-        if TEST_ONLY.iter().any(|t| rel == Path::new(t)) {
+        if TEST_ONLY.iter().any(|t| rel.starts_with(t)) {
             continue;
         }
         let text = std::fs::read_to_string(f).expect("read");
