@@ -469,7 +469,10 @@ impl PantographType {
                 ));
             }
             positive("static_force.gauge_noise_n", sf.gauge_noise_n)?;
-            positive("static_force.gauge_sim_resolution_n", sf.gauge_sim_resolution_n)?;
+            positive(
+                "static_force.gauge_sim_resolution_n",
+                sf.gauge_sim_resolution_n,
+            )?;
             positive(
                 "static_force.max_raise_lower_difference_n",
                 sf.max_raise_lower_difference_n,

@@ -244,24 +244,22 @@ impl Problem for GaugeProblem<'_> {
         let n = self.record.len();
         let p = self.n_params();
         let f = self.forces(x)?;
-        for k in 0..n {
-            r[k] = (f[k] - self.record.forces_n[k]) / self.sigma_n;
+        for ((rk, fk), mk) in r.iter_mut().zip(&f).zip(&self.record.forces_n) {
+            *rk = (fk - mk) / self.sigma_n;
         }
         jac.fill(0.0);
         for i in 0..p {
             if i == FITTED_JOINTS.len()
                 && matches!(self.effect, Some((GaugeEffect::SensorOffset, _)))
             {
-                for k in 0..n {
-                    jac[(k, i)] = 1.0 / self.sigma_n;
-                }
+                jac.view_mut((0, i), (n, 1)).fill(1.0 / self.sigma_n);
                 continue;
             }
             let mut xi = x.to_vec();
             xi[i] += FD_STEP;
             let fi = self.forces(&xi)?;
-            for k in 0..n {
-                jac[(k, i)] = (fi[k] - f[k]) / (FD_STEP * self.sigma_n);
+            for (k, (a, b)) in fi.iter().zip(&f).enumerate() {
+                jac[(k, i)] = (a - b) / (FD_STEP * self.sigma_n);
             }
         }
         for i in 0..FITTED_JOINTS.len() {
@@ -317,14 +315,13 @@ pub fn fit_gauge_from(
         )));
     }
     let s = opts.prior_relative_sd;
-    if !(s.is_finite() && s > 0.0 && opts.noise_floor_n.is_finite() && opts.noise_floor_n > 0.0)
-    {
-        return Err(GaugeError::Model("prior sd and noise floor must be > 0".into()));
+    if !(s.is_finite() && s > 0.0 && opts.noise_floor_n.is_finite() && opts.noise_floor_n > 0.0) {
+        return Err(GaugeError::Model(
+            "prior sd and noise floor must be > 0".into(),
+        ));
     }
     let warm = warm_starts(model, alpha_range_rad, drive, record)?;
-    let sigma0 = opts
-        .noise_floor_n
-        .max(record.resolution_n / 12f64.sqrt());
+    let sigma0 = opts.noise_floor_n.max(record.resolution_n / 12f64.sqrt());
     let effect = opts.effect.map(|e| (e, e.prior()));
     let mut problem = GaugeProblem {
         model,
@@ -449,10 +446,7 @@ pub fn fit_gauge_from(
             effect: e,
             value: v,
             posterior_sd: sd,
-            ci95: [
-                (v - Z95 * sd).max(pr.lower),
-                (v + Z95 * sd).min(pr.upper),
-            ],
+            ci95: [(v - Z95 * sd).max(pr.lower), (v + Z95 * sd).min(pr.upper)],
         }
     });
     let fitted_n: Vec<f64> = rep.residuals[..n]

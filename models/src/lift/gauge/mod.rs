@@ -35,7 +35,7 @@ pub mod effects;
 pub mod fit;
 pub mod report;
 pub mod simulate;
-mod solve;
+pub(crate) mod solve;
 #[cfg(test)]
 mod tests;
 
@@ -95,10 +95,10 @@ pub enum GaugeError {
         "channels.H_m[{index}]: the {branch} branch must not turn back (raising: H never decreasing up to the highest reading; lowering: never increasing after it)"
     )]
     NotMonotone { index: usize, branch: &'static str },
-    #[error("channels.H_m: no {branch} branch (the highest reading is the {where_})")]
+    #[error("channels.H_m: no {branch} branch ({why})")]
     NoBranch {
         branch: &'static str,
-        where_: &'static str,
+        why: &'static str,
     },
     #[error(
         "channels.H_m: the {branch} branch has {got} readings, at least {min} are needed (`[static_force] min_points_per_branch`)"
@@ -212,9 +212,7 @@ impl GaugeRecord {
             }
         }
         let turn = split(&heights_m, d)?;
-        let range_n = crate::data::builtin_160ec()
-            .rig_limits()
-            .lift_strip_force_n;
+        let range_n = crate::data::builtin_160ec().rig_limits().lift_strip_force_n;
         if let Some(index) = forces_n
             .iter()
             .position(|f| !(range_n[0]..=range_n[1]).contains(f))
@@ -275,7 +273,7 @@ pub(crate) fn split(heights_m: &[f64], d: &StaticForceData) -> Result<usize, Gau
     if heights_m.is_empty() {
         return Err(GaugeError::NoBranch {
             branch: "raising",
-            where_: "missing: no readings",
+            why: "no readings",
         });
     }
     let mut turn = 0;
@@ -287,13 +285,13 @@ pub(crate) fn split(heights_m: &[f64], d: &StaticForceData) -> Result<usize, Gau
     if turn == 0 {
         return Err(GaugeError::NoBranch {
             branch: "raising",
-            where_: "first",
+            why: "the first reading is the highest",
         });
     }
     if turn + 1 == heights_m.len() {
         return Err(GaugeError::NoBranch {
             branch: "lowering",
-            where_: "last",
+            why: "the last reading is the highest",
         });
     }
     for k in 1..heights_m.len() {
@@ -312,7 +310,10 @@ pub(crate) fn split(heights_m: &[f64], d: &StaticForceData) -> Result<usize, Gau
         }
     }
     let min = d.min_points_per_branch;
-    for (branch, got) in [("raising", turn + 1), ("lowering", heights_m.len() - turn - 1)] {
+    for (branch, got) in [
+        ("raising", turn + 1),
+        ("lowering", heights_m.len() - turn - 1),
+    ] {
         if got < min {
             return Err(GaugeError::TooFewPoints { branch, got, min });
         }

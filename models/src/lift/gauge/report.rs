@@ -187,9 +187,7 @@ pub fn gauge_result(
         _ => (rmse_after, Vec::new()),
     };
     let res = &lp.residual;
-    let offset = fit
-        .effect
-        .filter(|e| e.effect == GaugeEffect::SensorOffset);
+    let offset = fit.effect.filter(|e| e.effect == GaugeEffect::SensorOffset);
     FitResult {
         trace_id: trace_id.to_string(),
         joints,
@@ -328,7 +326,11 @@ fn combination_joint(c: &Combination, prior_relative_sd: f64) -> JointResult {
     let viscous = not_estimated(None, "× Table 4", prior_relative_sd);
     JointResult {
         joint: name,
-        status: if c.informed { c.status } else { Status::Unknown },
+        status: if c.informed {
+            c.status
+        } else {
+            Status::Unknown
+        },
         identifiable: c.informed,
         viscous,
         dry,

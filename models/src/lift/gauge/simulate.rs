@@ -76,7 +76,11 @@ pub fn simulate_gauge(
     heights_m: &[f64],
     opts: &GaugeSimOptions,
 ) -> Result<GaugeRecord, GaugeError> {
-    let shape = GaugeRecord::new(heights_m.to_vec(), vec![0.0; heights_m.len()], opts.resolution_n)?;
+    let shape = GaugeRecord::new(
+        heights_m.to_vec(),
+        vec![0.0; heights_m.len()],
+        opts.resolution_n,
+    )?;
     let drive = spring_rate_drive(drive, opts.spring_rate_factor);
     let clean = predicted_forces_n(model, alpha_range_rad, &drive, &shape)?;
     let mut rng = Noise::new(opts.seed);

@@ -8,7 +8,9 @@
 
 use super::super::dynamics::{DynamicsError, LiftModel};
 use super::super::static_force::{DriveLine, StaticForceError, strip_force_n};
-use super::super::statics::{StaticFriction, StaticsError, alpha_at_height, static_h_m, static_point};
+use super::super::statics::{
+    StaticFriction, StaticsError, alpha_at_height, static_h_m, static_point,
+};
 use super::{GaugeError, GaugeRecord};
 
 /// One reading's solution: the lower-arm angle and the strip force, where a search starts.

@@ -114,12 +114,30 @@ fn bad_records_are_refused_naming_the_field() {
     assert_eq!(e.field(), Some("channels.F_N"), "{e}");
     // No lowering branch, no raising branch.
     let up = h[..6].to_vec();
-    let e = refuse(up.clone(), vec![90.0; 6], 0.1);
-    assert!(matches!(e, GaugeError::NoBranch { branch: "lowering", .. }), "{e}");
+    let e = refuse(up, vec![90.0; 6], 0.1);
+    assert!(
+        matches!(
+            e,
+            GaugeError::NoBranch {
+                branch: "lowering",
+                ..
+            }
+        ),
+        "{e}"
+    );
     assert_eq!(e.field(), Some("channels.H_m"));
     let down: Vec<f64> = h[6..].to_vec();
     let e = refuse(down, vec![90.0; 6], 0.1);
-    assert!(matches!(e, GaugeError::NoBranch { branch: "raising", .. }), "{e}");
+    assert!(
+        matches!(
+            e,
+            GaugeError::NoBranch {
+                branch: "raising",
+                ..
+            }
+        ),
+        "{e}"
+    );
     assert_eq!(e.field(), Some("channels.H_m"));
     // A branch that turns back.
     let e = refuse(spoil(&h, 2, h[1] - 0.01), f.clone(), 0.1);
@@ -175,7 +193,12 @@ fn a_baseline_gauge_record_fits_to_level_one() {
         let rec = record(&base, seed, 0.0, 1.0);
         let lp = fit_with_effects(&base, ar, &drive, &rec, &GaugeFitOptions::default()).unwrap();
         let fit = &lp.fit;
-        assert_eq!(lp.verdict, GaugeVerdict::None, "seed {seed}: {:?}", lp.residual);
+        assert_eq!(
+            lp.verdict,
+            GaugeVerdict::None,
+            "seed {seed}: {:?}",
+            lp.residual
+        );
         assert_eq!(fit.combinations.len(), 1, "seed {seed}");
         let c = &fit.combinations[0];
         eprintln!(
@@ -186,9 +209,16 @@ fn a_baseline_gauge_record_fits_to_level_one() {
             fit.dof,
             fit.iterations
         );
-        assert!(c.informed && c.ci95[0] <= 1.0 && 1.0 <= c.ci95[1], "seed {seed}");
+        assert!(
+            c.informed && c.ci95[0] <= 1.0 && 1.0 <= c.ci95[1],
+            "seed {seed}"
+        );
         assert_eq!(c.status, Status::Ok, "seed {seed}");
-        assert!(fit.params.iter().all(|p| !matches!(p.status, Status::Watch | Status::Alarm)));
+        assert!(
+            fit.params
+                .iter()
+                .all(|p| !matches!(p.status, Status::Watch | Status::Alarm))
+        );
         assert!(fit.rmse_n < 0.3, "seed {seed}: {}", fit.rmse_n);
     }
 }
@@ -203,11 +233,20 @@ fn a_friction_drift_is_fitted_back_and_flagged() {
     for seed in 100..120 {
         let rec = record(&truth, seed, 0.0, 1.0);
         let lp = fit_with_effects(&base, ar, &drive, &rec, &GaugeFitOptions::default()).unwrap();
-        assert_eq!(lp.verdict, GaugeVerdict::None, "seed {seed}: {:?}", lp.residual);
+        assert_eq!(
+            lp.verdict,
+            GaugeVerdict::None,
+            "seed {seed}: {:?}",
+            lp.residual
+        );
         let c = &lp.fit.combinations[0];
         let level = true_level(c, &truth, &base);
         let holds = c.ci95[0] <= level && level <= c.ci95[1];
-        eprintln!("seed {seed}: {}; truth {level:.4} {}", describe(c), if holds { "held" } else { "MISSED" });
+        eprintln!(
+            "seed {seed}: {}; truth {level:.4} {}",
+            describe(c),
+            if holds { "held" } else { "MISSED" }
+        );
         n += 1;
         covered += usize::from(holds);
         flagged += usize::from(matches!(c.status, Status::Watch | Status::Alarm));
@@ -236,7 +275,11 @@ fn an_offset_gauge_is_named_not_a_friction_alarm() {
             lp.fit.rmse_n,
             lp.tried
         );
-        assert_eq!(lp.verdict, GaugeVerdict::Named(GaugeEffect::SensorOffset), "seed {seed}");
+        assert_eq!(
+            lp.verdict,
+            GaugeVerdict::Named(GaugeEffect::SensorOffset),
+            "seed {seed}"
+        );
         assert!(e.ci95[0] <= 5.0 && 5.0 <= e.ci95[1], "seed {seed}: {e:?}");
         let c = &lp.fit.combinations[0];
         assert_eq!(c.status, Status::Ok, "seed {seed}: {}", describe(c));
@@ -262,7 +305,11 @@ fn another_spring_rate_is_named() {
             lp.fit.rmse_n,
             lp.tried
         );
-        assert_eq!(lp.verdict, GaugeVerdict::Named(GaugeEffect::SpringRate), "seed {seed}");
+        assert_eq!(
+            lp.verdict,
+            GaugeVerdict::Named(GaugeEffect::SpringRate),
+            "seed {seed}"
+        );
         assert!(e.ci95[0] <= 1.3 && 1.3 <= e.ci95[1], "seed {seed}: {e:?}");
         let c = &lp.fit.combinations[0];
         assert_eq!(c.status, Status::Ok, "seed {seed}: {}", describe(c));
@@ -315,5 +362,84 @@ fn the_report_has_every_joint_and_the_combination() {
     assert_eq!(json["joints"].as_array().unwrap().len(), 11);
     // Every fitted joint is a member or reported alone.
     assert_eq!(rep.fit.params.len(), FITTED_JOINTS.len());
-    assert!(rep.fit.params.iter().all(|p| matches!(p.param, LiftParam::Dry(_))));
+    assert!(
+        rep.fit
+            .params
+            .iter()
+            .all(|p| matches!(p.param, LiftParam::Dry(_)))
+    );
+}
+
+/// Pooling with lifts: a realistic-noise reference lift of a pantograph with J3 and J1 dry ×2,
+/// fitted alone and with a gauge record of the same pantograph (`LiftFitOptions::gauge_records`):
+/// the gauge's readings join the fit (their RMSE at the gauge's noise), the level the gauge
+/// informs (its own fit's weights) is pinned far tighter than by the lift alone, and the pooled
+/// estimate of it lies within 3 posterior sd of the truth.
+#[test]
+fn a_gauge_record_pooled_with_a_lift_pins_its_level() {
+    use crate::lift::identify::{LiftFit, LiftFitOptions, LiftTrace, PooledGauge, fit_map};
+    use crate::lift::protocol::{LiftProtocol, record as lift_record};
+    use crate::lift::sensors::LiftSensorNoise;
+    use crate::lift::simulate::SimOptions;
+    let (base, drive, ar) = setup();
+    let g = builtin_160ec();
+    let truth = drifted(&base, &[(RevJoint::J3, 2.0), (RevJoint::J1, 2.0)]);
+    let clean = lift_record(&truth, &LiftProtocol::reference(g), &SimOptions::default()).unwrap();
+    let rec = LiftSensorNoise::realistic().apply(&clean, 11);
+    let trace = LiftTrace {
+        inputs: rec.inputs(),
+        strip_height_m: &rec.strip_height_m,
+    };
+    let gauge = record(&truth, 11, 0.0, 1.0);
+    let own = fit_gauge(&base, ar, &drive, &gauge, &GaugeFitOptions::default()).unwrap();
+    let c = &own.combinations[0];
+    let lift_opts = LiftFitOptions::default();
+    let alone = fit_map(&base, &[trace], &lift_opts).unwrap();
+    let pooled_opts = LiftFitOptions {
+        gauge_records: vec![PooledGauge {
+            record: gauge.clone(),
+            drive,
+        }],
+        ..LiftFitOptions::default()
+    };
+    let pooled = fit_map(&base, &[trace], &pooled_opts).unwrap();
+    // The level Σ w x of a lift fit and its posterior sd (units of Table 4).
+    let level = |f: &LiftFit| -> (f64, f64) {
+        let idx: Vec<usize> = c
+            .params
+            .iter()
+            .map(|p| f.params.iter().position(|e| e.param == *p).unwrap())
+            .collect();
+        let x = |i: usize| f.params[i].map_value / f.params[i].baseline;
+        let sd = |i: usize| f.params[i].posterior_sd / f.params[i].baseline;
+        let v: f64 = idx.iter().zip(&c.weights).map(|(&i, w)| w * x(i)).sum();
+        let mut var = 0.0;
+        for (&a, wa) in idx.iter().zip(&c.weights) {
+            for (&b, wb) in idx.iter().zip(&c.weights) {
+                var += wa * wb * f.posterior_correlation[(a, b)] * sd(a) * sd(b);
+            }
+        }
+        (v, var.max(0.0).sqrt())
+    };
+    let truth_level = true_level(c, &truth, &base);
+    let (va, sa) = level(&alone);
+    let (vp, sp) = level(&pooled);
+    eprintln!(
+        "truth {truth_level:.4}; gauge alone {:.4} [{:.4}, {:.4}]; lift alone {va:.4} ± {sa:.4}; \
+         pooled {vp:.4} ± {sp:.4}; pooled gauge RMSE {:.3} N, lift RMSE {:.3} mm (alone {:.3} mm)",
+        c.value,
+        c.ci95[0],
+        c.ci95[1],
+        pooled.gauge_rmse_n[0],
+        pooled.rmse_m[0] * 1e3,
+        alone.rmse_m[0] * 1e3
+    );
+    assert!(alone.gauge_rmse_n.is_empty());
+    assert!(pooled.gauge_rmse_n[0] < 0.35, "{}", pooled.gauge_rmse_n[0]);
+    assert_eq!(pooled.gauge_fitted_n[0].len(), gauge.len());
+    assert!(sp < 0.5 * sa, "pooled sd {sp} vs lift alone {sa}");
+    assert!(
+        (vp - truth_level).abs() < 3.0 * sp,
+        "{vp} vs {truth_level} ± {sp}"
+    );
 }
