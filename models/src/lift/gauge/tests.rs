@@ -459,7 +459,11 @@ fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
     assert_eq!(pooled.gauge_fitted_n[0].len(), gauge.len());
     assert!(sp <= sa, "pooled sd {sp} vs lift alone {sa}");
     let sd_of = |f: &LiftFit, j: RevJoint| {
-        let e = f.params.iter().find(|e| e.param == LiftParam::Dry(j)).unwrap();
+        let e = f
+            .params
+            .iter()
+            .find(|e| e.param == LiftParam::Dry(j))
+            .unwrap();
         e.posterior_sd / e.baseline
     };
     for (j, most) in [(RevJoint::J1, 0.8), (RevJoint::J3, 0.85)] {
