@@ -475,3 +475,77 @@ fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
         "{vp} vs {truth_level} ± {sp}"
     );
 }
+
+/// A model error outside the vocabulary — a bow of 4 N at mid-height on both branches (zero at
+/// the ends of the range), seeds 400–402: neither effect explains it, the verdict is
+/// `unexplained`, and the report withholds every joint and the combination.
+#[test]
+fn a_bow_no_effect_explains_is_unexplained_and_withheld() {
+    let (base, drive, ar) = setup();
+    let [lo, hi] = gauge_data().working_height_m;
+    for seed in 400..403 {
+        let clean = record(&base, seed, 0.0, 1.0);
+        let bowed: Vec<f64> = clean
+            .heights_m
+            .iter()
+            .zip(&clean.forces_n)
+            .map(|(h, f)| {
+                let u = (2.0 * h - lo - hi) / (hi - lo);
+                f + 4.0 * (1.0 - u * u)
+            })
+            .collect();
+        let rec = GaugeRecord::new(clean.heights_m.clone(), bowed, clean.resolution_n).unwrap();
+        let opts = GaugeFitOptions::default();
+        let lp = fit_with_effects(&base, ar, &drive, &rec, &opts).unwrap();
+        eprintln!(
+            "seed {seed}: {:?}; plain {:?}; tried {:?}",
+            lp.verdict, lp.residual, lp.tried
+        );
+        assert_eq!(lp.verdict, GaugeVerdict::Unexplained, "seed {seed}");
+        let r = report::gauge_result(&base, &lp, &rec, &opts, "bow");
+        assert_eq!(r.residual.verdict.as_deref(), Some("unexplained"));
+        assert!(r.residual.joints_withheld.is_some());
+        assert!(r.residual.effects.is_empty());
+        assert!(r.joints.iter().all(|j| !j.identifiable && j.status == Status::Unknown));
+        assert!(r.combinations.iter().all(|c| c.status == Status::Unknown));
+    }
+}
+
+/// The report-level pool (`lift::report::fit_pooled_lift_and_gauge_traces`): one lift and one
+/// gauge record of the same pantograph; the result is the lift's, its `pooled` block naming both.
+#[test]
+fn one_lift_and_one_gauge_record_pool_in_the_report() {
+    use crate::lift::protocol::{LiftProtocol, record as lift_record};
+    use crate::lift::report::{LiftChannels, fit_pooled_lift_and_gauge_traces};
+    use crate::lift::sensors::LiftSensorNoise;
+    use crate::lift::simulate::SimOptions;
+    let (base, _, _) = setup();
+    let g = builtin_160ec();
+    let clean = lift_record(&base, &LiftProtocol::reference(g), &SimOptions::default()).unwrap();
+    let rec = LiftSensorNoise::realistic().apply(&clean, 5);
+    let lift = LiftChannels {
+        t_s: &rec.t_s,
+        strip_height_m: &rec.strip_height_m,
+        torque_nm: &rec.torque_nm,
+        fs_n: &rec.fs_n,
+        fm_n: &rec.fm_n,
+    };
+    let gauge = record(&base, 5, 0.0, 1.0);
+    let gch = GaugeChannels {
+        strip_height_m: &gauge.heights_m,
+        force_n: &gauge.forces_n,
+        resolution_n: gauge.resolution_n,
+    };
+    let th = DriftThresholds::default();
+    let ids = ["lift-1".to_string()];
+    let gids = ["gauge-1".to_string()];
+    let rep = fit_pooled_lift_and_gauge_traces(&[lift], &ids, &[gch], &gids, 30.0, &th).unwrap();
+    let pooled = rep.result.pooled.as_ref().unwrap();
+    assert_eq!(pooled.trace_ids, ["lift-1", "gauge-1"]);
+    assert_eq!(rep.result.trace_id, "lift-1");
+    assert!(rep.fit.gauge_rmse_n[0] < 0.35, "{:?}", rep.fit.gauge_rmse_n);
+    assert!(rep.result.joints.iter().all(|j| j.status != Status::Alarm));
+    // A lift alone is no pool; a gauge record without an id is refused.
+    assert!(fit_pooled_lift_and_gauge_traces(&[lift], &ids, &[], &[], 30.0, &th).is_err());
+    assert!(fit_pooled_lift_and_gauge_traces(&[lift], &ids, &[gch], &[], 30.0, &th).is_err());
+}
