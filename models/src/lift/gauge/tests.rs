@@ -223,13 +223,38 @@ fn a_baseline_gauge_record_fits_to_level_one() {
     }
 }
 
-/// J3 dry ×2 and J1 dry ×2, seeds 100–119: the combination's interval holds the level of the
-/// truth (computed with the reported weights) on at least 18 of 20 records, and it is flagged.
+/// Friction drifts fitted back, seeds 100–119 each (80 records): the combination's interval
+/// holds the level of the truth (computed with the reported weights) on at least 18 of 20, and a
+/// level whose truth lies beyond the watch band is flagged on every record, one inside it on none.
+/// Measured: 20/20 covered for each drift, RMS z 0.51–0.72 (the interval carries the prior
+/// spread of the joints outside the level, which the data pin only through the whole gap).
 #[test]
 fn a_friction_drift_is_fitted_back_and_flagged() {
+    for (drift, flagged_truth) in [
+        (vec![(RevJoint::J3, 2.0), (RevJoint::J1, 2.0)], true),
+        (vec![(RevJoint::J3, 2.0), (RevJoint::J5, 2.0)], true),
+        (
+            vec![
+                (RevJoint::J3, 2.0),
+                (RevJoint::J2, 2.0),
+                (RevJoint::J4, 0.5),
+            ],
+            true,
+        ),
+        (vec![(RevJoint::J1, 3.0)], false),
+    ] {
+        let (covered, flagged, n, rms_z) = fit_drift_back(&drift);
+        eprintln!("{drift:?}: coverage {covered}/{n}, flagged {flagged}/{n}, RMS z {rms_z:.2}");
+        assert!(covered >= 18, "{drift:?}: coverage {covered}/{n}");
+        assert_eq!(flagged, if flagged_truth { n } else { 0 }, "{drift:?}");
+    }
+}
+
+/// Fit `drift` back on seeds 100–119: (covered, flagged, records, RMS z of ln level).
+fn fit_drift_back(drift: &[(RevJoint, f64)]) -> (usize, usize, usize, f64) {
     let (base, drive, ar) = setup();
-    let truth = drifted(&base, &[(RevJoint::J3, 2.0), (RevJoint::J1, 2.0)]);
-    let (mut covered, mut flagged, mut n) = (0, 0, 0);
+    let truth = drifted(&base, drift);
+    let (mut covered, mut flagged, mut n, mut z2) = (0, 0, 0, 0.0);
     for seed in 100..120 {
         let rec = record(&truth, seed, 0.0, 1.0);
         let lp = fit_with_effects(&base, ar, &drive, &rec, &GaugeFitOptions::default()).unwrap();
@@ -242,18 +267,13 @@ fn a_friction_drift_is_fitted_back_and_flagged() {
         let c = &lp.fit.combinations[0];
         let level = true_level(c, &truth, &base);
         let holds = c.ci95[0] <= level && level <= c.ci95[1];
-        eprintln!(
-            "seed {seed}: {}; truth {level:.4} {}",
-            describe(c),
-            if holds { "held" } else { "MISSED" }
-        );
+        let sd_ln = (c.ci95[1] / c.ci95[0]).ln() / (2.0 * lp.fit.t_quantile);
+        z2 += ((c.value / level).ln() / sd_ln).powi(2);
         n += 1;
         covered += usize::from(holds);
         flagged += usize::from(matches!(c.status, Status::Watch | Status::Alarm));
     }
-    eprintln!("coverage {covered}/{n}, flagged {flagged}/{n}");
-    assert!(covered >= 18, "coverage {covered}/{n}");
-    assert_eq!(flagged, n);
+    (covered, flagged, n, (z2 / n as f64).sqrt())
 }
 
 /// A gauge whose zero is +5 N, seeds 200–204: `sensor_offset` is named with b inside its
@@ -283,6 +303,23 @@ fn an_offset_gauge_is_named_not_a_friction_alarm() {
         assert!(e.ci95[0] <= 5.0 && 5.0 <= e.ci95[1], "seed {seed}: {e:?}");
         let c = &lp.fit.combinations[0];
         assert_eq!(c.status, Status::Ok, "seed {seed}: {}", describe(c));
+    }
+    // With a real drift besides (J3 and J1 dry ×2), seeds 210–212: the offset is named and the
+    // drift still shows, its level's interval holding the truth.
+    let truth = drifted(&base, &[(RevJoint::J3, 2.0), (RevJoint::J1, 2.0)]);
+    for seed in 210..213 {
+        let rec = record(&truth, seed, 5.0, 1.0);
+        let lp = fit_with_effects(&base, ar, &drive, &rec, &GaugeFitOptions::default()).unwrap();
+        assert_eq!(
+            lp.verdict,
+            GaugeVerdict::Named(GaugeEffect::SensorOffset),
+            "seed {seed}"
+        );
+        let c = &lp.fit.combinations[0];
+        let level = true_level(c, &truth, &base);
+        eprintln!("seed {seed} (drifted): {}; truth {level:.4}", describe(c));
+        assert!(c.ci95[0] <= level && level <= c.ci95[1], "seed {seed}");
+        assert_eq!(c.status, Status::Watch, "seed {seed}");
     }
 }
 
@@ -506,7 +543,11 @@ fn a_bow_no_effect_explains_is_unexplained_and_withheld() {
         assert_eq!(r.residual.verdict.as_deref(), Some("unexplained"));
         assert!(r.residual.joints_withheld.is_some());
         assert!(r.residual.effects.is_empty());
-        assert!(r.joints.iter().all(|j| !j.identifiable && j.status == Status::Unknown));
+        assert!(
+            r.joints
+                .iter()
+                .all(|j| !j.identifiable && j.status == Status::Unknown)
+        );
         assert!(r.combinations.iter().all(|c| c.status == Status::Unknown));
     }
 }
