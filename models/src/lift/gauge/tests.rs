@@ -590,3 +590,81 @@ fn one_lift_and_one_gauge_record_pool_in_the_report() {
     assert!(fit_pooled_lift_and_gauge_traces(&[lift], &ids, &[], &[], 30.0, &th).is_err());
     assert!(fit_pooled_lift_and_gauge_traces(&[lift], &ids, &[gch], &[], 30.0, &th).is_err());
 }
+
+/// Measurement probe (ignored; `cargo test -p pantowatch-models --lib gauge::tests::probe --
+/// --ignored --nocapture`): at twice the noise and a coarse gauge, and for small effects, what is
+/// named and what is covered. Its figures are in the module doc.
+#[test]
+#[ignore]
+fn probe_noise_and_small_effects() {
+    let (base, drive, ar) = setup();
+    let truth = drifted(&base, &[(RevJoint::J3, 2.0), (RevJoint::J1, 2.0)]);
+    for (sd, q) in [(0.2, 0.1), (0.4, 0.1), (0.4, 0.5)] {
+        for (name, m, b, k) in [
+            ("baseline", &base, 0.0, 1.0),
+            ("J1,J3 x2", &truth, 0.0, 1.0),
+            ("b +1 N", &base, 1.0, 1.0),
+            ("b +2 N", &base, 2.0, 1.0),
+            ("k 1.05", &base, 0.0, 1.05),
+            ("k 1.1", &base, 0.0, 1.1),
+        ] {
+            let (mut named, mut covered, mut flagged, mut unexplained) = (0, 0, 0, 0);
+            for seed in 500..510 {
+                let opts = GaugeSimOptions {
+                    seed,
+                    noise_sd_n: sd,
+                    resolution_n: q,
+                    offset_n: b,
+                    spring_rate_factor: k,
+                };
+                let rec =
+                    simulate_gauge(m, ar, &drive, &reading_heights(PER_BRANCH), &opts).unwrap();
+                let lp =
+                    fit_with_effects(&base, ar, &drive, &rec, &GaugeFitOptions::default()).unwrap();
+                named += usize::from(matches!(lp.verdict, GaugeVerdict::Named(_)));
+                unexplained += usize::from(lp.verdict == GaugeVerdict::Unexplained);
+                let c = &lp.fit.combinations[0];
+                let level = true_level(c, m, &base);
+                covered += usize::from(c.ci95[0] <= level && level <= c.ci95[1]);
+                flagged += usize::from(matches!(c.status, Status::Watch | Status::Alarm));
+            }
+            eprintln!(
+                "σ {sd} N, q {q} N, {name}: named {named}/10, unexplained {unexplained}/10, \
+                 level covered {covered}/10, flagged {flagged}/10"
+            );
+        }
+    }
+}
+
+/// Measurement probe (ignored): how far an offset the loop does not name moves the plain fit's
+/// level (σ 0.2 N, seeds 600–604).
+#[test]
+#[ignore]
+fn probe_offset_bias() {
+    let (base, drive, ar) = setup();
+    for b in [-1.0, 0.5, 1.0, 2.0, 0.0] {
+        let mut shift = Vec::new();
+        for seed in 600..605 {
+            let clean = record(&base, seed, 0.0, 1.0);
+            let off = record(&base, seed, b, 1.0);
+            let o = GaugeFitOptions {
+                effect: std::env::var("GAUGE_PROBE_OFFSET")
+                    .ok()
+                    .map(|_| GaugeEffect::SensorOffset),
+                ..GaugeFitOptions::default()
+            };
+            let f0 = fit_gauge(&base, ar, &drive, &clean, &o).unwrap();
+            let f1 = fit_gauge(&base, ar, &drive, &off, &o).unwrap();
+            let r = diagnose(&off, &f1.fitted_n, f1.noise_floor_n);
+            let c = &f1.combinations[0];
+            shift.push(format!(
+                "{:+.4} ±{:.3} (excess {:.2}, ρ1 {:.2})",
+                c.value - f0.combinations[0].value,
+                c.posterior_sd,
+                r.excess_ratio,
+                r.rho1
+            ));
+        }
+        eprintln!("b {b:+} N: level shift {}", shift.join(", "));
+    }
+}
