@@ -56,6 +56,14 @@ const MIN_MULTIPLE: f64 = 0.01;
 /// Highest μ fitted, × Table 4 (the lift fit's bound).
 const MAX_MULTIPLE: f64 = 10.0;
 
+/// The prior of the gauge's zero b, N ([`GaugeEffect::prior`]).
+pub const SENSOR_OFFSET_PRIOR: EffectPrior = EffectPrior {
+    mean: 0.0,
+    sd: 10.0,
+    lower: -50.0,
+    upper: 50.0,
+};
+
 /// An effect a gauge fit can carry besides the friction (`effects`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GaugeEffect {
@@ -91,12 +99,7 @@ impl GaugeEffect {
     /// per cent off; beyond 5× it is another pantograph.
     pub fn prior(self) -> EffectPrior {
         match self {
-            GaugeEffect::SensorOffset => EffectPrior {
-                mean: 0.0,
-                sd: 10.0,
-                lower: -50.0,
-                upper: 50.0,
-            },
+            GaugeEffect::SensorOffset => SENSOR_OFFSET_PRIOR,
             GaugeEffect::SpringRate => EffectPrior {
                 mean: 1.0,
                 sd: 0.5,

@@ -408,12 +408,14 @@ fn the_report_has_every_joint_and_the_combination() {
 }
 
 /// Pooling with lifts: a realistic-noise reference lift (seed 11) of a pantograph with J3 and J1
-/// dry ×2, fitted alone and with a gauge record of the same pantograph (seed 11;
-/// `LiftFitOptions::gauge_records`): the gauge's readings join the fit (their RMSE at the gauge's
-/// noise). Measured: the gauge informs the same direction as the lift (J1 0.13, J3 0.87), so the
+/// dry ×2, fitted alone and with a gauge record of the same pantograph (seed 11, its zero off by
+/// 2 N; `LiftFitOptions::gauge_records`): the gauge's readings join the fit (their RMSE at the
+/// gauge's noise, the zero's interval holding 2 N). Measured: the gauge informs the same direction as the lift (J1 0.13, J3 0.87), so the
 /// J1+J3 level hardly narrows (sd 0.0308 → 0.0305: what is left is the prior spread of the joints
-/// outside it); what pooling adds is the members apart — J1 dry sd 0.319 → 0.205, J3 0.057 →
-/// 0.042 (× Table 4). The pooled level lies within 3 posterior sd of the truth.
+/// outside it); what pooling adds is the members apart — J1 dry sd 0.319 → 0.251, J3 0.057 →
+/// 0.048 (× Table 4; with the gauge's zero fixed at 0 instead of fitted, 0.205 and 0.042, the
+/// mean of the branches then counting as friction information). The pooled level lies within 3
+/// posterior sd of the truth.
 #[test]
 fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
     use crate::lift::identify::{LiftFit, LiftFitOptions, LiftTrace, PooledGauge, fit_map};
@@ -429,7 +431,8 @@ fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
         inputs: rec.inputs(),
         strip_height_m: &rec.strip_height_m,
     };
-    let gauge = record(&truth, 11, 0.0, 1.0);
+    // The gauge's zero off by 2 N besides: each pooled record's zero is a nuisance of the fit.
+    let gauge = record(&truth, 11, 2.0, 1.0);
     let own = fit_gauge(&base, ar, &drive, &gauge, &GaugeFitOptions::default()).unwrap();
     let c = &own.combinations[0];
     let lift_opts = LiftFitOptions::default();
@@ -495,6 +498,12 @@ fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
     assert!(pooled.gauge_rmse_n[0] < 0.35, "{}", pooled.gauge_rmse_n[0]);
     assert_eq!(pooled.gauge_fitted_n[0].len(), gauge.len());
     assert!(sp <= sa, "pooled sd {sp} vs lift alone {sa}");
+    let b = pooled.gauge_offsets[0];
+    eprintln!(
+        "pooled gauge zero {:.3} [{:.3}, {:.3}] N",
+        b.value, b.ci95[0], b.ci95[1]
+    );
+    assert!(b.ci95[0] <= 2.0 && 2.0 <= b.ci95[1], "{b:?}");
     let sd_of = |f: &LiftFit, j: RevJoint| {
         let e = f
             .params
@@ -503,7 +512,7 @@ fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
             .unwrap();
         e.posterior_sd / e.baseline
     };
-    for (j, most) in [(RevJoint::J1, 0.8), (RevJoint::J3, 0.85)] {
+    for (j, most) in [(RevJoint::J1, 0.9), (RevJoint::J3, 0.9)] {
         let (a, p) = (sd_of(&alone, j), sd_of(&pooled, j));
         assert!(p < most * a, "{j:?}: pooled sd {p} vs lift alone {a}");
     }
