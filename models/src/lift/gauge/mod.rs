@@ -65,7 +65,7 @@ mod tests;
 pub use effects::{GaugeResidual, GaugeVerdict, diagnose};
 pub use fit::{GaugeEffect, GaugeEffectEstimate, GaugeFit, GaugeFitOptions, fit_gauge};
 pub use report::{GaugeChannels, GaugeReport, fit_gauge_trace};
-pub use simulate::{GaugeSimOptions, reading_heights, simulate_gauge};
+pub use simulate::{GaugeSimOptions, reading_heights, simulate_builtin_gauge, simulate_gauge};
 pub use solve::predicted_forces_n;
 
 pub use super::static_force::DriveLine;

@@ -67,6 +67,33 @@ fn describe(c: &Combination) -> String {
     )
 }
 
+/// The built-in type's simulation: the same record as the general one, seeded; a bad factor is
+/// an error, not a panic.
+#[test]
+fn the_builtin_simulation_is_the_general_one() {
+    let (base, drive, ar) = setup();
+    let opts = GaugeSimOptions {
+        seed: 9,
+        ..GaugeSimOptions::default()
+    };
+    let drift = [(RevJoint::J3, 2.0)];
+    let a = simulate_builtin_gauge(&drift, 10, &opts).unwrap();
+    let b = simulate_gauge(
+        &drifted(&base, &drift),
+        ar,
+        &drive,
+        &reading_heights(10),
+        &opts,
+    )
+    .unwrap();
+    assert_eq!(a, b);
+    assert_eq!(a.len(), 20);
+    assert!(simulate_builtin_gauge(&[(RevJoint::J1, f64::NAN)], 10, &opts).is_err());
+    // Too few readings per branch: the record's own refusal.
+    let e = simulate_builtin_gauge(&[], 2, &opts).unwrap_err();
+    assert_eq!(e.field(), Some("channels.H_m"));
+}
+
 #[test]
 fn the_record_splits_at_the_first_highest_reading() {
     let h = reading_heights(6);
