@@ -206,6 +206,12 @@ pub fn fit_with_effects(
         Some(e) => GaugeVerdict::Named(*e),
         None => GaugeVerdict::None,
     };
+    if verdict == GaugeVerdict::Unexplained {
+        // Structure remains: no effect is named beside it (the verdict says the model misses
+        // something; a name would suggest it was found).
+        named.clear();
+        plain = None;
+    }
     Ok(GaugeLoop {
         verdict,
         named,
