@@ -44,8 +44,10 @@
 //!   still `watch` and covered (3/3). A spring rate ×1.3 named `spring_rate` on 5/5 (k
 //!   1.299–1.303, intervals holding 1.3; 7.5 N → 0.15–0.21 N). Detection (10 seeds each):
 //!   b +1 N named 9/10 at σ 0.2 N, 0/10 at 0.4 N (then the level still covered 10/10: the zero is
-//!   always fitted); +2 N, k 1.05 and k 1.1 named 10/10 at σ 0.2 and 0.4 N, 0.1 or 0.5 N steps;
-//!   baseline and drift never named an effect. A 4 N bow over the range (no vocabulary effect):
+//!   always fitted); k 1.02 named 7/10 at σ 0.2 N (1 `unexplained`), 0/10 at 0.4 N; +2 N, k 1.05
+//!   and k 1.1 named 10/10 at σ 0.2 and 0.4 N, 0.1 or 0.5 N steps; baseline and drift never named
+//!   an effect; the level's interval held the truth on every record of the probe, named or not
+//!   (`tests::probe_noise_and_small_effects`, seeds 500–509). A 4 N bow over the range (no vocabulary effect):
 //!   `unexplained`, joints withheld (3/3).
 //!
 //! - [`simulate`] — a simulated gauge record (noise, quantisation, optional effects), seeded.

@@ -641,6 +641,7 @@ fn probe_noise_and_small_effects() {
             ("J1,J3 x2", &truth, 0.0, 1.0),
             ("b +1 N", &base, 1.0, 1.0),
             ("b +2 N", &base, 2.0, 1.0),
+            ("k 1.02", &base, 0.0, 1.02),
             ("k 1.05", &base, 0.0, 1.05),
             ("k 1.1", &base, 0.0, 1.1),
         ] {
