@@ -68,6 +68,30 @@ pub struct LiftFitOptions {
     pub inputs: InputOptions,
     /// Which parameters count as told apart (`lift::attribution`).
     pub attribution: AttributionOptions,
+    /// Force-gauge records of the same pantograph fitted with the traces (issue 20, point 3;
+    /// `lift::gauge`): their readings join the residual vector scaled by their noise; only the
+    /// dry μ of the moving revolute joints enter them (quasi-static), and each record's zero, a
+    /// nuisance with the gauge fit's prior (`gauge::fit::SENSOR_OFFSET_PRIOR`). Empty (the
+    /// default): none.
+    pub gauge_records: Vec<PooledGauge>,
+}
+
+/// A force-gauge record pooled with lift traces ([`LiftFitOptions::gauge_records`]): the
+/// record and the drive characteristic it was measured under.
+#[derive(Debug, Clone)]
+pub struct PooledGauge {
+    pub record: super::gauge::GaugeRecord,
+    pub drive: super::static_force::DriveLine,
+}
+
+impl PooledGauge {
+    /// The scale of its residuals, N: max(`[static_force] gauge_noise_n`, resolution/√12), the
+    /// gauge fit's σ₀ (`lift::gauge::fit`).
+    pub fn sigma_n(&self) -> f64 {
+        super::gauge::gauge_data()
+            .gauge_noise_n
+            .max(self.record.resolution_n / 12f64.sqrt())
+    }
 }
 
 impl Default for LiftFitOptions {
@@ -137,6 +161,7 @@ impl Default for LiftFitOptions {
             },
             inputs: InputOptions::default(),
             attribution: AttributionOptions::default(),
+            gauge_records: Vec::new(),
         }
     }
 }
@@ -233,6 +258,13 @@ pub struct LiftFit {
     /// Combinations of friction parameters the traces inform together (their members are not
     /// separately identified), `lift::attribution`.
     pub combinations: Vec<Combination>,
+    /// Each pooled gauge record's model readings at the MAP as the gauge reads them (its fitted
+    /// zero included), N ([`LiftFitOptions::gauge_records`]).
+    pub gauge_fitted_n: Vec<Vec<f64>>,
+    /// Each pooled gauge record's residual RMS, N.
+    pub gauge_rmse_n: Vec<f64>,
+    /// Each pooled gauge record's fitted zero, N, with its interval (a nuisance).
+    pub gauge_offsets: Vec<super::gauge::GaugeEffectEstimate>,
 }
 
 /// What one trace can tell: its Fisher information at the model's parameters.

@@ -16,7 +16,7 @@ pub use super::attribution::Shown;
 use super::dynamics::LiftModel;
 pub use super::fit::{
     EffectEstimate, EffectPrior, Identifiability, JointEstimate, LiftFit, LiftFitError,
-    LiftFitOptions, LiftTrace, ParamEstimate, effect_prior,
+    LiftFitOptions, LiftTrace, ParamEstimate, PooledGauge, effect_prior,
 };
 use super::inputs::{InputReconstruction, reconstruct};
 use super::sensitivity::{
@@ -33,6 +33,13 @@ const MAX_STEPS_PER_S: f64 = 1000.0;
 
 /// Upper bound of a friction coefficient as a multiple of its baseline.
 const MAX_MULTIPLE: f64 = 10.0;
+
+/// Forward-difference step of a pooled gauge record's Jacobian, in units of Table 4 (the gauge
+/// fit's, `lift::gauge::fit::FD_STEP`).
+const GAUGE_FD_STEP: f64 = super::gauge::fit::FD_STEP;
+
+/// The prior of a pooled gauge record's zero: the gauge fit's (`gauge::fit::GaugeEffect::prior`).
+const GAUGE_ZERO_PRIOR: EffectPrior = super::gauge::fit::SENSOR_OFFSET_PRIOR;
 
 /// Friction parameters in scaled units: x = θ/θ₀.
 fn baseline_of(model: &LiftModel, params: &[LiftParam]) -> Result<Vec<f64>, LiftFitError> {
@@ -70,6 +77,10 @@ struct MapProblem<'a, 'w> {
     /// Priors of the effects (`opts.effect_params`), in their order.
     effect_priors: &'a [EffectPrior],
     n_data: usize,
+    /// Each pooled gauge record's readings at the baseline (`opts.gauge_records`' order).
+    gauge_warm: &'a [Vec<super::gauge::solve::Warm>],
+    /// Readings of every pooled gauge record.
+    n_gauge: usize,
 }
 
 impl MapProblem<'_, '_> {
@@ -89,10 +100,13 @@ impl MapProblem<'_, '_> {
 
 impl Problem for MapProblem<'_, '_> {
     fn n_params(&self) -> usize {
-        self.fric.len() + self.traces.len() + self.effect_priors.len()
+        self.fric.len()
+            + self.traces.len()
+            + self.effect_priors.len()
+            + self.opts.gauge_records.len()
     }
     fn n_residuals(&self) -> usize {
-        self.n_data + self.n_params()
+        self.n_data + self.n_gauge + self.n_params()
     }
     fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
         let pf = self.fric.len();
@@ -182,6 +196,41 @@ impl Problem for MapProblem<'_, '_> {
                 row += 1;
             }
         }
+        // Pooled gauge records: (F_model + b_g − F)/σ_g, ∂/∂x of the dry μ by forward
+        // differences, each record's zero b_g a nuisance (as the gauge fit's, `gauge::fit`).
+        let z0 = pf + self.traces.len() + self.effect_priors.len();
+        for (gi, (g, warm)) in self
+            .opts
+            .gauge_records
+            .iter()
+            .zip(self.gauge_warm)
+            .enumerate()
+        {
+            let sigma = g.sigma_n();
+            let zero_n = x[z0 + gi];
+            let ar = m.alpha_range_rad;
+            let f = super::gauge::solve::forces_near(&m, ar, &g.drive, &g.record, warm)
+                .map_err(|e| e.to_string())?;
+            let n = f.len();
+            for (k, (a, b)) in f.iter().zip(&g.record.forces_n).enumerate() {
+                r[row + k] = (a + zero_n - b) / sigma;
+                jac[(row + k, z0 + gi)] = 1.0 / sigma;
+            }
+            for (i, p) in self.fric.iter().enumerate() {
+                let LiftParam::Dry(j) = p else { continue };
+                if *j == RevJoint::J6 {
+                    continue;
+                }
+                let mut mi = m.clone();
+                mi.friction.dry_mu[j.index()] = (x[i] + GAUGE_FD_STEP) * self.baseline[i];
+                let fi = super::gauge::solve::forces_near(&mi, ar, &g.drive, &g.record, warm)
+                    .map_err(|e| e.to_string())?;
+                for (k, (a, b)) in fi.iter().zip(&f).enumerate() {
+                    jac[(row + k, i)] = (a - b) / (GAUGE_FD_STEP * sigma);
+                }
+            }
+            row += n;
+        }
         // Prior rows: (x − 1)/s for friction, offset/s_T for the offsets.
         let s_rel = self.opts.prior_relative_sd;
         for i in 0..pf {
@@ -199,12 +248,24 @@ impl Problem for MapProblem<'_, '_> {
             jac[(row, e0 + e)] = 1.0 / pr.sd;
             row += 1;
         }
+        for gi in 0..self.opts.gauge_records.len() {
+            let pr = GAUGE_ZERO_PRIOR;
+            r[row] = (x[z0 + gi] - pr.mean) / pr.sd;
+            jac[(row, z0 + gi)] = 1.0 / pr.sd;
+            row += 1;
+        }
         Ok(())
     }
     fn lower_bounds(&self) -> Vec<f64> {
         let mut v = vec![0.0; self.fric.len()];
         v.extend(std::iter::repeat_n(f64::NEG_INFINITY, self.traces.len()));
         v.extend(self.effect_priors.iter().map(|p| p.lower));
+        v.extend(
+            self.opts
+                .gauge_records
+                .iter()
+                .map(|_| GAUGE_ZERO_PRIOR.lower),
+        );
         v
     }
     /// At most 10× Table 4 (20 prior sd): far beyond any worn joint, and it keeps trial steps
@@ -213,6 +274,12 @@ impl Problem for MapProblem<'_, '_> {
         let mut v = vec![MAX_MULTIPLE; self.fric.len()];
         v.extend(std::iter::repeat_n(f64::INFINITY, self.traces.len()));
         v.extend(self.effect_priors.iter().map(|p| p.upper));
+        v.extend(
+            self.opts
+                .gauge_records
+                .iter()
+                .map(|_| GAUGE_ZERO_PRIOR.upper),
+        );
         v
     }
 }
@@ -456,6 +523,11 @@ pub fn fit_map_in(
             "input-noise draws are not propagated through effect parameters".into(),
         ));
     }
+    if !opts.gauge_records.is_empty() && opts.input_noise_draws > 0 {
+        return Err(LiftFitError::Invalid(
+            "input-noise draws are not propagated through pooled gauge records".into(),
+        ));
+    }
     let ne = effect_priors.len();
     let mut with_offset = fric.clone();
     with_offset.push(LiftParam::TorqueOffset);
@@ -466,6 +538,15 @@ pub fn fit_map_in(
             .copied()
             .filter(|p| !p.is_output()),
     );
+    let gauge_warm = opts
+        .gauge_records
+        .iter()
+        .map(|g| {
+            super::gauge::solve::warm_starts(model, model.alpha_range_rad, &g.drive, &g.record)
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| LiftFitError::Invalid(format!("pooled gauge record: {e}")))?;
+    let n_gauge: usize = opts.gauge_records.iter().map(|g| g.record.len()).sum();
     let mut problem = MapProblem {
         ws,
         base: model,
@@ -476,6 +557,8 @@ pub fn fit_map_in(
         with_offset,
         effect_priors: &effect_priors,
         n_data,
+        gauge_warm: &gauge_warm,
+        n_gauge,
     };
     let mut x = vec![1.0; pf];
     x.extend(std::iter::repeat_n(0.0, traces.len()));
@@ -486,6 +569,8 @@ pub fn fit_map_in(
             .zip(&effect_priors)
             .map(|(p, pr)| p.get(model, 0.0).clamp(pr.lower, pr.upper)),
     );
+    // Each pooled gauge record's zero starts at 0.
+    x.extend(opts.gauge_records.iter().map(|_| 0.0));
     // Continuation in the horizon: driven open-loop by the recorded torque, a lift drifts away
     // from the data with the smallest friction error (the net stiffness is nearly zero), so
     // output error over the whole trace is far from quadratic around the baseline (J3 ×1.8
@@ -550,6 +635,8 @@ pub fn fit_map_in(
             n_data: ends.iter().sum(),
             with_offset: problem.with_offset.clone(),
             effect_priors: problem.effect_priors,
+            gauge_warm: problem.gauge_warm,
+            n_gauge: problem.n_gauge,
         };
         // A stage only has to bring the next one into its quadratic region: a few iterations,
         // stopping once a step would move the parameters by less than one standard error. No
@@ -584,7 +671,8 @@ pub fn fit_map_in(
     rep.evaluations += evaluations;
     rep.iterations += iterations;
     let e0 = pf + traces.len();
-    let p = e0 + ne;
+    let z0 = e0 + ne;
+    let p = z0 + opts.gauge_records.len();
     // Noise scale: the stated σ_H, or the residual RMS if the fit is worse than that.
     let ssr: f64 = rep.residuals[..n_data].iter().map(|v| v * v).sum();
     let kappa2 = (ssr / n_data as f64).max(1.0);
@@ -603,13 +691,26 @@ pub fn fit_map_in(
     } else {
         jd.tr_mul(&jd) / kappa2
     };
+    // Pooled gauge records: their information, at their own noise scale (the residual RMS over
+    // σ_g where the fit is worse than that, as κ² for H).
+    if n_gauge > 0 {
+        let jg = rep.jacobian.rows(n_data, n_gauge);
+        let ssr_g: f64 = rep.residuals[n_data..n_data + n_gauge]
+            .iter()
+            .map(|v| v * v)
+            .sum();
+        let kappa2_g = (ssr_g / n_gauge as f64).max(1.0);
+        post += jg.tr_mul(&jg) / kappa2_g;
+    }
     let prior_sd = |i: usize| {
         if i < pf {
             opts.prior_relative_sd
         } else if i < e0 {
             opts.offset_prior_sd_nm
-        } else {
+        } else if i < z0 {
             effect_priors[i - e0].sd
+        } else {
+            GAUGE_ZERO_PRIOR.sd
         }
     };
     for i in 0..p {
@@ -788,7 +889,40 @@ pub fn fit_map_in(
         );
         row += n;
     }
+    let gauge_offsets = (0..opts.gauge_records.len())
+        .map(|gi| {
+            let (i, pr) = (z0 + gi, GAUGE_ZERO_PRIOR);
+            let (v, sd) = (rep.x[i], cov[(i, i)].max(0.0).sqrt());
+            super::gauge::GaugeEffectEstimate {
+                effect: super::gauge::GaugeEffect::SensorOffset,
+                value: v,
+                posterior_sd: sd,
+                ci95: [(v - Z95 * sd).max(pr.lower), (v + Z95 * sd).min(pr.upper)],
+            }
+        })
+        .collect();
+    let mut gauge_fitted_n = Vec::new();
+    let mut gauge_rmse_n = Vec::new();
+    let mut row = n_data;
+    for g in &opts.gauge_records {
+        let n = g.record.len();
+        let sigma = g.sigma_n();
+        let r = &rep.residuals[row..row + n];
+        gauge_rmse_n.push((r.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt() * sigma);
+        gauge_fitted_n.push(
+            g.record
+                .forces_n
+                .iter()
+                .zip(r)
+                .map(|(f, r)| f + sigma * r)
+                .collect(),
+        );
+        row += n;
+    }
     Ok(LiftFit {
+        gauge_fitted_n,
+        gauge_rmse_n,
+        gauge_offsets,
         params,
         offsets,
         effects,

@@ -35,6 +35,8 @@ fn the_delay_column_is_the_derivative_of_the_delayed_read_out() {
         with_offset,
         effect_priors: &priors,
         n_data,
+        gauge_warm: &[],
+        n_gauge: 0,
     };
     let (np, nr) = (problem.n_params(), problem.n_residuals());
     let pf = fric.len();
