@@ -166,6 +166,8 @@ pub struct StaticForceData {
     pub tolerance_n: f64,
     /// Largest lowering − raising force difference, N.
     pub max_raise_lower_difference_n: f64,
+    /// Fewest gauge readings per branch (raising, lowering) of a `static_force` test.
+    pub min_points_per_branch: usize,
 }
 
 /// The paper's whole-pantograph tests as the reference traces run them: the lower-quadrangle
@@ -443,6 +445,12 @@ impl PantographType {
                 return Err(invalid(
                     "static_force.nominal_force_points",
                     "the two heights must differ",
+                ));
+            }
+            if sf.min_points_per_branch < 2 {
+                return Err(invalid(
+                    "static_force.min_points_per_branch",
+                    "must be at least 2 (a branch's slope over height)",
                 ));
             }
             positive("static_force.tolerance_n", sf.tolerance_n)?;

@@ -68,10 +68,26 @@ pub fn fit_document(doc: &TraceDoc, thresholds: &DriftThresholds) -> Result<FitR
     match doc.kind {
         Kind::Lift => return fit_lift(doc, thresholds).map(|r| r.result),
         Kind::QuadrangleSwing => return fit_quadrangle(doc, thresholds).map(|r| r.result),
+        Kind::StaticForce => return fit_static_force(doc, thresholds),
         Kind::Pendulum | Kind::Slider => {}
     }
     fit_with_outcome(doc, thresholds).map(|(r, _)| r)
 }
+
+/// Fits a `static_force` document (a force gauge's raising and lowering readings, issue 20).
+/// The readings are checked here as at upload; the fit itself (`models::lift::gauge`) is not in
+/// this build yet, so the document is stored and its job fails with this reason, not a crash.
+pub fn fit_static_force(
+    doc: &TraceDoc,
+    _thresholds: &DriftThresholds,
+) -> Result<FitResult, FitFailure> {
+    doc.static_force_channels().map_err(FitFailure::Invalid)?;
+    Err(FitFailure::Unsupported(STATIC_FORCE_NOT_FITTED.into()))
+}
+
+/// Why a `static_force` trace has no fit in this build.
+pub const STATIC_FORCE_NOT_FITTED: &str = "a static_force (force-gauge) test is stored but not \
+     fitted yet: its fit (models::lift::gauge) is not in this build";
 
 /// Fits a `lift` document: the complete-pantograph MAP identification (Table 4 prior), every
 /// joint J1…J9 in the result (`models::lift::report` holds the mapping).
@@ -116,6 +132,13 @@ pub fn fit_with_finding(
         Kind::QuadrangleSwing => {
             return Err(FitFailure::Unsupported(
                 "a quadrangle swing has no single-joint fit outcome: fit it with `fit_quadrangle`"
+                    .into(),
+            ));
+        }
+        Kind::StaticForce => {
+            return Err(FitFailure::Unsupported(
+                "a static_force test has no single-joint fit outcome: fit it with \
+                 `fit_static_force`"
                     .into(),
             ));
         }

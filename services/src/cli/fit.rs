@@ -281,6 +281,26 @@ fn run_quadrangle(
     Ok(())
 }
 
+/// `fit` of a static_force (force-gauge) trace: the table or JSON. No plot or report yet.
+fn run_static_force(
+    args: &FitArgs,
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.plot.is_none() && args.report.is_none(),
+        "--plot and --report are not drawn for a static_force trace yet"
+    );
+    let result =
+        crate::fitting::fit_static_force(doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&result)?);
+    } else {
+        print!("{}", table(doc, &result));
+    }
+    Ok(())
+}
+
 /// `fit` of a lift trace: the table or JSON, and H measured vs fitted as SVG.
 fn run_lift(args: &FitArgs, doc: &TraceDoc, thresholds: &DriftThresholds) -> anyhow::Result<()> {
     let rep = crate::fitting::fit_lift(doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -323,6 +343,9 @@ pub fn run(args: FitArgs, thresholds: &DriftThresholds) -> anyhow::Result<()> {
     }
     if doc.kind == Kind::QuadrangleSwing {
         return run_quadrangle(&args, &doc, thresholds);
+    }
+    if doc.kind == Kind::StaticForce {
+        return run_static_force(&args, &doc, thresholds);
     }
     let (result, fit, finding) =
         crate::fitting::fit_with_finding(&doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))?;

@@ -762,6 +762,11 @@ pub(crate) trait Backend {
     fn pantograph_exists(&self, serial: &str) -> impl Future<Output = Result<bool>> + Send;
     fn pantograph_model(&self, serial: &str)
     -> impl Future<Output = Result<Option<String>>> + Send;
+    fn latest_trace_of_kind(
+        &self,
+        serial: &str,
+        kind: &str,
+    ) -> impl Future<Output = Result<Option<TraceMeta>>> + Send;
     fn insert_api_key(
         &self,
         prefix: &str,
@@ -1027,6 +1032,16 @@ impl Store {
     /// The pantograph's type (`160EC`), `None` when no such pantograph is stored.
     pub async fn pantograph_model(&self, serial: &str) -> Result<Option<String>> {
         dispatch!(self, s => s.pantograph_model(serial).await)
+    }
+
+    /// The pantograph's latest stored trace of test kind `kind` (by `recorded_at`, then
+    /// `trace_id`), fitted or not; `None` when it has none.
+    pub async fn latest_trace_of_kind(
+        &self,
+        serial: &str,
+        kind: &str,
+    ) -> Result<Option<TraceMeta>> {
+        dispatch!(self, s => s.latest_trace_of_kind(serial, kind).await)
     }
 
     /// Rows per table.

@@ -9,6 +9,7 @@ mod alerts;
 mod browser;
 mod cases;
 mod corpus;
+mod gauge;
 mod harness;
 mod lift;
 mod quadrangle;
@@ -62,6 +63,7 @@ suite!(
     hostile_requests_answer_problems_naming_their_field,
     a_release_is_found_or_stated_and_reported,
     static_force_is_predicted_and_judged_against_the_limits,
+    a_gauge_measurement_is_stored_refused_and_drawn,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).

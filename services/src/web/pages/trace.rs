@@ -30,6 +30,9 @@ fn subject(meta: &TraceMeta) -> String {
         (Some(j), _) => format!("joint {j}"),
         (None, "lift") => "the whole pantograph".to_owned(),
         (None, "quadrangle_swing") => "the lower quadrangle (J1, J2, J2′, J3)".to_owned(),
+        (None, crate::trace::STATIC_FORCE) => {
+            "the whole pantograph's static contact force (force gauge)".to_owned()
+        }
         (None, _) => "the pantograph".to_owned(),
     }
 }
@@ -228,6 +231,15 @@ fn no_curve(trace_id: &str, error: &str) -> Markup {
 /// Measured vs model and the residual. The model curve comes from re-running the fit on the
 /// stored samples off the runtime (5–30 ms; the same code and data give the stored fit).
 async fn trace_charts(st: &AppState, meta: &TraceMeta) -> Markup {
+    if let (crate::trace::STATIC_FORCE, Some(serial)) = (meta.kind.as_str(), &meta.serial) {
+        return html! {
+            p {
+                "A force gauge's readings: the pantograph's latest gauge test is drawn over its \
+                 predicted static contact force on the "
+                a href={ "/pantographs/" (seg(serial)) "#static-force" } { "pantograph's page" } "."
+            }
+        };
+    }
     if !matches!(meta.kind.as_str(), "pendulum" | "slider") {
         return html! {
             p {
