@@ -166,8 +166,14 @@ pub struct StaticForceData {
     pub tolerance_n: f64,
     /// Largest lowering − raising force difference, N.
     pub max_raise_lower_difference_n: f64,
-    /// Fewest gauge readings per branch (raising, lowering) of a `static_force` test.
+    /// Fewest readings per branch of a force-gauge record (`lift::gauge`).
     pub min_points_per_branch: usize,
+    /// The plausible span of a gauge's stated resolution, N.
+    pub gauge_resolution_range_n: [f64; 2],
+    /// The gauge's noise (one sd), N: a gauge fit's noise floor, a simulation's default.
+    pub gauge_noise_n: f64,
+    /// A simulated gauge's resolution, N.
+    pub gauge_sim_resolution_n: f64,
 }
 
 /// The paper's whole-pantograph tests as the reference traces run them: the lower-quadrangle
@@ -447,13 +453,26 @@ impl PantographType {
                     "the two heights must differ",
                 ));
             }
+            positive("static_force.tolerance_n", sf.tolerance_n)?;
             if sf.min_points_per_branch < 2 {
                 return Err(invalid(
                     "static_force.min_points_per_branch",
-                    "must be at least 2 (a branch's slope over height)",
+                    "must be at least 2",
                 ));
             }
-            positive("static_force.tolerance_n", sf.tolerance_n)?;
+            let [r0, r1] = sf.gauge_resolution_range_n;
+            positive("static_force.gauge_resolution_range_n", r0)?;
+            if !(r1.is_finite() && r1 > r0) {
+                return Err(invalid(
+                    "static_force.gauge_resolution_range_n",
+                    "must be [smallest, largest] with largest > smallest",
+                ));
+            }
+            positive("static_force.gauge_noise_n", sf.gauge_noise_n)?;
+            positive(
+                "static_force.gauge_sim_resolution_n",
+                sf.gauge_sim_resolution_n,
+            )?;
             positive(
                 "static_force.max_raise_lower_difference_n",
                 sf.max_raise_lower_difference_n,

@@ -82,6 +82,28 @@ pub struct LiftFitOptions {
     pub inputs: InputOptions,
     /// Which parameters count as told apart (`lift::attribution`).
     pub attribution: AttributionOptions,
+    /// Force-gauge records of the same pantograph fitted with the traces (issue 20, point 3;
+    /// `lift::gauge`): their readings join the residual vector scaled by their noise; only the
+    /// dry μ of the moving revolute joints enter them (quasi-static). Empty (the default): none.
+    pub gauge_records: Vec<PooledGauge>,
+}
+
+/// A force-gauge record pooled with lift traces ([`LiftFitOptions::gauge_records`]): the
+/// record and the drive characteristic it was measured under.
+#[derive(Debug, Clone)]
+pub struct PooledGauge {
+    pub record: super::gauge::GaugeRecord,
+    pub drive: super::static_force::DriveLine,
+}
+
+impl PooledGauge {
+    /// The scale of its residuals, N: max(`[static_force] gauge_noise_n`, resolution/√12), the
+    /// gauge fit's σ₀ (`lift::gauge::fit`).
+    pub fn sigma_n(&self) -> f64 {
+        super::gauge::gauge_data()
+            .gauge_noise_n
+            .max(self.record.resolution_n / 12f64.sqrt())
+    }
 }
 
 impl Default for LiftFitOptions {
@@ -151,6 +173,7 @@ impl Default for LiftFitOptions {
             },
             inputs: InputOptions::default(),
             attribution: AttributionOptions::default(),
+            gauge_records: Vec::new(),
         }
     }
 }
@@ -247,6 +270,10 @@ pub struct LiftFit {
     /// Combinations of friction parameters the traces inform together (their members are not
     /// separately identified), `lift::attribution`.
     pub combinations: Vec<Combination>,
+    /// Each pooled gauge record's model readings at the MAP, N ([`LiftFitOptions::gauge_records`]).
+    pub gauge_fitted_n: Vec<Vec<f64>>,
+    /// Each pooled gauge record's residual RMS, N.
+    pub gauge_rmse_n: Vec<f64>,
 }
 
 /// What one trace can tell: its Fisher information at the model's parameters.
@@ -271,6 +298,10 @@ const MAX_STEPS_PER_S: f64 = 1000.0;
 
 /// Upper bound of a friction coefficient as a multiple of its baseline.
 const MAX_MULTIPLE: f64 = 10.0;
+
+/// Forward-difference step of a pooled gauge record's Jacobian, in units of Table 4 (the gauge
+/// fit's, `lift::gauge::fit::FD_STEP`).
+const GAUGE_FD_STEP: f64 = super::gauge::fit::FD_STEP;
 
 /// The prior of a lift effect's parameter: normal with this mean and sd, within these bounds
 /// (physical units). `quadratic_drag` c_a: sd 5 N/(m/s)², in [0, 50]: still air gives
@@ -378,6 +409,10 @@ struct MapProblem<'a, 'w> {
     /// Priors of the effects (`opts.effect_params`), in their order.
     effect_priors: &'a [EffectPrior],
     n_data: usize,
+    /// Each pooled gauge record's readings at the baseline (`opts.gauge_records`' order).
+    gauge_warm: &'a [Vec<super::gauge::solve::Warm>],
+    /// Readings of every pooled gauge record.
+    n_gauge: usize,
 }
 
 impl MapProblem<'_, '_> {
@@ -400,7 +435,7 @@ impl Problem for MapProblem<'_, '_> {
         self.fric.len() + self.traces.len() + self.effect_priors.len()
     }
     fn n_residuals(&self) -> usize {
-        self.n_data + self.n_params()
+        self.n_data + self.n_gauge + self.n_params()
     }
     fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
         let pf = self.fric.len();
@@ -489,6 +524,31 @@ impl Problem for MapProblem<'_, '_> {
                 }
                 row += 1;
             }
+        }
+        // Pooled gauge records: (F_model − F)/σ_g, ∂/∂x of the dry μ by forward differences.
+        for (g, warm) in self.opts.gauge_records.iter().zip(self.gauge_warm) {
+            let sigma = g.sigma_n();
+            let ar = m.alpha_range_rad;
+            let f = super::gauge::solve::forces_near(&m, ar, &g.drive, &g.record, warm)
+                .map_err(|e| e.to_string())?;
+            let n = f.len();
+            for (k, (a, b)) in f.iter().zip(&g.record.forces_n).enumerate() {
+                r[row + k] = (a - b) / sigma;
+            }
+            for (i, p) in self.fric.iter().enumerate() {
+                let LiftParam::Dry(j) = p else { continue };
+                if *j == RevJoint::J6 {
+                    continue;
+                }
+                let mut mi = m.clone();
+                mi.friction.dry_mu[j.index()] = (x[i] + GAUGE_FD_STEP) * self.baseline[i];
+                let fi = super::gauge::solve::forces_near(&mi, ar, &g.drive, &g.record, warm)
+                    .map_err(|e| e.to_string())?;
+                for (k, (a, b)) in fi.iter().zip(&f).enumerate() {
+                    jac[(row + k, i)] = (a - b) / (GAUGE_FD_STEP * sigma);
+                }
+            }
+            row += n;
         }
         // Prior rows: (x − 1)/s for friction, offset/s_T for the offsets.
         let s_rel = self.opts.prior_relative_sd;
@@ -774,6 +834,15 @@ pub fn fit_map_in(
             .copied()
             .filter(|p| !p.is_output()),
     );
+    let gauge_warm = opts
+        .gauge_records
+        .iter()
+        .map(|g| {
+            super::gauge::solve::warm_starts(model, model.alpha_range_rad, &g.drive, &g.record)
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| LiftFitError::Invalid(format!("pooled gauge record: {e}")))?;
+    let n_gauge: usize = opts.gauge_records.iter().map(|g| g.record.len()).sum();
     let mut problem = MapProblem {
         ws,
         base: model,
@@ -784,6 +853,8 @@ pub fn fit_map_in(
         with_offset,
         effect_priors: &effect_priors,
         n_data,
+        gauge_warm: &gauge_warm,
+        n_gauge,
     };
     let mut x = vec![1.0; pf];
     x.extend(std::iter::repeat_n(0.0, traces.len()));
@@ -858,6 +929,8 @@ pub fn fit_map_in(
             n_data: ends.iter().sum(),
             with_offset: problem.with_offset.clone(),
             effect_priors: problem.effect_priors,
+            gauge_warm: problem.gauge_warm,
+            n_gauge: problem.n_gauge,
         };
         // A stage only has to bring the next one into its quadratic region: a few iterations,
         // stopping once a step would move the parameters by less than one standard error. No
@@ -911,6 +984,17 @@ pub fn fit_map_in(
     } else {
         jd.tr_mul(&jd) / kappa2
     };
+    // Pooled gauge records: their information, at their own noise scale (the residual RMS over
+    // σ_g where the fit is worse than that, as κ² for H).
+    if n_gauge > 0 {
+        let jg = rep.jacobian.rows(n_data, n_gauge);
+        let ssr_g: f64 = rep.residuals[n_data..n_data + n_gauge]
+            .iter()
+            .map(|v| v * v)
+            .sum();
+        let kappa2_g = (ssr_g / n_gauge as f64).max(1.0);
+        post += jg.tr_mul(&jg) / kappa2_g;
+    }
     let prior_sd = |i: usize| {
         if i < pf {
             opts.prior_relative_sd
@@ -1096,7 +1180,27 @@ pub fn fit_map_in(
         );
         row += n;
     }
+    let mut gauge_fitted_n = Vec::new();
+    let mut gauge_rmse_n = Vec::new();
+    let mut row = n_data;
+    for g in &opts.gauge_records {
+        let n = g.record.len();
+        let sigma = g.sigma_n();
+        let r = &rep.residuals[row..row + n];
+        gauge_rmse_n.push((r.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt() * sigma);
+        gauge_fitted_n.push(
+            g.record
+                .forces_n
+                .iter()
+                .zip(r)
+                .map(|(f, r)| f + sigma * r)
+                .collect(),
+        );
+        row += n;
+    }
     Ok(LiftFit {
+        gauge_fitted_n,
+        gauge_rmse_n,
         params,
         offsets,
         effects,
@@ -1152,6 +1256,8 @@ mod tests {
             with_offset,
             effect_priors: &priors,
             n_data,
+            gauge_warm: &[],
+            n_gauge: 0,
         };
         let (np, nr) = (problem.n_params(), problem.n_residuals());
         let pf = fric.len();

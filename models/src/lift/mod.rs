@@ -8,6 +8,7 @@
 //! - [`dynamics`] — equations of motion in (α, h), reactions, friction from the reactions.
 //! - [`statics`] — static drive torque (frictionless or at impending motion), equilibria.
 //! - [`static_force`] — the strip force over height, raising and lowering (EN 50206-1), with a band.
+//! - [`gauge`] — the `static_force` test kind: a force-gauge record fitted for the joints' dry μ.
 //! - [`simulate`] — a lift test driven by its recorded inputs, with dissipated energies.
 //! - [`protocol`] — a lift test as the stand records it (drive damper, spring, cut weight).
 //! - [`design`] — what a protocol tells (Fisher, predicted sds), the stand's limits, D-optimal moves.
@@ -30,6 +31,7 @@ pub mod batch;
 pub mod design;
 pub mod dynamics;
 pub mod effects;
+pub mod gauge;
 pub mod geometry;
 pub mod holdout;
 pub mod identify;

@@ -422,16 +422,55 @@ pub fn fit_pooled_lift_traces(
     window_days: f64,
     thresholds: &DriftThresholds,
 ) -> Result<LiftReport, LiftFitError> {
-    if channels.len() < 2 || channels.len() != trace_ids.len() {
+    fit_pooled_lift_and_gauge_traces(channels, trace_ids, &[], &[], window_days, thresholds)
+}
+
+/// [`fit_pooled_lift_traces`] with force-gauge records (`static_force` traces) of the same
+/// pantograph pooled in (issue 20, point 3): their readings join the fit's residuals, scaled by
+/// the gauge's noise (`LiftFitOptions::gauge_records`), each measured under the type's drive
+/// characteristic (`lift::static_force::DriveLine::from_lift_test`). The result is reported on
+/// the newest lift (`channels[0]`); `gauge_ids` follow the lifts' ids in `pooled.trace_ids`.
+/// One lift with one gauge record or more is a pool; without gauge records, 2 lifts or more.
+pub fn fit_pooled_lift_and_gauge_traces(
+    channels: &[LiftChannels],
+    trace_ids: &[String],
+    gauges: &[super::gauge::GaugeChannels],
+    gauge_ids: &[String],
+    window_days: f64,
+    thresholds: &DriftThresholds,
+) -> Result<LiftReport, LiftFitError> {
+    let least = if gauges.is_empty() { 2 } else { 1 };
+    if channels.len() < least
+        || channels.len() != trace_ids.len()
+        || gauges.len() != gauge_ids.len()
+    {
         return Err(LiftFitError::Invalid(format!(
-            "a pooled fit needs 2 or more traces with an id each, got {} traces and {} ids",
+            "a pooled fit needs {least} or more lift traces with an id each (and an id per gauge \
+             record), got {} traces and {} ids, {} gauge records and {} ids",
             channels.len(),
-            trace_ids.len()
+            trace_ids.len(),
+            gauges.len(),
+            gauge_ids.len()
         )));
     }
     let model = builtin_model();
+    let drive = super::static_force::DriveLine::from_lift_test(super::geometry::builtin_160ec());
+    let gauge_records = gauges
+        .iter()
+        .zip(gauge_ids)
+        .map(|(g, id)| {
+            super::gauge::GaugeRecord::new(
+                g.strip_height_m.to_vec(),
+                g.force_n.to_vec(),
+                g.resolution_n,
+            )
+            .map(|record| super::identify::PooledGauge { record, drive })
+            .map_err(|e| LiftFitError::Invalid(format!("gauge record {id}: {e}")))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let opts = LiftFitOptions {
         thresholds: *thresholds,
+        gauge_records,
         ..LiftFitOptions::default()
     };
     let traces: Vec<LiftTrace> = channels
@@ -463,7 +502,7 @@ pub fn fit_pooled_lift_traces(
         false,
     );
     result.pooled = Some(crate::report::PooledTests {
-        trace_ids: trace_ids.to_vec(),
+        trace_ids: trace_ids.iter().chain(gauge_ids).cloned().collect(),
         window_days,
     });
     Ok(LiftReport {

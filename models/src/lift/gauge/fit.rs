@@ -1,0 +1,481 @@
+//! MAP fit of a force-gauge record: the revolute joints' dry μ in log space with the lift's
+//! Table 4 prior, by Levenberg–Marquardt, intervals from the posterior, and the combination it informs.
+//!
+//! Stated choices:
+//! - Parameters: u_j = ln(μ_j/μ_j⁰) for the seven revolute joints that move (J6 is locked),
+//!   prior u_j ~ N(0, s²) with s = [`LiftFitOptions::default`]'s `prior_relative_sd` (0.5):
+//!   the lift's N(μ⁰, (s·μ⁰)²) to first order (d ln μ = dμ/μ), never negative. Bounds: μ within
+//!   [1 %, 10×] of Table 4 (the lift's upper bound). With an effect ([`GaugeEffect`]) one more
+//!   parameter, in its own units, with its prior.
+//! - Residuals (F_model − F_meas)/σ₀ with σ₀ = max(`gauge_noise_n`, resolution/√12); Jacobian by
+//!   forward differences (step [`FD_STEP`]; the statics is cheap), an offset's analytically.
+//! - Noise: σ̂ = √(RSS/(n − p_eff)), p_eff = tr(A(A + P)⁻¹) the effective number of fitted
+//!   parameters (A the data's information, P the prior's), floored at σ₀; the posterior
+//!   (A·σ₀²/σ̂² + P)⁻¹. Intervals: the Student-t quantile at n − p_eff degrees of freedom,
+//!   log-normal for μ (median the MAP, relative sd the posterior's in u).
+//! - Identifiability: as for lifts ([`super::super::attribution`]), in units of Table 4
+//!   (x = μ/μ⁰): a parameter is contracted when its posterior sd is under prior sd / 2 (× min(x, 1));
+//!   directions the data pin are the eigenvectors of the data's information; a joint in an
+//!   informed direction with others is not separately identified and is reported in that
+//!   direction's combination (level Σ w_j x_j, 1 at baseline).
+
+use nalgebra::DMatrix;
+
+use super::super::attribution::{AttributionOptions, Combination, attribute};
+use super::super::dynamics::LiftModel;
+use super::super::identify::{EffectPrior, LiftFitOptions, ParamEstimate};
+use super::super::sensitivity::LiftParam;
+use super::super::static_force::DriveLine;
+use super::super::topology::RevJoint;
+use super::simulate::spring_rate_drive;
+use super::solve::{Warm, forces_near, warm_starts};
+use super::{GaugeError, GaugeRecord, gauge_data};
+use crate::drift::{DriftThresholds, Status};
+use crate::identify::lm::{LmOptions, Problem, Termination, minimize};
+use crate::stats::{Z95, student_t_quantile};
+
+/// The revolute joints a gauge record's friction enters: all but J6 (locked in the plane).
+pub const FITTED_JOINTS: [RevJoint; 7] = [
+    RevJoint::J1,
+    RevJoint::J2,
+    RevJoint::J2p,
+    RevJoint::J3,
+    RevJoint::J4,
+    RevJoint::J5,
+    RevJoint::J7,
+];
+
+/// Forward-difference step of the Jacobian: 10⁻⁴ in ln μ (a joint's force change is ~10⁻³ N,
+/// 10⁵ times the strip-force solver's tolerance) and in a spring-rate factor.
+pub const FD_STEP: f64 = 1e-4;
+
+/// Lowest μ fitted, × Table 4: a joint with 1 % of its friction is as good as frictionless
+/// and keeps ln μ finite.
+const MIN_MULTIPLE: f64 = 0.01;
+/// Highest μ fitted, × Table 4 (the lift fit's bound).
+const MAX_MULTIPLE: f64 = 10.0;
+
+/// An effect a gauge fit can carry besides the friction (`effects`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GaugeEffect {
+    /// The gauge's zero off by b, N: F_meas = F + b (both branches shifted alike).
+    SensorOffset,
+    /// The drive characteristic's slope × k about its first point (the mean curve tilted): a
+    /// spring whose rate differs from the type's.
+    SpringRate,
+}
+
+impl GaugeEffect {
+    pub const ALL: [GaugeEffect; 2] = [GaugeEffect::SensorOffset, GaugeEffect::SpringRate];
+
+    /// The contract's vocabulary name.
+    pub fn name(self) -> &'static str {
+        match self {
+            GaugeEffect::SensorOffset => "sensor_offset",
+            GaugeEffect::SpringRate => "spring_rate",
+        }
+    }
+
+    /// The value of "no effect": b = 0 N, k = 1.
+    pub fn null_value(self) -> f64 {
+        match self {
+            GaugeEffect::SensorOffset => 0.0,
+            GaugeEffect::SpringRate => 1.0,
+        }
+    }
+
+    /// The prior. `sensor_offset` b: N(0, (10 N)²) in [−50, 50] N — a gauge's zero is off by
+    /// newtons after a bad tare; 50 N is half the static force, a mounting error, not a zero.
+    /// `spring_rate` k: N(1, 0.5²) in [0.2, 5] — a spring of another rate class is tens of
+    /// per cent off; beyond 5× it is another pantograph.
+    pub fn prior(self) -> EffectPrior {
+        match self {
+            GaugeEffect::SensorOffset => EffectPrior {
+                mean: 0.0,
+                sd: 10.0,
+                lower: -50.0,
+                upper: 50.0,
+            },
+            GaugeEffect::SpringRate => EffectPrior {
+                mean: 1.0,
+                sd: 0.5,
+                lower: 0.2,
+                upper: 5.0,
+            },
+        }
+    }
+}
+
+/// Settings of a gauge fit.
+#[derive(Debug, Clone)]
+pub struct GaugeFitOptions {
+    /// Prior sd of ln μ (the lift's relative prior sd).
+    pub prior_relative_sd: f64,
+    /// Contracted when posterior sd < prior sd / this (the lift's).
+    pub informed_factor: f64,
+    pub thresholds: DriftThresholds,
+    /// The least noise assumed, N (`[static_force] gauge_noise_n`).
+    pub noise_floor_n: f64,
+    /// An effect fitted with the friction; `None`: the plain model.
+    pub effect: Option<GaugeEffect>,
+    pub lm: LmOptions,
+    pub attribution: AttributionOptions,
+}
+
+impl Default for GaugeFitOptions {
+    fn default() -> Self {
+        let lift = LiftFitOptions::default();
+        Self {
+            prior_relative_sd: lift.prior_relative_sd,
+            informed_factor: lift.informed_factor,
+            thresholds: lift.thresholds,
+            noise_floor_n: gauge_data().gauge_noise_n,
+            effect: None,
+            // The statics is smooth and cheap: converge tightly (a step of 10⁻⁸ in ln μ is far
+            // inside any posterior sd).
+            lm: LmOptions {
+                max_iter: 60,
+                ftol: 1e-12,
+                xtol: 1e-8,
+                gtol: 1e-10,
+                dtol: 0.0,
+                noise_sd: 0.0,
+            },
+            attribution: lift.attribution,
+        }
+    }
+}
+
+/// A fitted effect, its units (N or a factor).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GaugeEffectEstimate {
+    pub effect: GaugeEffect,
+    pub value: f64,
+    pub posterior_sd: f64,
+    /// value ± t·sd (the t quantile at the fit's degrees of freedom), cut at the prior's bounds.
+    pub ci95: [f64; 2],
+}
+
+impl GaugeEffectEstimate {
+    /// The interval leaves out the value of "no effect".
+    pub fn excludes_null(&self) -> bool {
+        let v = self.effect.null_value();
+        self.ci95[0] > v || self.ci95[1] < v
+    }
+}
+
+/// A gauge fit.
+#[derive(Debug, Clone)]
+pub struct GaugeFit {
+    /// Each fitted joint's dry μ ([`FITTED_JOINTS`] order), `LiftParam::Dry(j)`: informed ones
+    /// at the MAP with the posterior interval, the others at Table 4 with the prior's.
+    pub params: Vec<ParamEstimate>,
+    /// Combinations the record informs together (`lift::attribution`).
+    pub combinations: Vec<Combination>,
+    pub effect: Option<GaugeEffectEstimate>,
+    /// The model's readings at the MAP (effect included), N, reading order.
+    pub fitted_n: Vec<f64>,
+    pub rmse_n: f64,
+    /// The noise scale of the intervals, max(σ̂, σ₀), N.
+    pub noise_n: f64,
+    /// σ₀ = max(noise floor, resolution/√12), N.
+    pub noise_floor_n: f64,
+    /// n − p_eff.
+    pub dof: f64,
+    /// The t quantile the intervals use.
+    pub t_quantile: f64,
+    /// Posterior correlations (friction in [`FITTED_JOINTS`] order, then the effect).
+    pub posterior_correlation: DMatrix<f64>,
+    pub iterations: usize,
+    pub evaluations: usize,
+    pub termination: Termination,
+}
+
+impl GaugeFit {
+    /// The MAP in the fit's units (ln μ/μ⁰ per joint, then the effect): a warm start.
+    pub fn start_point(&self) -> Vec<f64> {
+        self.params
+            .iter()
+            .map(|p| (p.map_value / p.baseline).ln())
+            .chain(self.effect.map(|e| e.value))
+            .collect()
+    }
+}
+
+struct GaugeProblem<'a> {
+    model: &'a LiftModel,
+    alpha_range_rad: (f64, f64),
+    drive: &'a DriveLine,
+    record: &'a GaugeRecord,
+    warm: &'a [Warm],
+    baseline: [f64; FITTED_JOINTS.len()],
+    prior_sd: f64,
+    effect: Option<(GaugeEffect, EffectPrior)>,
+    sigma_n: f64,
+}
+
+impl GaugeProblem<'_> {
+    /// The model's readings at x (ln μ/μ⁰, then the effect), N.
+    fn forces(&self, x: &[f64]) -> Result<Vec<f64>, String> {
+        let mut m = self.model.clone();
+        for (i, j) in FITTED_JOINTS.iter().enumerate() {
+            m.friction.dry_mu[j.index()] = self.baseline[i] * x[i].exp();
+        }
+        let pf = FITTED_JOINTS.len();
+        let (drive, offset) = match self.effect {
+            Some((GaugeEffect::SpringRate, _)) => (spring_rate_drive(self.drive, x[pf]), 0.0),
+            Some((GaugeEffect::SensorOffset, _)) => (*self.drive, x[pf]),
+            None => (*self.drive, 0.0),
+        };
+        let f = forces_near(&m, self.alpha_range_rad, &drive, self.record, self.warm)
+            .map_err(|e| e.to_string())?;
+        Ok(f.into_iter().map(|v| v + offset).collect())
+    }
+}
+
+impl Problem for GaugeProblem<'_> {
+    fn n_params(&self) -> usize {
+        FITTED_JOINTS.len() + usize::from(self.effect.is_some())
+    }
+    fn n_residuals(&self) -> usize {
+        self.record.len() + self.n_params()
+    }
+    fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
+        let n = self.record.len();
+        let p = self.n_params();
+        let f = self.forces(x)?;
+        for ((rk, fk), mk) in r.iter_mut().zip(&f).zip(&self.record.forces_n) {
+            *rk = (fk - mk) / self.sigma_n;
+        }
+        jac.fill(0.0);
+        for i in 0..p {
+            if i == FITTED_JOINTS.len()
+                && matches!(self.effect, Some((GaugeEffect::SensorOffset, _)))
+            {
+                jac.view_mut((0, i), (n, 1)).fill(1.0 / self.sigma_n);
+                continue;
+            }
+            let mut xi = x.to_vec();
+            xi[i] += FD_STEP;
+            let fi = self.forces(&xi)?;
+            for (k, (a, b)) in fi.iter().zip(&f).enumerate() {
+                jac[(k, i)] = (a - b) / (FD_STEP * self.sigma_n);
+            }
+        }
+        for i in 0..FITTED_JOINTS.len() {
+            r[n + i] = x[i] / self.prior_sd;
+            jac[(n + i, i)] = 1.0 / self.prior_sd;
+        }
+        if let Some((_, pr)) = self.effect {
+            let i = FITTED_JOINTS.len();
+            r[n + i] = (x[i] - pr.mean) / pr.sd;
+            jac[(n + i, i)] = 1.0 / pr.sd;
+        }
+        Ok(())
+    }
+    fn lower_bounds(&self) -> Vec<f64> {
+        let mut v = vec![MIN_MULTIPLE.ln(); FITTED_JOINTS.len()];
+        v.extend(self.effect.map(|(_, p)| p.lower));
+        v
+    }
+    fn upper_bounds(&self) -> Vec<f64> {
+        let mut v = vec![MAX_MULTIPLE.ln(); FITTED_JOINTS.len()];
+        v.extend(self.effect.map(|(_, p)| p.upper));
+        v
+    }
+}
+
+/// MAP fit of `record` with `model` (its Table 4 friction the prior's centre) driven by `drive`
+/// (module doc). `start`: where the LM starts (ln μ/μ⁰ per joint, then the effect); `None`:
+/// Table 4 and the effect's null value.
+pub fn fit_gauge(
+    model: &LiftModel,
+    alpha_range_rad: (f64, f64),
+    drive: &DriveLine,
+    record: &GaugeRecord,
+    opts: &GaugeFitOptions,
+) -> Result<GaugeFit, GaugeError> {
+    fit_gauge_from(model, alpha_range_rad, drive, record, opts, None)
+}
+
+/// [`fit_gauge`] from `start` (see there).
+pub fn fit_gauge_from(
+    model: &LiftModel,
+    alpha_range_rad: (f64, f64),
+    drive: &DriveLine,
+    record: &GaugeRecord,
+    opts: &GaugeFitOptions,
+    start: Option<&[f64]>,
+) -> Result<GaugeFit, GaugeError> {
+    let baseline: [f64; FITTED_JOINTS.len()] =
+        std::array::from_fn(|i| model.friction.dry_mu[FITTED_JOINTS[i].index()]);
+    if let Some(b) = baseline.iter().find(|b| !(b.is_finite() && **b > 0.0)) {
+        return Err(GaugeError::Model(format!(
+            "a dry μ baseline of {b} cannot scale its prior"
+        )));
+    }
+    let s = opts.prior_relative_sd;
+    if !(s.is_finite() && s > 0.0 && opts.noise_floor_n.is_finite() && opts.noise_floor_n > 0.0) {
+        return Err(GaugeError::Model(
+            "prior sd and noise floor must be > 0".into(),
+        ));
+    }
+    let warm = warm_starts(model, alpha_range_rad, drive, record)?;
+    let sigma0 = opts.noise_floor_n.max(record.resolution_n / 12f64.sqrt());
+    let effect = opts.effect.map(|e| (e, e.prior()));
+    let mut problem = GaugeProblem {
+        model,
+        alpha_range_rad,
+        drive,
+        record,
+        warm: &warm,
+        baseline,
+        prior_sd: s,
+        effect,
+        sigma_n: sigma0,
+    };
+    let p = problem.n_params();
+    let pf = FITTED_JOINTS.len();
+    let mut x0 = vec![0.0; pf];
+    x0.extend(opts.effect.map(|e| e.null_value()));
+    if let Some(st) = start.filter(|st| st.len() == p && st.iter().all(|v| v.is_finite())) {
+        x0.copy_from_slice(st);
+    }
+    let rep = minimize(&mut problem, &x0, &opts.lm);
+    if let Termination::EvaluationFailed(e) = &rep.termination {
+        return Err(GaugeError::Failed(e.clone()));
+    }
+    let n = record.len();
+    let jd = rep.jacobian.rows(0, n).into_owned();
+    // Information in the fit's units (residuals over σ₀) and the prior's precision.
+    let a = jd.tr_mul(&jd);
+    let prior_prec: Vec<f64> = (0..p)
+        .map(|i| {
+            if i < pf {
+                1.0 / (s * s)
+            } else {
+                1.0 / effect.map_or(1.0, |(_, pr)| pr.sd).powi(2)
+            }
+        })
+        .collect();
+    let mut post0 = a.clone();
+    for i in 0..p {
+        post0[(i, i)] += prior_prec[i];
+    }
+    let cov0 = super::super::identify::inverse_spd(&post0);
+    let p_eff = (&a * &cov0).trace().clamp(0.0, p as f64);
+    let dof = (n as f64 - p_eff).max(1.0);
+    let rss: f64 = rep.residuals[..n].iter().map(|v| v * v).sum();
+    let kappa2 = (rss / dof).max(1.0);
+    let mut post = &a / kappa2;
+    for i in 0..p {
+        post[(i, i)] += prior_prec[i];
+    }
+    let cov_u = super::super::identify::inverse_spd(&post);
+    let t = student_t_quantile(0.975, dof.floor() as usize);
+    // Every interval at the t quantile: the posterior scaled so that Z95·sd is t·sd.
+    let scale = (t / Z95).powi(2);
+    // Units of Table 4 (x = μ/μ⁰ = e^u) for the friction, the effect's own.
+    let xs: Vec<f64> = (0..p)
+        .map(|i| if i < pf { rep.x[i].exp() } else { 1.0 })
+        .collect();
+    let cov_x = DMatrix::from_fn(p, p, |i, j| cov_u[(i, j)] * xs[i] * xs[j] * scale);
+    let mut info_x = DMatrix::from_fn(p, p, |i, j| a[(i, j)] / (kappa2 * xs[i] * xs[j]));
+    for i in 0..p {
+        info_x[(i, i)] += if i < pf { 1.0 / (s * s) } else { prior_prec[i] };
+    }
+    let cov_h = super::super::identify::inverse_spd(&info_x);
+    let params: Vec<LiftParam> = FITTED_JOINTS.iter().map(|j| LiftParam::Dry(*j)).collect();
+    let contracted: Vec<bool> = (0..pf)
+        .map(|i| cov_x[(i, i)].max(0.0).sqrt() < s / opts.informed_factor * xs[i].min(1.0))
+        .collect();
+    let attribution = attribute(
+        &params,
+        &xs[..pf],
+        &cov_h,
+        &cov_x,
+        &contracted,
+        s,
+        opts.informed_factor,
+        &opts.thresholds,
+        &opts.attribution,
+    );
+    let estimates: Vec<ParamEstimate> = (0..pf)
+        .map(|i| {
+            let base = baseline[i];
+            let informed = attribution.separate[i];
+            let sd_u = (cov_u[(i, i)] * scale).max(0.0).sqrt();
+            let map_value = base * xs[i];
+            let (value, ci95, status) = if informed {
+                let ci = [
+                    map_value * (-Z95 * sd_u).exp(),
+                    map_value * (Z95 * sd_u).exp(),
+                ];
+                let v = opts.thresholds.judge(ci, map_value, Some(base));
+                let st = if v.identifiable {
+                    v.status
+                } else {
+                    Status::Unknown
+                };
+                (map_value, ci, st)
+            } else {
+                (
+                    base,
+                    [base * (-Z95 * s).exp(), base * (Z95 * s).exp()],
+                    Status::Unknown,
+                )
+            };
+            ParamEstimate {
+                param: params[i],
+                baseline: base,
+                prior_sd: s * base,
+                value,
+                map_value,
+                posterior_sd: sd_u * map_value,
+                ci95,
+                informed,
+                status,
+                combination: attribution.group[i],
+            }
+        })
+        .collect();
+    let effect_est = effect.map(|(e, pr)| {
+        let v = rep.x[pf];
+        let sd = (cov_u[(pf, pf)] * scale).max(0.0).sqrt();
+        GaugeEffectEstimate {
+            effect: e,
+            value: v,
+            posterior_sd: sd,
+            ci95: [(v - Z95 * sd).max(pr.lower), (v + Z95 * sd).min(pr.upper)],
+        }
+    });
+    let fitted_n: Vec<f64> = rep.residuals[..n]
+        .iter()
+        .zip(&record.forces_n)
+        .map(|(r, f)| f + r * sigma0)
+        .collect();
+    let rmse_n = (rss / n as f64).sqrt() * sigma0;
+    Ok(GaugeFit {
+        params: estimates,
+        combinations: attribution.combinations,
+        effect: effect_est,
+        fitted_n,
+        rmse_n,
+        noise_n: sigma0 * kappa2.sqrt(),
+        noise_floor_n: sigma0,
+        dof,
+        t_quantile: t,
+        posterior_correlation: correlation(&cov_u),
+        iterations: rep.iterations,
+        evaluations: rep.evaluations,
+        termination: rep.termination,
+    })
+}
+
+fn correlation(cov: &DMatrix<f64>) -> DMatrix<f64> {
+    let n = cov.nrows();
+    DMatrix::from_fn(n, n, |i, j| {
+        let d = (cov[(i, i)] * cov[(j, j)]).sqrt();
+        if d > 0.0 { cov[(i, j)] / d } else { 0.0 }
+    })
+}

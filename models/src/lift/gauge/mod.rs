@@ -1,0 +1,322 @@
+//! The `static_force` test kind (issue 20, point 3): a depot's force-gauge record of the strip
+//! force raised and lowered over the working range, fitted like any trace for the joints' dry friction.
+//!
+//! # The measurement and its model
+//! The pantograph is raised slowly against a force gauge at the strip, then lowered; at each
+//! strip height H the gauge reads the strip force. The model of a reading is
+//! [`super::static_force::strip_force_n`]: the drive's characteristic ([`DriveLine`], torque
+//! linear in H) against gravity, the head's springs and each revolute joint's dry torque
+//! N·R·μ, opposing the impending motion — [`StaticFriction::Raising`] on the way up (the gauge
+//! reads less), [`StaticFriction::Lowering`] on the way down (it reads more). Assumed, as there:
+//! - **quasi-static**: viscous terms and inertia vanish, so only the dry μ of the revolute
+//!   joints enter; J6 is locked in the plane (no work, nothing to fit); J8's slide rests at its
+//!   frictionless travel (its dry band moves H, not F); J9 has no dry friction;
+//! - the gap between the branches is the joints' dry friction; their mean follows the drive
+//!   characteristic against gravity and springs. A gauge fit therefore informs friction only
+//!   through the gap: one weighted level of several joints' dry μ ([`fit`], measured weights there);
+//! - the drive characteristic is the type's ([`DriveLine::from_lift_test`]); a gauge whose zero
+//!   is off (`sensor_offset`, F_meas = F + b) or a spring whose rate differs from the type's
+//!   (`spring_rate`, the drive line's slope × k about its first point) are the residual loop's
+//!   effects ([`effects`]), never friction.
+//!
+//! # The record
+//! [`GaugeRecord::new`] takes the readings in the order they were taken and splits them at the
+//! turning point, **the first reading at the largest height**: it and every reading before it
+//! are the raising branch (H never decreasing), every reading after it the lowering branch (H
+//! never increasing). Each refusal names its field ([`GaugeError::field`]).
+//!
+//! - [`simulate`] — a simulated gauge record (noise, quantisation, optional effects), seeded.
+//! - [`fit`] — MAP fit of the revolute joints' dry μ in log space, intervals, attribution.
+//! - [`effects`] — the residual loop: `sensor_offset`, `spring_rate`, or `unexplained`.
+//! - [`report`] — the contract's `FitResult` of a gauge record (joints J1…J9 and the combination).
+//! - `solve` — the strip force near a known solution (the fit's fast path).
+
+pub mod effects;
+pub mod fit;
+pub mod report;
+pub mod simulate;
+pub(crate) mod solve;
+#[cfg(test)]
+mod tests;
+
+pub use effects::{GaugeResidual, GaugeVerdict, diagnose};
+pub use fit::{GaugeEffect, GaugeEffectEstimate, GaugeFit, GaugeFitOptions, fit_gauge};
+pub use report::{GaugeChannels, GaugeReport, fit_gauge_trace};
+pub use simulate::{GaugeSimOptions, reading_heights, simulate_gauge};
+pub use solve::predicted_forces_n;
+
+pub use super::static_force::DriveLine;
+pub use super::statics::StaticFriction;
+use crate::data::StaticForceData;
+
+/// The contract's field names of a gauge record.
+pub const FIELD_H: &str = "channels.H_m";
+pub const FIELD_F: &str = "channels.F_N";
+pub const FIELD_RESOLUTION: &str = "test.gauge_resolution_n";
+
+/// The built-in type's `[static_force]` table (`models/data/160ec.toml`), which states the
+/// working range, the fewest readings per branch, the resolution span and the gauge's noise.
+pub fn gauge_data() -> &'static StaticForceData {
+    crate::data::builtin_160ec()
+        .static_force
+        .as_ref()
+        .expect("models/data/160ec.toml has [static_force] (checked by its tests)")
+}
+
+/// Why a gauge record was refused or could not be fitted. Input errors name the contract's
+/// field ([`GaugeError::field`]) and, where one reading is at fault, its index.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GaugeError {
+    #[error(
+        "test.gauge_resolution_n: {value_n} N is not a gauge's resolution (plausible: {range_n:?} N, `[static_force] gauge_resolution_range_n`)"
+    )]
+    Resolution { value_n: f64, range_n: [f64; 2] },
+    #[error("channels.F_N has {forces} readings, channels.H_m {heights}")]
+    LengthMismatch { heights: usize, forces: usize },
+    #[error("{field}[{index}] is not a finite number")]
+    NotFinite { field: &'static str, index: usize },
+    #[error(
+        "channels.H_m[{index}]: {value_m} m is outside the type's working range {range_m:?} m (`[static_force] working_height_m`)"
+    )]
+    HeightOutsideRange {
+        index: usize,
+        value_m: f64,
+        range_m: [f64; 2],
+    },
+    #[error(
+        "channels.F_N[{index}]: {value_n} N is outside {range_n:?} N, the strip loads the drive can hold (`[rig_limits] lift_strip_force_n`)"
+    )]
+    ForceOutsideRange {
+        index: usize,
+        value_n: f64,
+        range_n: [f64; 2],
+    },
+    #[error(
+        "channels.H_m[{index}]: the {branch} branch must not turn back (raising: H never decreasing up to the highest reading; lowering: never increasing after it)"
+    )]
+    NotMonotone { index: usize, branch: &'static str },
+    #[error("channels.H_m: no {branch} branch ({why})")]
+    NoBranch {
+        branch: &'static str,
+        why: &'static str,
+    },
+    #[error(
+        "channels.H_m: the {branch} branch has {got} readings, at least {min} are needed (`[static_force] min_points_per_branch`)"
+    )]
+    TooFewPoints {
+        branch: &'static str,
+        got: usize,
+        min: usize,
+    },
+    #[error("gauge model: {0}")]
+    Model(String),
+    #[error("gauge fit failed: {0}")]
+    Failed(String),
+}
+
+impl GaugeError {
+    /// The contract field at fault (`channels.H_m`, `channels.F_N`, `test.gauge_resolution_n`);
+    /// `None` for a model or fit failure on a record that passed its checks.
+    pub fn field(&self) -> Option<&'static str> {
+        match self {
+            GaugeError::Resolution { .. } => Some(FIELD_RESOLUTION),
+            GaugeError::LengthMismatch { .. } | GaugeError::ForceOutsideRange { .. } => {
+                Some(FIELD_F)
+            }
+            GaugeError::NotFinite { field, .. } => Some(*field),
+            GaugeError::HeightOutsideRange { .. }
+            | GaugeError::NotMonotone { .. }
+            | GaugeError::NoBranch { .. }
+            | GaugeError::TooFewPoints { .. } => Some(FIELD_H),
+            GaugeError::Model(_) | GaugeError::Failed(_) => None,
+        }
+    }
+
+    /// The reading at fault, where one is.
+    pub fn index(&self) -> Option<usize> {
+        match self {
+            GaugeError::NotFinite { index, .. }
+            | GaugeError::HeightOutsideRange { index, .. }
+            | GaugeError::ForceOutsideRange { index, .. }
+            | GaugeError::NotMonotone { index, .. } => Some(*index),
+            _ => None,
+        }
+    }
+
+    /// The field with the reading's index, as lift refusals name it (`channels.H_m[3]`).
+    pub fn field_path(&self) -> Option<String> {
+        let f = self.field()?;
+        Some(match self.index() {
+            Some(i) => format!("{f}[{i}]"),
+            None => f.to_string(),
+        })
+    }
+}
+
+impl From<super::static_force::StaticForceError> for GaugeError {
+    fn from(e: super::static_force::StaticForceError) -> Self {
+        GaugeError::Model(e.to_string())
+    }
+}
+
+/// A force-gauge record: strip heights and gauge readings in the order they were taken, the
+/// gauge's stated resolution, and the turning point that splits them (module doc).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct GaugeRecord {
+    pub heights_m: Vec<f64>,
+    pub forces_n: Vec<f64>,
+    pub resolution_n: f64,
+    /// Index of the turning point, the first highest reading: readings `0..=turn` are the
+    /// raising branch, `turn + 1..` the lowering one.
+    pub turn: usize,
+}
+
+impl GaugeRecord {
+    /// The record of `heights_m` and `forces_n` (reading order) with the gauge's
+    /// `resolution_n`, checked against the built-in type's `[static_force]` ([`gauge_data`]).
+    pub fn new(
+        heights_m: Vec<f64>,
+        forces_n: Vec<f64>,
+        resolution_n: f64,
+    ) -> Result<Self, GaugeError> {
+        Self::with_limits(heights_m, forces_n, resolution_n, gauge_data())
+    }
+
+    /// [`GaugeRecord::new`] against a type's `[static_force]` table `d`. Checks, in order: the
+    /// resolution within `gauge_resolution_range_n`; as many forces as heights; every value
+    /// finite; every height within `working_height_m`; both branches present, each monotone and
+    /// with at least `min_points_per_branch` readings; every force within the strip loads a
+    /// drive can hold (`[rig_limits] lift_strip_force_n`, the lift's channel span).
+    pub fn with_limits(
+        heights_m: Vec<f64>,
+        forces_n: Vec<f64>,
+        resolution_n: f64,
+        d: &StaticForceData,
+    ) -> Result<Self, GaugeError> {
+        let [r0, r1] = d.gauge_resolution_range_n;
+        if !(r0..=r1).contains(&resolution_n) {
+            return Err(GaugeError::Resolution {
+                value_n: resolution_n,
+                range_n: d.gauge_resolution_range_n,
+            });
+        }
+        if heights_m.len() != forces_n.len() {
+            return Err(GaugeError::LengthMismatch {
+                heights: heights_m.len(),
+                forces: forces_n.len(),
+            });
+        }
+        for (field, v) in [(FIELD_H, &heights_m), (FIELD_F, &forces_n)] {
+            if let Some(index) = v.iter().position(|x| !x.is_finite()) {
+                return Err(GaugeError::NotFinite { field, index });
+            }
+        }
+        let turn = split(&heights_m, d)?;
+        let range_n = crate::data::builtin_160ec().rig_limits().lift_strip_force_n;
+        if let Some(index) = forces_n
+            .iter()
+            .position(|f| !(range_n[0]..=range_n[1]).contains(f))
+        {
+            return Err(GaugeError::ForceOutsideRange {
+                index,
+                value_n: forces_n[index],
+                range_n,
+            });
+        }
+        Ok(Self {
+            heights_m,
+            forces_n,
+            resolution_n,
+            turn,
+        })
+    }
+
+    pub fn len(&self) -> usize {
+        self.heights_m.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.heights_m.is_empty()
+    }
+
+    /// The friction direction of reading `k`: raising up to the turn, lowering after it.
+    pub fn direction(&self, k: usize) -> StaticFriction {
+        if k <= self.turn {
+            StaticFriction::Raising
+        } else {
+            StaticFriction::Lowering
+        }
+    }
+
+    /// Indices of the raising branch.
+    pub fn raising(&self) -> std::ops::Range<usize> {
+        0..self.turn + 1
+    }
+
+    /// Indices of the lowering branch.
+    pub fn lowering(&self) -> std::ops::Range<usize> {
+        self.turn + 1..self.len()
+    }
+}
+
+/// The turning point of finite `heights_m` (module doc), with the range, branch and count
+/// checks of [`GaugeRecord::with_limits`].
+pub(crate) fn split(heights_m: &[f64], d: &StaticForceData) -> Result<usize, GaugeError> {
+    let [lo, hi] = d.working_height_m;
+    if let Some(index) = heights_m.iter().position(|h| !(lo..=hi).contains(h)) {
+        return Err(GaugeError::HeightOutsideRange {
+            index,
+            value_m: heights_m[index],
+            range_m: d.working_height_m,
+        });
+    }
+    if heights_m.is_empty() {
+        return Err(GaugeError::NoBranch {
+            branch: "raising",
+            why: "no readings",
+        });
+    }
+    let mut turn = 0;
+    for (k, h) in heights_m.iter().enumerate() {
+        if *h > heights_m[turn] {
+            turn = k;
+        }
+    }
+    if turn == 0 {
+        return Err(GaugeError::NoBranch {
+            branch: "raising",
+            why: "the first reading is the highest",
+        });
+    }
+    if turn + 1 == heights_m.len() {
+        return Err(GaugeError::NoBranch {
+            branch: "lowering",
+            why: "the last reading is the highest",
+        });
+    }
+    for k in 1..heights_m.len() {
+        let (prev, h) = (heights_m[k - 1], heights_m[k]);
+        if k <= turn && h < prev {
+            return Err(GaugeError::NotMonotone {
+                index: k,
+                branch: "raising",
+            });
+        }
+        if k > turn && h > prev {
+            return Err(GaugeError::NotMonotone {
+                index: k,
+                branch: "lowering",
+            });
+        }
+    }
+    let min = d.min_points_per_branch;
+    for (branch, got) in [
+        ("raising", turn + 1),
+        ("lowering", heights_m.len() - turn - 1),
+    ] {
+        if got < min {
+            return Err(GaugeError::TooFewPoints { branch, got, min });
+        }
+    }
+    Ok(turn)
+}
