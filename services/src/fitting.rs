@@ -1,10 +1,12 @@
 //! The fit of one trace document: the models' identification and the contract's fit result.
-//! Pure CPU work (pendulum and slider 5–30 ms, lift ~0.5 s, quadrangle swing ~1–3 s): async callers run it with
+//! Pure CPU work (pendulum and slider 5–30 ms, lift ~0.5 s, quadrangle swing ~1–3 s; a force gauge's readings not yet timed): async callers run it with
 //! `tokio::task::spawn_blocking`, under a budget ([`fit_document_within`]).
 
 use pantowatch_models::budget::{Budget, Exhausted};
 use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::identify::{FitOptions, FitOutcome};
+use pantowatch_models::lift::gauge::report::GaugeChannels as ModelGaugeChannels;
+use pantowatch_models::lift::gauge::{GaugeReport, fit_gauge_trace};
 use pantowatch_models::lift::report::{LiftReport, fit_lift_trace};
 use pantowatch_models::quadrangle::report::{QuadReport, fit_quadrangle_trace};
 use pantowatch_models::report::FitResult;
@@ -68,26 +70,35 @@ pub fn fit_document(doc: &TraceDoc, thresholds: &DriftThresholds) -> Result<FitR
     match doc.kind {
         Kind::Lift => return fit_lift(doc, thresholds).map(|r| r.result),
         Kind::QuadrangleSwing => return fit_quadrangle(doc, thresholds).map(|r| r.result),
-        Kind::StaticForce => return fit_static_force(doc, thresholds),
+        Kind::StaticForce => return fit_static_force(doc, thresholds).map(|r| r.result),
         Kind::Pendulum | Kind::Slider => {}
     }
     fit_with_outcome(doc, thresholds).map(|(r, _)| r)
 }
 
-/// Fits a `static_force` document (a force gauge's raising and lowering readings, issue 20).
-/// The readings are checked here as at upload; the fit itself (`models::lift::gauge`) is not in
-/// this build yet, so the document is stored and its job fails with this reason, not a crash.
+/// Fits a `static_force` document (a force gauge's raising and lowering readings, issue 20):
+/// the MAP fit of the revolute joints' dry friction from the hysteresis, with the residual
+/// loop's `sensor_offset` and `spring_rate` (`models::lift::gauge` holds the mapping: every
+/// joint J1…J9 and the combination it informs, as a lift's result).
 pub fn fit_static_force(
     doc: &TraceDoc,
-    _thresholds: &DriftThresholds,
-) -> Result<FitResult, FitFailure> {
-    doc.static_force_channels().map_err(FitFailure::Invalid)?;
-    Err(FitFailure::Unsupported(STATIC_FORCE_NOT_FITTED.into()))
+    thresholds: &DriftThresholds,
+) -> Result<GaugeReport, FitFailure> {
+    let g = doc.static_force_channels().map_err(FitFailure::Invalid)?;
+    let channels = ModelGaugeChannels {
+        strip_height_m: g.strip_height_m,
+        force_n: g.force_n,
+        resolution_n: g.gauge_resolution_n,
+    };
+    let id = doc.trace_id.clone().unwrap_or_default();
+    fit_gauge_trace(&channels, thresholds, &id).map_err(|e| match e.field_path() {
+        Some(field) => FitFailure::Invalid(TraceError {
+            field,
+            message: e.to_string(),
+        }),
+        None => FitFailure::Model(e.to_string()),
+    })
 }
-
-/// Why a `static_force` trace has no fit in this build.
-pub const STATIC_FORCE_NOT_FITTED: &str = "a static_force (force-gauge) test is stored but not \
-     fitted yet: its fit (models::lift::gauge) is not in this build";
 
 /// Fits a `lift` document: the complete-pantograph MAP identification (Table 4 prior), every
 /// joint J1…J9 in the result (`models::lift::report` holds the mapping).

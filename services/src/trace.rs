@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 
 use pantowatch_models::data::{self, Attachment, PantographType};
 use pantowatch_models::identify::JointTest;
+use pantowatch_models::lift::gauge::GaugeRecord;
 use pantowatch_models::lift::report::LiftChannels;
 use pantowatch_models::lift::vec2::V2;
 use pantowatch_models::quadrangle::model::{PointMass, QBody};
@@ -661,10 +662,11 @@ impl TraceDoc {
     }
 
     /// The readings of a `static_force` test (a force gauge on the strip, issue 20), checked
-    /// against the type's `[static_force]` data: every `H_m` within `working_height_m`, every
-    /// `F_N` within `[rig_limits] lift_strip_force_n`, a raising branch (H never decreasing up to
-    /// the first highest reading) then a lowering branch (H never increasing after it), each of
-    /// at least `min_points_per_branch` readings, and `test.gauge_resolution_n` stated (> 0).
+    /// by the models' record (`lift::gauge::GaugeRecord`) against the type's `[static_force]`
+    /// data: `test.gauge_resolution_n` stated and within `gauge_resolution_range_n`, every `H_m`
+    /// within `working_height_m`, every `F_N` within `[rig_limits] lift_strip_force_n`, a raising
+    /// branch (H never decreasing up to the first highest reading) then a lowering branch (H
+    /// never increasing after it), each of at least `min_points_per_branch` readings.
     pub fn static_force_channels(&self) -> Result<GaugeChannels<'_>, TraceError> {
         if self.kind != Kind::StaticForce {
             return Err(bad("test.kind", "not a static_force test"));
@@ -720,81 +722,26 @@ impl TraceDoc {
         };
         let get = |name: &str| self.channel(name).unwrap_or_default();
         let (t_s, h, f) = (get("t_s"), get("H_m"), get("F_N"));
-        let [lo, hi] = sf.working_height_m;
-        if let Some(i) = h.iter().position(|v| !(*v >= lo && *v <= hi)) {
-            return Err(bad(
-                format!("channels.H_m[{i}]"),
-                format!(
-                    "{} m is outside the type's working range [{lo}, {hi}] m (models/data, \
-                     `static_force.working_height_m`)",
-                    h[i]
-                ),
-            ));
-        }
-        let limits = data::builtin_160ec().rig_limits();
-        data::RigLimits::check_channel_span("F_N", f, limits.lift_strip_force_n, "N")
-            .map_err(|(field, message)| bad(field, message))?;
-        // The turn: the highest reading (the first of equal ones) ends the raising branch.
-        let turn = h
-            .iter()
-            .enumerate()
-            .fold(0, |best, (i, v)| if *v > h[best] { i } else { best });
-        if turn == 0 {
-            return Err(bad(
-                "channels.H_m",
-                "no raising branch: the first reading is the highest (a static_force test \
-                 raises the strip to its highest reading, then lowers it)",
-            ));
-        }
-        if turn + 1 == h.len() {
-            return Err(bad(
-                "channels.H_m",
-                "no lowering branch: the last reading is the highest (a static_force test \
-                 raises the strip to its highest reading, then lowers it)",
-            ));
-        }
-        if let Some(i) = (1..=turn).find(|&i| h[i] < h[i - 1]) {
-            return Err(bad(
-                format!("channels.H_m[{i}]"),
-                format!(
-                    "{} m after {} m on the raising branch: heights must not fall before the \
-                     highest reading ({} m, reading {turn})",
-                    h[i],
-                    h[i - 1],
-                    h[turn]
-                ),
-            ));
-        }
-        if let Some(i) = (turn + 1..h.len()).find(|&i| h[i] > h[i - 1]) {
-            return Err(bad(
-                format!("channels.H_m[{i}]"),
-                format!(
-                    "{} m after {} m on the lowering branch: heights must not rise after the \
-                     highest reading ({} m, reading {turn})",
-                    h[i],
-                    h[i - 1],
-                    h[turn]
-                ),
-            ));
-        }
-        let min = sf.min_points_per_branch;
-        for (branch, n) in [("raising", turn + 1), ("lowering", h.len() - turn - 1)] {
-            if n < min {
-                return Err(bad(
-                    "channels.H_m",
-                    format!(
-                        "the {branch} branch has {n} readings, fewer than the {min} a fit needs \
-                         (models/data, `static_force.min_points_per_branch`)"
-                    ),
-                ));
-            }
-        }
+        // The record's rules are the models' (`lift::gauge::GaugeRecord`, the type's
+        // `[static_force]`): the resolution's span, every height within the working range, both
+        // branches, each never turning back and of `min_points_per_branch` readings, every
+        // force within the strip loads a drive can hold. One rule set for upload and fit.
+        let record = GaugeRecord::with_limits(h.to_vec(), f.to_vec(), gauge_resolution_n, sf)
+            .map_err(|e| {
+                let field = e.field_path().unwrap_or_else(|| "channels".to_owned());
+                let text = e.to_string();
+                let message = text
+                    .strip_prefix(&format!("{field}: "))
+                    .unwrap_or(&text)
+                    .to_owned();
+                bad(field, message)
+            })?;
         Ok(GaugeChannels {
             t_s,
             strip_height_m: h,
             force_n: f,
             gauge_resolution_n,
-            raise_len: turn + 1,
+            raise_len: record.turn + 1,
         })
     }
 
@@ -1327,6 +1274,10 @@ mod tests {
                 set("/test/gauge_resolution_n", json!("0.1")),
                 "test.gauge_resolution_n",
             ),
+            (
+                set("/test/gauge_resolution_n", json!(10.0)),
+                "test.gauge_resolution_n",
+            ),
             (no_force, "channels.F_N"),
             (set("/channels/F_N/1", json!(-2000.0)), "channels.F_N[1]"),
             (set("/test/joint", json!("J3")), "test.joint"),
@@ -1357,6 +1308,10 @@ mod tests {
             format!(
                 "| `[static_force] min_points_per_branch` | {} |",
                 sf.min_points_per_branch
+            ),
+            format!(
+                "| `[static_force] gauge_resolution_range_n` | [{}, {}] |",
+                sf.gauge_resolution_range_n[0], sf.gauge_resolution_range_n[1]
             ),
         ] {
             assert!(readme.contains(&row), "README \"Input limits\" lacks {row}");

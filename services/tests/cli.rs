@@ -550,8 +550,8 @@ fn static_force_from_a_lift_trace_widens_with_j3_friction() {
 /// Issue 20: `simulate --kind static_force` writes a force-gauge measurement the upload path
 /// accepts — 15 readings raising over 0.85–1.8 m, 14 lowering, one a second, each a multiple of
 /// the stated resolution; J3's dry friction ×3 widens the lowering − raising gap at every
-/// height; a viscous scale or a bad resolution is refused naming its flag, and `fit` says the
-/// kind is stored but not fitted in this build rather than failing obscurely.
+/// height; a viscous scale or a bad resolution is refused naming its flag; `fit` fits it as a
+/// force-gauge record (`models::lift::gauge`).
 #[test]
 fn simulate_static_force_writes_a_gauge_measurement() {
     let gauge = |extra: &[&str]| -> serde_json::Value {
@@ -611,10 +611,23 @@ fn simulate_static_force_writes_a_gauge_measurement() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(flag), "{args:?}: {err}");
     }
+    // Fitted as a force-gauge record: J3 ×3 shows as the J1+J3 dry combination at watch or
+    // worse, the RMSE in N.
     let file = tmp("gauge.json");
-    std::fs::write(&file, serde_json::to_vec(&base).unwrap()).unwrap();
-    let out = bin().arg("fit").arg(&file).output().unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("static_force") && err.contains("not"), "{err}");
+    std::fs::write(&file, serde_json::to_vec(&worn).unwrap()).unwrap();
+    let out = run_ok(bin().arg("fit").arg(&file).arg("--json"));
+    let r: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(r["rmse"]["unit"], "N", "{r}");
+    let combo = &r["combinations"][0];
+    assert_eq!(combo["label"], "J1+J3 dry", "{r}");
+    assert!(combo["value"].as_f64().unwrap() > 2.0, "{combo}");
+    assert!(
+        combo["status"] == "watch" || combo["status"] == "alarm",
+        "{combo}"
+    );
+    let table = run_ok(bin().arg("fit").arg(&file));
+    assert!(
+        table.contains("static_force test") && table.contains("informed by this trace: J1+J3"),
+        "{table}"
+    );
 }
