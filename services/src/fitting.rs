@@ -1,5 +1,5 @@
 //! The fit of one trace document: the models' identification and the contract's fit result.
-//! Pure CPU work (pendulum and slider 5–30 ms, lift ~0.5 s, quadrangle swing ~1–3 s; a force gauge's readings not yet timed): async callers run it with
+//! Pure CPU work (pendulum and slider 5–30 ms, lift ~0.5 s, quadrangle swing ~1–3 s, force gauge ~35 ms in a debug build): async callers run it with
 //! `tokio::task::spawn_blocking`, under a budget ([`fit_document_within`]).
 
 use pantowatch_models::budget::{Budget, Exhausted};
