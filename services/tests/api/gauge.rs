@@ -296,3 +296,60 @@ pub async fn a_gauge_measurement_is_stored_refused_and_drawn(b: Backend) {
     assert!(!html.contains("gauge-raise"), "no gauge on 160EC-G-2");
     app.stop().await;
 }
+
+/// Issue 20: a force-gauge record pools with the pantograph's next lift (`services::pooled`,
+/// `models::lift::report::fit_pooled_lift_and_gauge_traces`): one lift and one gauge record
+/// in the window are a pool, written as the lift's current fit naming both tests.
+pub async fn a_gauge_record_pools_with_the_next_lift(b: Backend) {
+    let app = spawn_app(b).await;
+    let serial = "160EC-GP-1";
+    let mut gauge = gauge_doc(serial, "gp-gauge", &[]).to_value();
+    gauge["vehicle_id"] = json!("EN57-GP");
+    gauge["recorded_at"] = json!("2026-03-01T06:00:00Z");
+    let r = app
+        .upload_json(&serde_json::to_vec(&gauge).expect("json"))
+        .await;
+    assert_eq!(r.status(), StatusCode::ACCEPTED);
+    app.wait_for_fit("gp-gauge").await;
+    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let lift = pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
+        kind: "lift".into(),
+        protocol: "raise-and-lower".into(),
+        sensor_noise: 1.0,
+        h_noise_mm: 0.0,
+        seed: 40,
+        vehicle: "EN57-GP".into(),
+        serial: serial.into(),
+        trace_id: Some("gp-lift".into()),
+        recorded_at: "2026-03-02T06:00:00Z".into(),
+        ..defaults
+    })
+    .expect("lift");
+    let r = app
+        .upload_json(&serde_json::to_vec(&lift.to_value()).expect("json"))
+        .await;
+    assert_eq!(r.status(), StatusCode::ACCEPTED);
+    app.wait_for_fit("gp-lift").await;
+    let t0 = std::time::Instant::now();
+    let pooled = loop {
+        let (s, f) = app.get_json("/v1/traces/gp-lift/fit").await;
+        assert_eq!(s, StatusCode::OK, "{f}");
+        if f["pooled"].is_object() {
+            break f;
+        }
+        assert!(t0.elapsed().as_secs() < 60, "no pooled fit: {f}");
+        tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+    };
+    assert_eq!(
+        pooled["pooled"]["trace_ids"],
+        json!(["gp-lift", "gp-gauge"]),
+        "{pooled}"
+    );
+    assert!(
+        pooled["model_version"]
+            .as_str()
+            .is_some_and(|v| v.ends_with("pooled over 2 tests")),
+        "{pooled}"
+    );
+    app.stop().await;
+}

@@ -64,6 +64,7 @@ suite!(
     a_release_is_found_or_stated_and_reported,
     static_force_is_predicted_and_judged_against_the_limits,
     a_gauge_measurement_is_stored_refused_and_drawn,
+    a_gauge_record_pools_with_the_next_lift,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).
