@@ -427,8 +427,10 @@ pub const GAUGE_READING_INTERVAL_S: f64 = 1.0;
 /// heights raising the strip over [`GAUGE_HEIGHTS_M`], then lowering it back (the same heights
 /// below the top), one reading every [`GAUGE_READING_INTERVAL_S`]. Each reading is the
 /// quasi-static strip force of `lift::static_force` (raising or lowering; Table 4 dry friction,
-/// `--scale-joint J3:dry=2` scales a revolute joint's), plus `--effect sensor_offset:offset=<N>`
-/// (the gauge's zero) and `--gauge-noise-n` white noise (seeded), rounded to
+/// `--scale-joint J3:dry=2` scales a revolute joint's; `--effect spring_rate:factor=<k>` scales
+/// the drive characteristic's slope about its first point), plus `--effect
+/// sensor_offset:offset=<N>` (the gauge's zero) and `--gauge-noise-n` white noise (seeded),
+/// rounded to
 /// `--gauge-resolution-n`. Heights are read to the millimetre.
 fn simulate_static_force(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     use pantowatch_models::lift::static_force::{DriveLine, MuEstimate, characteristic};
@@ -469,14 +471,16 @@ fn simulate_static_force(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
         );
         mu[j.index()].value *= f;
     }
-    let mut offset_n = 0.0;
+    let (mut offset_n, mut rate_factor) = (0.0, 1.0);
     for spec in &a.effects {
         let (name, kv) = parse_effect(spec)?;
-        match (name, kv.get("offset")) {
-            ("sensor_offset", Some(v)) if kv.len() == 1 => offset_n = *v,
+        match (name, kv.get("offset"), kv.get("factor")) {
+            ("sensor_offset", Some(v), _) if kv.len() == 1 => offset_n = *v,
+            ("spring_rate", _, Some(k)) if kv.len() == 1 && *k > 0.0 => rate_factor = *k,
             _ => anyhow::bail!(
                 "--effect {spec}: a static_force test takes `sensor_offset:offset=<N>` (the \
-                 gauge's zero)"
+                 gauge's zero) or `spring_rate:factor=<k, > 0>` (the drive characteristic's \
+                 slope × k about its first point)"
             ),
         }
     }
@@ -486,7 +490,10 @@ fn simulate_static_force(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
         .map(|k| mm(lo + (hi - lo) * k as f64 / (n - 1) as f64))
         .collect();
     let down: Vec<f64> = up.iter().rev().skip(1).copied().collect();
-    let drive = DriveLine::from_lift_test(g);
+    let drive = pantowatch_models::lift::gauge::simulate::spring_rate_drive(
+        &DriveLine::from_lift_test(g),
+        rate_factor,
+    );
     let raise = characteristic(g, &mu, &drive, &up)
         .context("static force, raising")?
         .raise_n;

@@ -18,6 +18,7 @@ pub use crate::corpus::{
 };
 pub use crate::gauge::{
     a_gauge_measurement_is_stored_refused_and_drawn, a_gauge_record_pools_with_the_next_lift,
+    a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,
 };
 use crate::harness::*;
 pub use crate::lift::{

@@ -353,3 +353,91 @@ pub async fn a_gauge_record_pools_with_the_next_lift(b: Backend) {
     );
     app.stop().await;
 }
+
+fn live_alerts(alerts: &Value, serial: &str, joint: &str) -> usize {
+    alerts
+        .as_array()
+        .or_else(|| alerts["alerts"].as_array())
+        .expect("alerts")
+        .iter()
+        .filter(|a| a["serial"] == serial && a["joint"] == joint)
+        .count()
+}
+
+/// Issue 20: what a gauge fit's residual loop names is a finding on the pantograph, not a joint
+/// alarm: a gauge reading 3 N high opens one `force gauge` alert, a drive spring at 1.3 × the
+/// type's rate one `spring rate` alert; a later gauge test that does not name one resolves it.
+pub async fn a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm(b: Backend) {
+    let app = spawn_app(b).await;
+    let serial = "160EC-GZ-1";
+    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let gauge = |id: &str, day: u32, effects: &[&str]| {
+        pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
+            kind: "static_force".into(),
+            effects: effects.iter().map(|e| e.to_string()).collect(),
+            seed: 5 + u64::from(day),
+            vehicle: "EN57-GZ".into(),
+            serial: serial.into(),
+            trace_id: Some(id.into()),
+            recorded_at: format!("2026-03-{day:02}T06:00:00Z"),
+            ..defaults.clone()
+        })
+        .expect("gauge")
+    };
+    let wait_alerts = |want: (usize, usize)| {
+        let app = &app;
+        async move {
+            let t0 = std::time::Instant::now();
+            loop {
+                let (s, alerts) = app.get_json("/v1/alerts?state=live").await;
+                assert_eq!(s, StatusCode::OK, "{alerts}");
+                let got = (
+                    live_alerts(&alerts, serial, "force gauge"),
+                    live_alerts(&alerts, serial, "spring rate"),
+                );
+                if got == want || t0.elapsed().as_secs() > 30 {
+                    return (got, alerts);
+                }
+                tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+            }
+        }
+    };
+    for (id, day, effects, want) in [
+        ("gz-offset", 1, vec!["sensor_offset:offset=3"], (1, 0)),
+        // The gauge's zero is fine in this one: that alert is resolved, the spring's opened.
+        ("gz-spring", 2, vec!["spring_rate:factor=1.3"], (0, 1)),
+        ("gz-clean", 3, vec![], (0, 0)),
+    ] {
+        let doc = gauge(id, day, &effects);
+        let r = app
+            .upload_json(&serde_json::to_vec(&doc.to_value()).expect("json"))
+            .await;
+        assert_eq!(r.status(), StatusCode::ACCEPTED);
+        let fit = app.wait_for_fit(id).await;
+        let named: Vec<&str> = fit["residual"]["effects"]
+            .as_array()
+            .expect("effects")
+            .iter()
+            .filter_map(|e| e["name"].as_str())
+            .collect();
+        let expected: Vec<&str> = effects
+            .iter()
+            .map(|e| e.split(':').next().unwrap_or(""))
+            .collect();
+        assert_eq!(named, expected, "{id}: {fit}");
+        let (got, alerts) = wait_alerts(want).await;
+        assert_eq!(got, want, "{id}: {alerts}");
+        // Neither is a joint's alarm: no joint alert on the pantograph.
+        let joints = alerts["alerts"]
+            .as_array()
+            .or_else(|| alerts.as_array())
+            .expect("alerts")
+            .iter()
+            .filter(|a| {
+                a["serial"] == serial && a["joint"].as_str().is_some_and(|j| j.starts_with('J'))
+            })
+            .count();
+        assert_eq!(joints, 0, "{id}: {alerts}");
+    }
+    app.stop().await;
+}
