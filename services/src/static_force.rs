@@ -55,6 +55,10 @@ pub struct StaticForceView {
     pub findings: Vec<FindingView>,
     /// Each revolute joint's dry μ used, with its source.
     pub parameters: Vec<MuSource>,
+    /// The latest force-gauge measurement of the pantograph (its latest `static_force` trace's
+    /// readings as stored, not refitted); absent when it has none. Filled by the API route.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub measured: Option<GaugeMeasurement>,
 }
 
 /// The type's limits (`[static_force]` of its data file), evaluated at `heights_m`.
@@ -205,6 +209,7 @@ fn view(
         },
         findings: findings.iter().map(FindingView::from).collect(),
         parameters,
+        measured: None,
         heights_m: c.heights_m,
         drive_torque_nm: c.drive_torque_nm,
         frictionless_n: c.frictionless_n,

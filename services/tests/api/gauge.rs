@@ -257,6 +257,16 @@ pub async fn a_gauge_measurement_is_stored_refused_and_drawn(b: Backend) {
         .expect("J3");
     assert_eq!(j3["source"], "combination J1+J3", "{j3}");
     assert_eq!(j3["trace_id"], "gauge-1", "{j3}");
+    // … and carries the gauge's readings as stored, split at the turn.
+    assert_eq!(v["measured"]["trace_id"], "gauge-1", "{v}");
+    assert_eq!(v["measured"]["gauge_resolution_n"], 0.1, "{v}");
+    let raise = v["measured"]["raise"].as_array().expect("raise");
+    let lower = v["measured"]["lower"].as_array().expect("lower");
+    assert_eq!((raise.len(), lower.len()), (15, 14), "{v}");
+    let h = doc.channel("H_m").expect("H_m");
+    let f = doc.channel("F_N").expect("F_N");
+    assert_eq!(floats(&raise[3]), [h[3], f[3]], "{v}");
+    assert_eq!(floats(&lower[0]), [h[15], f[15]], "{v}");
 
     // The pantograph page: the measured points over the predicted band, a class per branch,
     // one marker per reading, and the legend naming both.
