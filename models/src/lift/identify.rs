@@ -84,7 +84,9 @@ pub struct LiftFitOptions {
     pub attribution: AttributionOptions,
     /// Force-gauge records of the same pantograph fitted with the traces (issue 20, point 3;
     /// `lift::gauge`): their readings join the residual vector scaled by their noise; only the
-    /// dry μ of the moving revolute joints enter them (quasi-static). Empty (the default): none.
+    /// dry μ of the moving revolute joints enter them (quasi-static), and each record's zero, a
+    /// nuisance with the gauge fit's prior (`gauge::fit::SENSOR_OFFSET_PRIOR`). Empty (the
+    /// default): none.
     pub gauge_records: Vec<PooledGauge>,
 }
 
@@ -270,10 +272,13 @@ pub struct LiftFit {
     /// Combinations of friction parameters the traces inform together (their members are not
     /// separately identified), `lift::attribution`.
     pub combinations: Vec<Combination>,
-    /// Each pooled gauge record's model readings at the MAP, N ([`LiftFitOptions::gauge_records`]).
+    /// Each pooled gauge record's model readings at the MAP as the gauge reads them (its fitted
+    /// zero included), N ([`LiftFitOptions::gauge_records`]).
     pub gauge_fitted_n: Vec<Vec<f64>>,
     /// Each pooled gauge record's residual RMS, N.
     pub gauge_rmse_n: Vec<f64>,
+    /// Each pooled gauge record's fitted zero, N, with its interval (a nuisance).
+    pub gauge_offsets: Vec<super::gauge::GaugeEffectEstimate>,
 }
 
 /// What one trace can tell: its Fisher information at the model's parameters.
@@ -302,6 +307,9 @@ const MAX_MULTIPLE: f64 = 10.0;
 /// Forward-difference step of a pooled gauge record's Jacobian, in units of Table 4 (the gauge
 /// fit's, `lift::gauge::fit::FD_STEP`).
 const GAUGE_FD_STEP: f64 = super::gauge::fit::FD_STEP;
+
+/// The prior of a pooled gauge record's zero: the gauge fit's (`gauge::fit::GaugeEffect::prior`).
+const GAUGE_ZERO_PRIOR: EffectPrior = super::gauge::fit::SENSOR_OFFSET_PRIOR;
 
 /// The prior of a lift effect's parameter: normal with this mean and sd, within these bounds
 /// (physical units). `quadratic_drag` c_a: sd 5 N/(m/s)², in [0, 50]: still air gives
@@ -432,7 +440,10 @@ impl MapProblem<'_, '_> {
 
 impl Problem for MapProblem<'_, '_> {
     fn n_params(&self) -> usize {
-        self.fric.len() + self.traces.len() + self.effect_priors.len()
+        self.fric.len()
+            + self.traces.len()
+            + self.effect_priors.len()
+            + self.opts.gauge_records.len()
     }
     fn n_residuals(&self) -> usize {
         self.n_data + self.n_gauge + self.n_params()
@@ -525,15 +536,25 @@ impl Problem for MapProblem<'_, '_> {
                 row += 1;
             }
         }
-        // Pooled gauge records: (F_model − F)/σ_g, ∂/∂x of the dry μ by forward differences.
-        for (g, warm) in self.opts.gauge_records.iter().zip(self.gauge_warm) {
+        // Pooled gauge records: (F_model + b_g − F)/σ_g, ∂/∂x of the dry μ by forward
+        // differences, each record's zero b_g a nuisance (as the gauge fit's, `gauge::fit`).
+        let z0 = pf + self.traces.len() + self.effect_priors.len();
+        for (gi, (g, warm)) in self
+            .opts
+            .gauge_records
+            .iter()
+            .zip(self.gauge_warm)
+            .enumerate()
+        {
             let sigma = g.sigma_n();
+            let zero_n = x[z0 + gi];
             let ar = m.alpha_range_rad;
             let f = super::gauge::solve::forces_near(&m, ar, &g.drive, &g.record, warm)
                 .map_err(|e| e.to_string())?;
             let n = f.len();
             for (k, (a, b)) in f.iter().zip(&g.record.forces_n).enumerate() {
-                r[row + k] = (a - b) / sigma;
+                r[row + k] = (a + zero_n - b) / sigma;
+                jac[(row + k, z0 + gi)] = 1.0 / sigma;
             }
             for (i, p) in self.fric.iter().enumerate() {
                 let LiftParam::Dry(j) = p else { continue };
@@ -567,12 +588,24 @@ impl Problem for MapProblem<'_, '_> {
             jac[(row, e0 + e)] = 1.0 / pr.sd;
             row += 1;
         }
+        for gi in 0..self.opts.gauge_records.len() {
+            let pr = GAUGE_ZERO_PRIOR;
+            r[row] = (x[z0 + gi] - pr.mean) / pr.sd;
+            jac[(row, z0 + gi)] = 1.0 / pr.sd;
+            row += 1;
+        }
         Ok(())
     }
     fn lower_bounds(&self) -> Vec<f64> {
         let mut v = vec![0.0; self.fric.len()];
         v.extend(std::iter::repeat_n(f64::NEG_INFINITY, self.traces.len()));
         v.extend(self.effect_priors.iter().map(|p| p.lower));
+        v.extend(
+            self.opts
+                .gauge_records
+                .iter()
+                .map(|_| GAUGE_ZERO_PRIOR.lower),
+        );
         v
     }
     /// At most 10× Table 4 (20 prior sd): far beyond any worn joint, and it keeps trial steps
@@ -581,6 +614,12 @@ impl Problem for MapProblem<'_, '_> {
         let mut v = vec![MAX_MULTIPLE; self.fric.len()];
         v.extend(std::iter::repeat_n(f64::INFINITY, self.traces.len()));
         v.extend(self.effect_priors.iter().map(|p| p.upper));
+        v.extend(
+            self.opts
+                .gauge_records
+                .iter()
+                .map(|_| GAUGE_ZERO_PRIOR.upper),
+        );
         v
     }
 }
@@ -824,6 +863,11 @@ pub fn fit_map_in(
             "input-noise draws are not propagated through effect parameters".into(),
         ));
     }
+    if !opts.gauge_records.is_empty() && opts.input_noise_draws > 0 {
+        return Err(LiftFitError::Invalid(
+            "input-noise draws are not propagated through pooled gauge records".into(),
+        ));
+    }
     let ne = effect_priors.len();
     let mut with_offset = fric.clone();
     with_offset.push(LiftParam::TorqueOffset);
@@ -865,6 +909,8 @@ pub fn fit_map_in(
             .zip(&effect_priors)
             .map(|(p, pr)| p.get(model, 0.0).clamp(pr.lower, pr.upper)),
     );
+    // Each pooled gauge record's zero starts at 0.
+    x.extend(opts.gauge_records.iter().map(|_| 0.0));
     // Continuation in the horizon: driven open-loop by the recorded torque, a lift drifts away
     // from the data with the smallest friction error (the net stiffness is nearly zero), so
     // output error over the whole trace is far from quadratic around the baseline (J3 ×1.8
@@ -965,7 +1011,8 @@ pub fn fit_map_in(
     rep.evaluations += evaluations;
     rep.iterations += iterations;
     let e0 = pf + traces.len();
-    let p = e0 + ne;
+    let z0 = e0 + ne;
+    let p = z0 + opts.gauge_records.len();
     // Noise scale: the stated σ_H, or the residual RMS if the fit is worse than that.
     let ssr: f64 = rep.residuals[..n_data].iter().map(|v| v * v).sum();
     let kappa2 = (ssr / n_data as f64).max(1.0);
@@ -1000,8 +1047,10 @@ pub fn fit_map_in(
             opts.prior_relative_sd
         } else if i < e0 {
             opts.offset_prior_sd_nm
-        } else {
+        } else if i < z0 {
             effect_priors[i - e0].sd
+        } else {
+            GAUGE_ZERO_PRIOR.sd
         }
     };
     for i in 0..p {
@@ -1180,6 +1229,18 @@ pub fn fit_map_in(
         );
         row += n;
     }
+    let gauge_offsets = (0..opts.gauge_records.len())
+        .map(|gi| {
+            let (i, pr) = (z0 + gi, GAUGE_ZERO_PRIOR);
+            let (v, sd) = (rep.x[i], cov[(i, i)].max(0.0).sqrt());
+            super::gauge::GaugeEffectEstimate {
+                effect: super::gauge::GaugeEffect::SensorOffset,
+                value: v,
+                posterior_sd: sd,
+                ci95: [(v - Z95 * sd).max(pr.lower), (v + Z95 * sd).min(pr.upper)],
+            }
+        })
+        .collect();
     let mut gauge_fitted_n = Vec::new();
     let mut gauge_rmse_n = Vec::new();
     let mut row = n_data;
@@ -1201,6 +1262,7 @@ pub fn fit_map_in(
     Ok(LiftFit {
         gauge_fitted_n,
         gauge_rmse_n,
+        gauge_offsets,
         params,
         offsets,
         effects,

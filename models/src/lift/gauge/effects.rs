@@ -8,15 +8,22 @@
 //! - Excess: RMS(residual)/max(σ̂_d, σ₀). Whiteness: the pooled within-branch lag-1
 //!   autocorrelation ρ₁ against its one-sided p = [`crate::stats::WHITENESS_P`] bound for white
 //!   noise, z₀.₉₉₉/√m (m the pairs): a slow misfit makes neighbours alike.
-//! - Effects are tried when the excess exceeds the lift's [`EFFECT_TRY_RATIO`] (1.5) or the
-//!   residual is not white: each a refit with one more parameter ([`GaugeEffect`]). One is named
-//!   only when its refit's RMSE is at most [`MIN_IMPROVEMENT`] (half) of the plain fit's, its
-//!   interval excludes the null value (b = 0 N, k = 1), and its refit is back within the lift's
-//!   [`MODEL_ERROR_RATIO`] (3) of the noise; of those, the lowest BIC (n·ln(RSS/n) + k·ln n).
-//! - A named effect's fit replaces the plain one: the friction comes from the augmented fit, so
-//!   an offset gauge or another spring is a finding on the gauge or the spring, never a joint alarm.
-//! - Nothing named and the plain residual over [`MODEL_ERROR_RATIO`] or not white: `unexplained`,
-//!   the joints withheld (`report`); within it: `none`, the plain fit stands.
+//! - The base fit carries the gauge's zero b as a nuisance (`fit::GaugeFitOptions::fit_offset`:
+//!   an unseen tare error of 0.5 N bent the friction by 15–20 % without it). Both effects are
+//!   judged by the same margins — the fit with the effect's parameter at most [`MIN_IMPROVEMENT`]
+//!   (half) the RMSE of the same fit without it, the parameter's interval excluding its null
+//!   value (b = 0 N, k = 1), and the fit with it back within the lift's [`MODEL_ERROR_RATIO`] (3)
+//!   of the noise; one extra parameter each, so the lowest BIC is the lowest RMSE:
+//!   - `spring_rate`: tried (a refit with k) when the base residual exceeds the lift's
+//!     [`EFFECT_TRY_RATIO`] (1.5) of the noise or is not white;
+//!   - `sensor_offset`: b is always fitted; named when its interval excludes 0 and the same
+//!     fit without b leaves at least twice the RMSE. A zero within the noise is not named, and
+//!     still cannot bend the friction.
+//! - A named effect's fit is the one the joints come from: an offset gauge or another spring is
+//!   a finding on the gauge or the spring, never a joint alarm. `rmse_before` is the plain
+//!   model's (no zero, no k), `rmse_after` the final fit's.
+//! - The final residual over [`MODEL_ERROR_RATIO`] or not white: `unexplained`, the joints
+//!   withheld (`report`); otherwise `none` or the named effects.
 
 use super::super::dynamics::LiftModel;
 use super::super::static_force::DriveLine;
@@ -95,7 +102,7 @@ pub fn diagnose(record: &GaugeRecord, fitted_n: &[f64], floor_n: f64) -> GaugeRe
 pub enum GaugeVerdict {
     /// The plain model explains the record.
     None,
-    /// An effect explains it (its fit replaced the plain one).
+    /// An effect explains it (`spring_rate` when both are named; [`GaugeLoop::named`] lists all).
     Named(GaugeEffect),
     /// Structure remains that no effect explains: the joints are withheld.
     Unexplained,
@@ -106,16 +113,22 @@ pub enum GaugeVerdict {
 #[derive(Debug, Clone)]
 pub struct GaugeLoop {
     pub verdict: GaugeVerdict,
+    /// Every effect named, `spring_rate` first.
+    pub named: Vec<GaugeEffect>,
+    /// The fit the joints come from: the friction with the gauge's zero, and k if named.
     pub fit: GaugeFit,
     pub residual: GaugeResidual,
-    /// With a named effect: the plain fit and its diagnosis.
+    /// With a named effect: the plain model's fit (no zero, no k) and its diagnosis, for
+    /// `rmse_before` and plots.
     pub plain: Option<(GaugeFit, GaugeResidual)>,
-    /// Every effect tried: (effect, refit RMSE N, passed the margins).
-    pub tried: Vec<(GaugeEffect, f64, bool)>,
+    /// Every effect tried: (effect, RMSE with it N, RMSE without it N, named).
+    pub tried: Vec<(GaugeEffect, f64, f64, bool)>,
 }
 
-/// The plain fit of `record`, then, if it leaves a model error, each [`GaugeEffect`] (module
-/// doc). `opts.effect` is ignored (the loop sets it).
+/// The base fit of `record` (friction and the gauge's zero), then the vocabulary (module doc):
+/// `spring_rate` by a refit when the base residual shows a model error; `sensor_offset` when the
+/// fitted zero's interval excludes 0 and the fit without it leaves at least twice the RMSE.
+/// `opts.effect` and `opts.fit_offset` are ignored (the loop sets them).
 pub fn fit_with_effects(
     model: &LiftModel,
     alpha_range_rad: (f64, f64),
@@ -123,67 +136,88 @@ pub fn fit_with_effects(
     record: &GaugeRecord,
     opts: &GaugeFitOptions,
 ) -> Result<GaugeLoop, super::GaugeError> {
-    let plain_opts = GaugeFitOptions {
-        effect: None,
+    let with = |fit_offset: bool, effect: Option<GaugeEffect>| GaugeFitOptions {
+        fit_offset,
+        effect,
         ..opts.clone()
     };
-    let plain = fit_gauge_from(model, alpha_range_rad, drive, record, &plain_opts, None)?;
-    let res = diagnose(record, &plain.fitted_n, plain.noise_floor_n);
-    if !res.try_effects() {
-        return Ok(GaugeLoop {
-            verdict: GaugeVerdict::None,
-            fit: plain,
-            residual: res,
-            plain: None,
-            tried: Vec::new(),
-        });
-    }
-    let n = record.len() as f64;
+    let base = fit_gauge_from(
+        model,
+        alpha_range_rad,
+        drive,
+        record,
+        &with(true, None),
+        None,
+    )?;
+    let base_res = diagnose(record, &base.fitted_n, base.noise_floor_n);
     let mut tried = Vec::new();
-    let mut best: Option<(f64, GaugeEffect, GaugeFit, GaugeResidual)> = None;
-    for e in GaugeEffect::ALL {
-        let o = GaugeFitOptions {
-            effect: Some(e),
-            ..opts.clone()
-        };
-        // Warm at the plain fit's friction, the effect at its null value.
-        let mut start = plain.start_point();
-        start.push(e.null_value());
-        let fit = match fit_gauge_from(model, alpha_range_rad, drive, record, &o, Some(&start)) {
-            Ok(f) => f,
-            Err(super::GaugeError::Failed(_)) => continue,
-            Err(err) => return Err(err),
-        };
-        let r = diagnose(record, &fit.fitted_n, fit.noise_floor_n);
-        let passes = fit.rmse_n <= MIN_IMPROVEMENT * plain.rmse_n
-            && fit.effect.is_some_and(|x| x.excludes_null())
-            && r.excess_ratio <= MODEL_ERROR_RATIO;
-        tried.push((e, fit.rmse_n, passes));
-        if passes {
-            let bic = n * (fit.rmse_n * fit.rmse_n).max(f64::MIN_POSITIVE).ln() + n.ln();
-            if best.as_ref().is_none_or(|(b, ..)| bic < *b) {
-                best = Some((bic, e, fit, r));
+    let mut named = Vec::new();
+    let (mut fit, mut res) = (base.clone(), base_res);
+    if base_res.try_effects() {
+        let start = base.friction_start();
+        let o = with(true, Some(GaugeEffect::SpringRate));
+        match fit_gauge_from(model, alpha_range_rad, drive, record, &o, Some(&start)) {
+            Ok(k_fit) => {
+                let r = diagnose(record, &k_fit.fitted_n, k_fit.noise_floor_n);
+                let passes = k_fit.rmse_n <= MIN_IMPROVEMENT * base.rmse_n
+                    && k_fit.spring_rate.is_some_and(|k| k.excludes_null())
+                    && r.excess_ratio <= MODEL_ERROR_RATIO;
+                tried.push((GaugeEffect::SpringRate, k_fit.rmse_n, base.rmse_n, passes));
+                if passes {
+                    named.push(GaugeEffect::SpringRate);
+                    (fit, res) = (k_fit, r);
+                }
             }
+            Err(super::GaugeError::Failed(_)) => {}
+            Err(e) => return Err(e),
         }
     }
-    Ok(match best {
-        Some((_, e, fit, r)) => GaugeLoop {
-            verdict: GaugeVerdict::Named(e),
-            fit,
-            residual: r,
-            plain: Some((plain, res)),
-            tried,
-        },
-        None => GaugeLoop {
-            verdict: if res.trusted() {
-                GaugeVerdict::None
-            } else {
-                GaugeVerdict::Unexplained
-            },
-            fit: plain,
-            residual: res,
-            plain: None,
-            tried,
-        },
+    // The gauge's zero: named when its interval excludes 0 and the same fit without it leaves
+    // at least 1/MIN_IMPROVEMENT times the RMSE (BIC: one parameter for that much less RSS).
+    let mut plain = None;
+    if fit.offset.is_some_and(|b| b.excludes_null()) {
+        let start = fit.friction_start();
+        let k = fit.spring_rate.map(|_| GaugeEffect::SpringRate);
+        let o = with(false, k);
+        let free = fit_gauge_from(model, alpha_range_rad, drive, record, &o, Some(&start))?;
+        let passes =
+            fit.rmse_n <= MIN_IMPROVEMENT * free.rmse_n && res.excess_ratio <= MODEL_ERROR_RATIO;
+        tried.push((GaugeEffect::SensorOffset, fit.rmse_n, free.rmse_n, passes));
+        if passes {
+            named.push(GaugeEffect::SensorOffset);
+        }
+    }
+    if !named.is_empty() {
+        // The plain model (no zero, no k): the RMSE before and the curve for plots.
+        let start = base.friction_start();
+        let p = fit_gauge_from(
+            model,
+            alpha_range_rad,
+            drive,
+            record,
+            &with(false, None),
+            Some(&start),
+        )?;
+        let r = diagnose(record, &p.fitted_n, p.noise_floor_n);
+        plain = Some((p, r));
+    }
+    let verdict = match named.first() {
+        _ if !res.trusted() => GaugeVerdict::Unexplained,
+        Some(e) => GaugeVerdict::Named(*e),
+        None => GaugeVerdict::None,
+    };
+    if verdict == GaugeVerdict::Unexplained {
+        // Structure remains: no effect is named beside it (the verdict says the model misses
+        // something; a name would suggest it was found).
+        named.clear();
+        plain = None;
+    }
+    Ok(GaugeLoop {
+        verdict,
+        named,
+        fit,
+        residual: res,
+        plain,
+        tried,
     })
 }

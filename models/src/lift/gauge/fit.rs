@@ -5,8 +5,9 @@
 //! - Parameters: u_j = ln(μ_j/μ_j⁰) for the seven revolute joints that move (J6 is locked),
 //!   prior u_j ~ N(0, s²) with s = [`LiftFitOptions::default`]'s `prior_relative_sd` (0.5):
 //!   the lift's N(μ⁰, (s·μ⁰)²) to first order (d ln μ = dμ/μ), never negative. Bounds: μ within
-//!   [1 %, 10×] of Table 4 (the lift's upper bound). With an effect ([`GaugeEffect`]) one more
-//!   parameter, in its own units, with its prior.
+//!   [1 %, 10×] of Table 4 (the lift's upper bound). Besides: the gauge's zero b, N, always (a
+//!   nuisance, [`GaugeFitOptions::fit_offset`]), and the spring-rate factor k when the residual
+//!   loop tries it ([`GaugeEffect`]), each in its own units with its prior.
 //! - Residuals (F_model − F_meas)/σ₀ with σ₀ = max(`gauge_noise_n`, resolution/√12); Jacobian by
 //!   forward differences (step [`FD_STEP`]; the statics is cheap), an offset's analytically.
 //! - Noise: σ̂ = √(RSS/(n − p_eff)), p_eff = tr(A(A + P)⁻¹) the effective number of fitted
@@ -55,6 +56,14 @@ const MIN_MULTIPLE: f64 = 0.01;
 /// Highest μ fitted, × Table 4 (the lift fit's bound).
 const MAX_MULTIPLE: f64 = 10.0;
 
+/// The prior of the gauge's zero b, N ([`GaugeEffect::prior`]).
+pub const SENSOR_OFFSET_PRIOR: EffectPrior = EffectPrior {
+    mean: 0.0,
+    sd: 10.0,
+    lower: -50.0,
+    upper: 50.0,
+};
+
 /// An effect a gauge fit can carry besides the friction (`effects`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GaugeEffect {
@@ -90,12 +99,7 @@ impl GaugeEffect {
     /// per cent off; beyond 5× it is another pantograph.
     pub fn prior(self) -> EffectPrior {
         match self {
-            GaugeEffect::SensorOffset => EffectPrior {
-                mean: 0.0,
-                sd: 10.0,
-                lower: -50.0,
-                upper: 50.0,
-            },
+            GaugeEffect::SensorOffset => SENSOR_OFFSET_PRIOR,
             GaugeEffect::SpringRate => EffectPrior {
                 mean: 1.0,
                 sd: 0.5,
@@ -116,7 +120,15 @@ pub struct GaugeFitOptions {
     pub thresholds: DriftThresholds,
     /// The least noise assumed, N (`[static_force] gauge_noise_n`).
     pub noise_floor_n: f64,
-    /// An effect fitted with the friction; `None`: the plain model.
+    /// The gauge's zero b fitted with the friction, a nuisance as a lift's torque offset
+    /// (default true): measured, a 0.5 N tare error the fit without it cannot see (residual
+    /// 1.0–1.5× the noise) moved the J1+J3 level by −0.15 to −0.20 — the mean of the branches
+    /// carries friction through the branches' different reactions, and the fit bends the
+    /// friction to follow a shifted mean. With b fitted the level moved by < 10⁻⁴ and its sd
+    /// stayed 0.038 (`tests::probe_offset_bias`, seeds 600–604).
+    pub fit_offset: bool,
+    /// An effect fitted besides: `SpringRate` (k); `SensorOffset` is `fit_offset`. `None`: the
+    /// plain model.
     pub effect: Option<GaugeEffect>,
     pub lm: LmOptions,
     pub attribution: AttributionOptions,
@@ -130,6 +142,7 @@ impl Default for GaugeFitOptions {
             informed_factor: lift.informed_factor,
             thresholds: lift.thresholds,
             noise_floor_n: gauge_data().gauge_noise_n,
+            fit_offset: true,
             effect: None,
             // The statics is smooth and cheap: converge tightly (a step of 10⁻⁸ in ln μ is far
             // inside any posterior sd).
@@ -172,8 +185,11 @@ pub struct GaugeFit {
     pub params: Vec<ParamEstimate>,
     /// Combinations the record informs together (`lift::attribution`).
     pub combinations: Vec<Combination>,
-    pub effect: Option<GaugeEffectEstimate>,
-    /// The model's readings at the MAP (effect included), N, reading order.
+    /// The gauge's zero b, N, when fitted (`GaugeFitOptions::fit_offset`).
+    pub offset: Option<GaugeEffectEstimate>,
+    /// The drive characteristic's slope factor k, when fitted.
+    pub spring_rate: Option<GaugeEffectEstimate>,
+    /// The model's readings at the MAP (effects included), N, reading order.
     pub fitted_n: Vec<f64>,
     pub rmse_n: f64,
     /// The noise scale of the intervals, max(σ̂, σ₀), N.
@@ -184,7 +200,7 @@ pub struct GaugeFit {
     pub dof: f64,
     /// The t quantile the intervals use.
     pub t_quantile: f64,
-    /// Posterior correlations (friction in [`FITTED_JOINTS`] order, then the effect).
+    /// Posterior correlations (friction in [`FITTED_JOINTS`] order, then b, then k).
     pub posterior_correlation: DMatrix<f64>,
     pub iterations: usize,
     pub evaluations: usize,
@@ -192,13 +208,34 @@ pub struct GaugeFit {
 }
 
 impl GaugeFit {
-    /// The MAP in the fit's units (ln μ/μ⁰ per joint, then the effect): a warm start.
-    pub fn start_point(&self) -> Vec<f64> {
+    /// The friction's MAP in the fit's units (ln μ/μ⁰ per joint): a warm start.
+    pub fn friction_start(&self) -> Vec<f64> {
         self.params
             .iter()
             .map(|p| (p.map_value / p.baseline).ln())
-            .chain(self.effect.map(|e| e.value))
             .collect()
+    }
+
+    /// The estimate of `effect`, when fitted.
+    pub fn estimate(&self, effect: GaugeEffect) -> Option<GaugeEffectEstimate> {
+        match effect {
+            GaugeEffect::SensorOffset => self.offset,
+            GaugeEffect::SpringRate => self.spring_rate,
+        }
+    }
+}
+
+impl GaugeFitOptions {
+    /// The parameters fitted besides the friction, in order: b, then k.
+    pub fn extras(&self) -> Vec<GaugeEffect> {
+        let mut v = Vec::new();
+        if self.fit_offset || self.effect == Some(GaugeEffect::SensorOffset) {
+            v.push(GaugeEffect::SensorOffset);
+        }
+        if self.effect == Some(GaugeEffect::SpringRate) {
+            v.push(GaugeEffect::SpringRate);
+        }
+        v
     }
 }
 
@@ -210,22 +247,30 @@ struct GaugeProblem<'a> {
     warm: &'a [Warm],
     baseline: [f64; FITTED_JOINTS.len()],
     prior_sd: f64,
-    effect: Option<(GaugeEffect, EffectPrior)>,
+    /// Parameters besides the friction, in order, with their priors.
+    extras: Vec<(GaugeEffect, EffectPrior)>,
     sigma_n: f64,
 }
 
 impl GaugeProblem<'_> {
-    /// The model's readings at x (ln μ/μ⁰, then the effect), N.
+    /// The index of `effect` among the parameters, when fitted.
+    fn at(&self, effect: GaugeEffect) -> Option<usize> {
+        self.extras
+            .iter()
+            .position(|(e, _)| *e == effect)
+            .map(|k| FITTED_JOINTS.len() + k)
+    }
+
+    /// The model's readings at x (ln μ/μ⁰, then b and k as fitted), N.
     fn forces(&self, x: &[f64]) -> Result<Vec<f64>, String> {
         let mut m = self.model.clone();
         for (i, j) in FITTED_JOINTS.iter().enumerate() {
             m.friction.dry_mu[j.index()] = self.baseline[i] * x[i].exp();
         }
-        let pf = FITTED_JOINTS.len();
-        let (drive, offset) = match self.effect {
-            Some((GaugeEffect::SpringRate, _)) => (spring_rate_drive(self.drive, x[pf]), 0.0),
-            Some((GaugeEffect::SensorOffset, _)) => (*self.drive, x[pf]),
-            None => (*self.drive, 0.0),
+        let offset = self.at(GaugeEffect::SensorOffset).map_or(0.0, |i| x[i]);
+        let drive = match self.at(GaugeEffect::SpringRate) {
+            Some(i) => spring_rate_drive(self.drive, x[i]),
+            None => *self.drive,
         };
         let f = forces_near(&m, self.alpha_range_rad, &drive, self.record, self.warm)
             .map_err(|e| e.to_string())?;
@@ -235,7 +280,7 @@ impl GaugeProblem<'_> {
 
 impl Problem for GaugeProblem<'_> {
     fn n_params(&self) -> usize {
-        FITTED_JOINTS.len() + usize::from(self.effect.is_some())
+        FITTED_JOINTS.len() + self.extras.len()
     }
     fn n_residuals(&self) -> usize {
         self.record.len() + self.n_params()
@@ -248,10 +293,9 @@ impl Problem for GaugeProblem<'_> {
             *rk = (fk - mk) / self.sigma_n;
         }
         jac.fill(0.0);
+        let offset_at = self.at(GaugeEffect::SensorOffset);
         for i in 0..p {
-            if i == FITTED_JOINTS.len()
-                && matches!(self.effect, Some((GaugeEffect::SensorOffset, _)))
-            {
+            if Some(i) == offset_at {
                 jac.view_mut((0, i), (n, 1)).fill(1.0 / self.sigma_n);
                 continue;
             }
@@ -266,8 +310,8 @@ impl Problem for GaugeProblem<'_> {
             r[n + i] = x[i] / self.prior_sd;
             jac[(n + i, i)] = 1.0 / self.prior_sd;
         }
-        if let Some((_, pr)) = self.effect {
-            let i = FITTED_JOINTS.len();
+        for (k, (_, pr)) in self.extras.iter().enumerate() {
+            let i = FITTED_JOINTS.len() + k;
             r[n + i] = (x[i] - pr.mean) / pr.sd;
             jac[(n + i, i)] = 1.0 / pr.sd;
         }
@@ -275,19 +319,18 @@ impl Problem for GaugeProblem<'_> {
     }
     fn lower_bounds(&self) -> Vec<f64> {
         let mut v = vec![MIN_MULTIPLE.ln(); FITTED_JOINTS.len()];
-        v.extend(self.effect.map(|(_, p)| p.lower));
+        v.extend(self.extras.iter().map(|(_, p)| p.lower));
         v
     }
     fn upper_bounds(&self) -> Vec<f64> {
         let mut v = vec![MAX_MULTIPLE.ln(); FITTED_JOINTS.len()];
-        v.extend(self.effect.map(|(_, p)| p.upper));
+        v.extend(self.extras.iter().map(|(_, p)| p.upper));
         v
     }
 }
 
 /// MAP fit of `record` with `model` (its Table 4 friction the prior's centre) driven by `drive`
-/// (module doc). `start`: where the LM starts (ln μ/μ⁰ per joint, then the effect); `None`:
-/// Table 4 and the effect's null value.
+/// (module doc), from Table 4 and b = 0, k = 1.
 pub fn fit_gauge(
     model: &LiftModel,
     alpha_range_rad: (f64, f64),
@@ -298,7 +341,8 @@ pub fn fit_gauge(
     fit_gauge_from(model, alpha_range_rad, drive, record, opts, None)
 }
 
-/// [`fit_gauge`] from `start` (see there).
+/// [`fit_gauge`] with the friction started at `start` (ln μ/μ⁰ per joint, [`FITTED_JOINTS`]
+/// order; b and k start at 0 and 1); `None`: Table 4.
 pub fn fit_gauge_from(
     model: &LiftModel,
     alpha_range_rad: (f64, f64),
@@ -322,7 +366,8 @@ pub fn fit_gauge_from(
     }
     let warm = warm_starts(model, alpha_range_rad, drive, record)?;
     let sigma0 = opts.noise_floor_n.max(record.resolution_n / 12f64.sqrt());
-    let effect = opts.effect.map(|e| (e, e.prior()));
+    let extras: Vec<(GaugeEffect, EffectPrior)> =
+        opts.extras().into_iter().map(|e| (e, e.prior())).collect();
     let mut problem = GaugeProblem {
         model,
         alpha_range_rad,
@@ -331,16 +376,16 @@ pub fn fit_gauge_from(
         warm: &warm,
         baseline,
         prior_sd: s,
-        effect,
+        extras: extras.clone(),
         sigma_n: sigma0,
     };
     let p = problem.n_params();
     let pf = FITTED_JOINTS.len();
     let mut x0 = vec![0.0; pf];
-    x0.extend(opts.effect.map(|e| e.null_value()));
-    if let Some(st) = start.filter(|st| st.len() == p && st.iter().all(|v| v.is_finite())) {
+    if let Some(st) = start.filter(|st| st.len() == pf && st.iter().all(|v| v.is_finite())) {
         x0.copy_from_slice(st);
     }
+    x0.extend(extras.iter().map(|(e, _)| e.null_value()));
     let rep = minimize(&mut problem, &x0, &opts.lm);
     if let Termination::EvaluationFailed(e) = &rep.termination {
         return Err(GaugeError::Failed(e.clone()));
@@ -354,7 +399,7 @@ pub fn fit_gauge_from(
             if i < pf {
                 1.0 / (s * s)
             } else {
-                1.0 / effect.map_or(1.0, |(_, pr)| pr.sd).powi(2)
+                1.0 / extras[i - pf].1.sd.powi(2)
             }
         })
         .collect();
@@ -439,16 +484,18 @@ pub fn fit_gauge_from(
             }
         })
         .collect();
-    let effect_est = effect.map(|(e, pr)| {
-        let v = rep.x[pf];
-        let sd = (cov_u[(pf, pf)] * scale).max(0.0).sqrt();
-        GaugeEffectEstimate {
-            effect: e,
+    let extra_est = |effect: GaugeEffect| {
+        let k = extras.iter().position(|(e, _)| *e == effect)?;
+        let (i, pr) = (pf + k, extras[k].1);
+        let v = rep.x[i];
+        let sd = (cov_u[(i, i)] * scale).max(0.0).sqrt();
+        Some(GaugeEffectEstimate {
+            effect,
             value: v,
             posterior_sd: sd,
             ci95: [(v - Z95 * sd).max(pr.lower), (v + Z95 * sd).min(pr.upper)],
-        }
-    });
+        })
+    };
     let fitted_n: Vec<f64> = rep.residuals[..n]
         .iter()
         .zip(&record.forces_n)
@@ -458,7 +505,8 @@ pub fn fit_gauge_from(
     Ok(GaugeFit {
         params: estimates,
         combinations: attribution.combinations,
-        effect: effect_est,
+        offset: extra_est(GaugeEffect::SensorOffset),
+        spring_rate: extra_est(GaugeEffect::SpringRate),
         fitted_n,
         rmse_n,
         noise_n: sigma0 * kappa2.sqrt(),

@@ -11,14 +11,15 @@
 //!   identified, `unknown`. J9 has no dry friction: 0, no baseline;
 //! - each informed combination: in `combinations` and as an entry of `joints` named by its
 //!   members (`J1+J3`), the level in the `dry` slot, unit `× Table 4`, baseline 1;
-//! - `rmse` in N; `residual.effects` the named effect (`sensor_offset`: `offset_n`,
+//! - `rmse` in N; `residual.effects` the named effects (`sensor_offset`: `offset_n`,
 //!   `offset_n_ci95`; `spring_rate`: `rate_factor`, `rate_factor_ci95`) with `rmse_before` the
-//!   plain fit's and `rmse_after` the augmented one's; `verdict: "unexplained"` and every joint
+//!   plain model's (no zero, no k) and `rmse_after` the final fit's; `verdict: "unexplained"` and every joint
 //!   withheld (not identified, `unknown`) when the plain model leaves a model error no effect
 //!   explains (`effects`); `excess_ratio` the final residual's RMS over the noise; no held-out test
 //!   (`holdout_note` says why, the pair repeats the RMSE);
-//! - `fit`: `sensor_offset` the gauge's zero (N) when `sensor_offset` is named, else 0 with no
-//!   interval; `interval_inflation` the noise scale over σ₀; release fields: the first reading.
+//! - `fit`: `sensor_offset` the gauge's zero b (N) with its interval, always fitted (a nuisance,
+//!   as a lift's torque offset; named as the `sensor_offset` effect only by its margins);
+//!   `interval_inflation` the noise scale over σ₀; release fields: the first reading.
 
 use std::sync::OnceLock;
 
@@ -182,12 +183,15 @@ pub fn gauge_result(
         }
     }
     let rmse_after = fit.rmse_n;
-    let (rmse_before, effects) = match (&lp.plain, fit.effect) {
-        (Some((plain, _)), Some(e)) => (plain.rmse_n, vec![effect_result(e)]),
-        _ => (rmse_after, Vec::new()),
-    };
+    let rmse_before = lp.plain.as_ref().map_or(rmse_after, |(p, _)| p.rmse_n);
+    let effects: Vec<EffectResult> = lp
+        .named
+        .iter()
+        .filter_map(|e| fit.estimate(*e))
+        .map(effect_result)
+        .collect();
     let res = &lp.residual;
-    let offset = fit.effect.filter(|e| e.effect == GaugeEffect::SensorOffset);
+    let offset = fit.offset;
     FitResult {
         trace_id: trace_id.to_string(),
         joints,

@@ -94,3 +94,31 @@ pub fn simulate_gauge(
         .collect();
     GaugeRecord::new(heights_m.to_vec(), forces_n, opts.resolution_n)
 }
+
+/// A gauge record of the built-in 160EC with each `(joint, factor)` of `dry_factors` applied to
+/// its Table 4 dry μ, `per_branch` readings up and down the working range
+/// ([`reading_heights`]), driven by the type's drive line: for the CLI's `simulate` and the demo.
+pub fn simulate_builtin_gauge(
+    dry_factors: &[(super::super::topology::RevJoint, f64)],
+    per_branch: usize,
+    opts: &GaugeSimOptions,
+) -> Result<GaugeRecord, GaugeError> {
+    let g = super::super::geometry::builtin_160ec();
+    let mut model = LiftModel::new(g);
+    for (j, k) in dry_factors {
+        if !(k.is_finite() && *k >= 0.0) {
+            return Err(GaugeError::Model(format!(
+                "dry friction factor {k} of {} must be finite and >= 0",
+                j.name()
+            )));
+        }
+        model.friction.dry_mu[j.index()] *= k;
+    }
+    simulate_gauge(
+        &model,
+        (g.alpha_min_rad, g.alpha_max_rad),
+        &DriveLine::from_lift_test(g),
+        &reading_heights(per_branch),
+        opts,
+    )
+}

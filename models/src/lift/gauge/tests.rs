@@ -67,6 +67,33 @@ fn describe(c: &Combination) -> String {
     )
 }
 
+/// The built-in type's simulation: the same record as the general one, seeded; a bad factor is
+/// an error, not a panic.
+#[test]
+fn the_builtin_simulation_is_the_general_one() {
+    let (base, drive, ar) = setup();
+    let opts = GaugeSimOptions {
+        seed: 9,
+        ..GaugeSimOptions::default()
+    };
+    let drift = [(RevJoint::J3, 2.0)];
+    let a = simulate_builtin_gauge(&drift, 10, &opts).unwrap();
+    let b = simulate_gauge(
+        &drifted(&base, &drift),
+        ar,
+        &drive,
+        &reading_heights(10),
+        &opts,
+    )
+    .unwrap();
+    assert_eq!(a, b);
+    assert_eq!(a.len(), 20);
+    assert!(simulate_builtin_gauge(&[(RevJoint::J1, f64::NAN)], 10, &opts).is_err());
+    // Too few readings per branch: the record's own refusal.
+    let e = simulate_builtin_gauge(&[], 2, &opts).unwrap_err();
+    assert_eq!(e.field(), Some("channels.H_m"));
+}
+
 #[test]
 fn the_record_splits_at_the_first_highest_reading() {
     let h = reading_heights(6);
@@ -226,7 +253,7 @@ fn a_baseline_gauge_record_fits_to_level_one() {
 /// Friction drifts fitted back, seeds 100–119 each (80 records): the combination's interval
 /// holds the level of the truth (computed with the reported weights) on at least 18 of 20, and a
 /// level whose truth lies beyond the watch band is flagged on every record, one inside it on none.
-/// Measured: 20/20 covered for each drift, RMS z 0.51–0.72 (the interval carries the prior
+/// Measured: 20/20 covered for each drift, RMS z 0.25–0.73 (the interval carries the prior
 /// spread of the joints outside the level, which the data pin only through the whole gap).
 #[test]
 fn a_friction_drift_is_fitted_back_and_flagged() {
@@ -284,7 +311,7 @@ fn an_offset_gauge_is_named_not_a_friction_alarm() {
     for seed in 200..205 {
         let rec = record(&base, seed, 5.0, 1.0);
         let lp = fit_with_effects(&base, ar, &drive, &rec, &GaugeFitOptions::default()).unwrap();
-        let e = lp.fit.effect.expect("an effect");
+        let e = lp.fit.offset.expect("b is fitted");
         eprintln!(
             "seed {seed}: {:?} b {:.3} [{:.3}, {:.3}] N; RMSE {:.3} → {:.3} N; tried {:?}",
             lp.verdict,
@@ -331,7 +358,7 @@ fn another_spring_rate_is_named() {
     for seed in 300..305 {
         let rec = record(&base, seed, 0.0, 1.3);
         let lp = fit_with_effects(&base, ar, &drive, &rec, &GaugeFitOptions::default()).unwrap();
-        let e = lp.fit.effect.expect("an effect");
+        let e = lp.fit.spring_rate.expect("k was fitted");
         eprintln!(
             "seed {seed}: {:?} k {:.4} [{:.4}, {:.4}]; RMSE {:.3} → {:.3} N; tried {:?}",
             lp.verdict,
@@ -408,12 +435,14 @@ fn the_report_has_every_joint_and_the_combination() {
 }
 
 /// Pooling with lifts: a realistic-noise reference lift (seed 11) of a pantograph with J3 and J1
-/// dry ×2, fitted alone and with a gauge record of the same pantograph (seed 11;
-/// `LiftFitOptions::gauge_records`): the gauge's readings join the fit (their RMSE at the gauge's
-/// noise). Measured: the gauge informs the same direction as the lift (J1 0.13, J3 0.87), so the
+/// dry ×2, fitted alone and with a gauge record of the same pantograph (seed 11, its zero off by
+/// 2 N; `LiftFitOptions::gauge_records`): the gauge's readings join the fit (their RMSE at the
+/// gauge's noise, the zero's interval holding 2 N). Measured: the gauge informs the same direction as the lift (J1 0.13, J3 0.87), so the
 /// J1+J3 level hardly narrows (sd 0.0308 → 0.0305: what is left is the prior spread of the joints
-/// outside it); what pooling adds is the members apart — J1 dry sd 0.319 → 0.205, J3 0.057 →
-/// 0.042 (× Table 4). The pooled level lies within 3 posterior sd of the truth.
+/// outside it); what pooling adds is the members apart — J1 dry sd 0.319 → 0.251, J3 0.057 →
+/// 0.048 (× Table 4; with the gauge's zero fixed at 0 instead of fitted, 0.205 and 0.042, the
+/// mean of the branches then counting as friction information). The pooled level lies within 3
+/// posterior sd of the truth.
 #[test]
 fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
     use crate::lift::identify::{LiftFit, LiftFitOptions, LiftTrace, PooledGauge, fit_map};
@@ -429,7 +458,8 @@ fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
         inputs: rec.inputs(),
         strip_height_m: &rec.strip_height_m,
     };
-    let gauge = record(&truth, 11, 0.0, 1.0);
+    // The gauge's zero off by 2 N besides: each pooled record's zero is a nuisance of the fit.
+    let gauge = record(&truth, 11, 2.0, 1.0);
     let own = fit_gauge(&base, ar, &drive, &gauge, &GaugeFitOptions::default()).unwrap();
     let c = &own.combinations[0];
     let lift_opts = LiftFitOptions::default();
@@ -495,6 +525,12 @@ fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
     assert!(pooled.gauge_rmse_n[0] < 0.35, "{}", pooled.gauge_rmse_n[0]);
     assert_eq!(pooled.gauge_fitted_n[0].len(), gauge.len());
     assert!(sp <= sa, "pooled sd {sp} vs lift alone {sa}");
+    let b = pooled.gauge_offsets[0];
+    eprintln!(
+        "pooled gauge zero {:.3} [{:.3}, {:.3}] N",
+        b.value, b.ci95[0], b.ci95[1]
+    );
+    assert!(b.ci95[0] <= 2.0 && 2.0 <= b.ci95[1], "{b:?}");
     let sd_of = |f: &LiftFit, j: RevJoint| {
         let e = f
             .params
@@ -503,7 +539,7 @@ fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
             .unwrap();
         e.posterior_sd / e.baseline
     };
-    for (j, most) in [(RevJoint::J1, 0.8), (RevJoint::J3, 0.85)] {
+    for (j, most) in [(RevJoint::J1, 0.9), (RevJoint::J3, 0.9)] {
         let (a, p) = (sd_of(&alone, j), sd_of(&pooled, j));
         assert!(p < most * a, "{j:?}: pooled sd {p} vs lift alone {a}");
     }
@@ -589,4 +625,81 @@ fn one_lift_and_one_gauge_record_pool_in_the_report() {
     // A lift alone is no pool; a gauge record without an id is refused.
     assert!(fit_pooled_lift_and_gauge_traces(&[lift], &ids, &[], &[], 30.0, &th).is_err());
     assert!(fit_pooled_lift_and_gauge_traces(&[lift], &ids, &[gch], &[], 30.0, &th).is_err());
+}
+
+/// Measurement probe (ignored; `cargo test -p pantowatch-models --lib gauge::tests::probe --
+/// --ignored --nocapture`): at twice the noise and a coarse gauge, and for small effects, what is
+/// named and what is covered. Its figures are in the module doc.
+#[test]
+#[ignore]
+fn probe_noise_and_small_effects() {
+    let (base, drive, ar) = setup();
+    let truth = drifted(&base, &[(RevJoint::J3, 2.0), (RevJoint::J1, 2.0)]);
+    for (sd, q) in [(0.2, 0.1), (0.4, 0.1), (0.4, 0.5)] {
+        for (name, m, b, k) in [
+            ("baseline", &base, 0.0, 1.0),
+            ("J1,J3 x2", &truth, 0.0, 1.0),
+            ("b +1 N", &base, 1.0, 1.0),
+            ("b +2 N", &base, 2.0, 1.0),
+            ("k 1.02", &base, 0.0, 1.02),
+            ("k 1.05", &base, 0.0, 1.05),
+            ("k 1.1", &base, 0.0, 1.1),
+        ] {
+            let (mut named, mut covered, mut flagged, mut unexplained) = (0, 0, 0, 0);
+            for seed in 500..510 {
+                let opts = GaugeSimOptions {
+                    seed,
+                    noise_sd_n: sd,
+                    resolution_n: q,
+                    offset_n: b,
+                    spring_rate_factor: k,
+                };
+                let rec =
+                    simulate_gauge(m, ar, &drive, &reading_heights(PER_BRANCH), &opts).unwrap();
+                let lp =
+                    fit_with_effects(&base, ar, &drive, &rec, &GaugeFitOptions::default()).unwrap();
+                named += usize::from(matches!(lp.verdict, GaugeVerdict::Named(_)));
+                unexplained += usize::from(lp.verdict == GaugeVerdict::Unexplained);
+                let c = &lp.fit.combinations[0];
+                let level = true_level(c, m, &base);
+                covered += usize::from(c.ci95[0] <= level && level <= c.ci95[1]);
+                flagged += usize::from(matches!(c.status, Status::Watch | Status::Alarm));
+            }
+            eprintln!(
+                "σ {sd} N, q {q} N, {name}: named {named}/10, unexplained {unexplained}/10, \
+                 level covered {covered}/10, flagged {flagged}/10"
+            );
+        }
+    }
+}
+
+/// Measurement probe (ignored): how far an offset the loop does not name moves the plain fit's
+/// level (σ 0.2 N, seeds 600–604).
+#[test]
+#[ignore]
+fn probe_offset_bias() {
+    let (base, drive, ar) = setup();
+    for b in [-1.0, 0.5, 1.0, 2.0, 0.0] {
+        let mut shift = Vec::new();
+        for seed in 600..605 {
+            let clean = record(&base, seed, 0.0, 1.0);
+            let off = record(&base, seed, b, 1.0);
+            let o = GaugeFitOptions {
+                fit_offset: std::env::var("GAUGE_PROBE_OFFSET").is_ok(),
+                ..GaugeFitOptions::default()
+            };
+            let f0 = fit_gauge(&base, ar, &drive, &clean, &o).unwrap();
+            let f1 = fit_gauge(&base, ar, &drive, &off, &o).unwrap();
+            let r = diagnose(&off, &f1.fitted_n, f1.noise_floor_n);
+            let c = &f1.combinations[0];
+            shift.push(format!(
+                "{:+.4} ±{:.3} (excess {:.2}, ρ1 {:.2})",
+                c.value - f0.combinations[0].value,
+                c.posterior_sd,
+                r.excess_ratio,
+                r.rho1
+            ));
+        }
+        eprintln!("b {b:+} N: level shift {}", shift.join(", "));
+    }
 }
