@@ -163,6 +163,9 @@ pub async fn after_fit(
     if meta.kind == "lift" {
         actions.extend(lift_sensor_finding(store, &meta, serial, trace_id, fit_id, result).await?);
     }
+    if meta.kind == crate::trace::STATIC_FORCE {
+        actions.extend(gauge_findings(store, &meta, serial, trace_id, fit_id, result).await?);
+    }
     actions.extend(static_force_finding(store, &meta, serial, trace_id, fit_id).await?);
     Ok(actions)
 }
@@ -252,6 +255,93 @@ async fn raise_logged(store: &Store, new: &NewAlert) -> Result<AlertAction, Stor
         tracing::info!(alert = a.id, serial = %new.serial, joint = %new.joint, severity = %a.severity, "alert raised");
     }
     Ok(AlertAction::Raised(Box::new(out)))
+}
+
+/// The alert name of a force gauge's zero found off (`sensor_offset` named by a `static_force`
+/// fit; one live alert per pantograph).
+pub const GAUGE_ZERO: &str = "force gauge";
+/// The alert name of a drive spring whose rate differs from the type's (`spring_rate` named by a
+/// `static_force` fit; one live alert per pantograph).
+pub const SPRING_RATE: &str = "spring rate";
+
+/// What a `static_force` fit's residual loop names (issue 20) is a finding on the pantograph, not
+/// on a joint: `sensor_offset` (the gauge's zero, N) opens (or updates) one `watch` alert named
+/// [`GAUGE_ZERO`] — the measuring chain; `spring_rate` (the drive characteristic's slope × the
+/// type's) one named [`SPRING_RATE`] — the pantograph's spring. A later gauge test of the
+/// pantograph that does not name one, with a residual the model explains, resolves its alert.
+async fn gauge_findings(
+    store: &Store,
+    meta: &crate::store::TraceMeta,
+    serial: &str,
+    trace_id: &str,
+    fit_id: i64,
+    result: &serde_json::Value,
+) -> Result<Vec<AlertAction>, StoreError> {
+    let residual = result.get("residual");
+    let effects: Vec<&serde_json::Value> = residual
+        .and_then(|r| r.get("effects"))
+        .and_then(serde_json::Value::as_array)
+        .map(|a| a.iter().collect())
+        .unwrap_or_default();
+    let explained = residual
+        .and_then(|r| r.get("verdict"))
+        .is_none_or(serde_json::Value::is_null);
+    let mut actions = Vec::new();
+    for (finding, effect, key, unit) in [
+        (GAUGE_ZERO, "sensor_offset", "offset_n", "N"),
+        (SPRING_RATE, "spring_rate", "rate_factor", "× the type's"),
+    ] {
+        let named = effects
+            .iter()
+            .find(|e| e.get("name").and_then(serde_json::Value::as_str) == Some(effect));
+        match named {
+            Some(e) => {
+                let p = e.get("params");
+                let v = p
+                    .and_then(|p| p.get(key))
+                    .and_then(serde_json::Value::as_f64);
+                let ci = p
+                    .and_then(|p| p.get(format!("{key}_ci95")))
+                    .and_then(serde_json::Value::as_array)
+                    .map(|a| a.iter().filter_map(serde_json::Value::as_f64).collect())
+                    .unwrap_or_else(Vec::new);
+                let value = match (v, ci.as_slice()) {
+                    (Some(v), [lo, hi]) => format!(" {v:.3} {unit} [{lo:.3}, {hi:.3}]"),
+                    (Some(v), _) => format!(" {v:.3} {unit}"),
+                    _ => String::new(),
+                };
+                let what = if finding == GAUGE_ZERO {
+                    "the force gauge's zero is off — check the gauge; not a joint finding"
+                } else {
+                    "the drive spring's rate differs from the type's — check the spring; not a \
+                     joint finding"
+                };
+                let reason = format!("{effect}{value}: {what}");
+                let evidence = json!({
+                    "model_version": result.pointer("/fit/model_version"),
+                    "fit_id": fit_id,
+                    "trace_id": trace_id,
+                    "recorded_at": meta.recorded_at,
+                    "effect": e,
+                    "residual": residual,
+                });
+                let new = finding_alert(serial, finding, meta, trace_id, reason, evidence);
+                actions.push(raise_logged(store, &new).await?);
+            }
+            None if explained => {
+                let note = format!("no {effect} in gauge test {trace_id}");
+                if let Some(a) = store
+                    .resolve_joint_alert(serial, finding, trace_id, &note)
+                    .await?
+                {
+                    tracing::info!(alert = a.id, serial, finding, "gauge finding resolved");
+                    actions.push(AlertAction::Resolved { alert_id: a.id });
+                }
+            }
+            None => {}
+        }
+    }
+    Ok(actions)
 }
 
 /// The alert name of a lift's height-channel finding (one live alert per pantograph).

@@ -1,10 +1,12 @@
 //! The fit of one trace document: the models' identification and the contract's fit result.
-//! Pure CPU work (pendulum and slider 5–30 ms, lift ~0.5 s, quadrangle swing ~1–3 s): async callers run it with
+//! Pure CPU work (pendulum and slider 5–30 ms, lift ~0.5 s, quadrangle swing ~1–3 s, force gauge ~35 ms in a debug build): async callers run it with
 //! `tokio::task::spawn_blocking`, under a budget ([`fit_document_within`]).
 
 use pantowatch_models::budget::{Budget, Exhausted};
 use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::identify::{FitOptions, FitOutcome};
+use pantowatch_models::lift::gauge::report::GaugeChannels as ModelGaugeChannels;
+use pantowatch_models::lift::gauge::{GaugeReport, fit_gauge_trace};
 use pantowatch_models::lift::report::{LiftReport, fit_lift_trace};
 use pantowatch_models::quadrangle::report::{QuadReport, fit_quadrangle_trace};
 use pantowatch_models::report::{FitCurve, FitResult};
@@ -111,6 +113,17 @@ pub fn fit_document_with_curve(
                 curve,
             })
         }
+        Kind::StaticForce => {
+            // The gauge's readings in the order taken: measured and modelled force over the
+            // readings' times (raising, then lowering).
+            let rep = fit_static_force(doc, thresholds)?;
+            let t = doc.channel("t_s").unwrap_or_default();
+            let curve = FitCurve::thinned("F_N", "N", t, &rep.record.forces_n, &rep.fit.fitted_n);
+            Ok(Fitted {
+                result: rep.result,
+                curve,
+            })
+        }
         Kind::Pendulum | Kind::Slider => {
             let (test, _) = doc.joint_test().map_err(FitFailure::Invalid)?;
             let (result, o) = fit_with_outcome(doc, thresholds)?;
@@ -139,6 +152,30 @@ pub fn fit_document_with_curve(
             Ok(Fitted { result, curve })
         }
     }
+}
+
+/// Fits a `static_force` document (a force gauge's raising and lowering readings, issue 20):
+/// the MAP fit of the revolute joints' dry friction from the hysteresis, with the residual
+/// loop's `sensor_offset` and `spring_rate` (`models::lift::gauge` holds the mapping: every
+/// joint J1…J9 and the combination it informs, as a lift's result).
+pub fn fit_static_force(
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+) -> Result<GaugeReport, FitFailure> {
+    let g = doc.static_force_channels().map_err(FitFailure::Invalid)?;
+    let channels = ModelGaugeChannels {
+        strip_height_m: g.strip_height_m,
+        force_n: g.force_n,
+        resolution_n: g.gauge_resolution_n,
+    };
+    let id = doc.trace_id.clone().unwrap_or_default();
+    fit_gauge_trace(&channels, thresholds, &id).map_err(|e| match e.field_path() {
+        Some(field) => FitFailure::Invalid(TraceError {
+            field,
+            message: e.to_string(),
+        }),
+        None => FitFailure::Model(e.to_string()),
+    })
 }
 
 /// Fits a `lift` document: the complete-pantograph MAP identification (Table 4 prior), every
@@ -184,6 +221,13 @@ pub fn fit_with_finding(
         Kind::QuadrangleSwing => {
             return Err(FitFailure::Unsupported(
                 "a quadrangle swing has no single-joint fit outcome: fit it with `fit_quadrangle`"
+                    .into(),
+            ));
+        }
+        Kind::StaticForce => {
+            return Err(FitFailure::Unsupported(
+                "a static_force test has no single-joint fit outcome: fit it with \
+                 `fit_static_force`"
                     .into(),
             ));
         }

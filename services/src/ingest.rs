@@ -216,13 +216,8 @@ fn outcome_label(o: &InsertOutcome) -> &'static str {
 
 /// The stored trace as a document again (metadata + decoded samples), for fits and downloads.
 pub fn stored_doc(meta: &TraceMeta, channels: Vec<(String, Vec<f64>)>) -> Result<TraceDoc, String> {
-    let kind = match meta.kind.as_str() {
-        "pendulum" => Kind::Pendulum,
-        "slider" => Kind::Slider,
-        "lift" => Kind::Lift,
-        crate::trace::QUADRANGLE_SWING => Kind::QuadrangleSwing,
-        other => return Err(format!("stored trace has unknown kind `{other}`")),
-    };
+    let kind = Kind::parse(&meta.kind)
+        .ok_or_else(|| format!("stored trace has unknown kind `{}`", meta.kind))?;
     let test: Value = serde_json::from_str(&meta.test_json)
         .map_err(|e| format!("stored test object is not JSON: {e}"))?;
     Ok(TraceDoc {

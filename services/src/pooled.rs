@@ -6,8 +6,11 @@
 //! several. The pooled result is a contract fit result with a `pooled` block naming the tests,
 //! written with the model version [`pooled_version`] (so once per set of tests), and it feeds
 //! health and alerts like any fit. A lift whose own fit withheld its joints (issue 16: the
-//! residual showed a model error) or named an effect neither pools nor is pooled. No physics here:
-//! `models::lift::report` fits.
+//! residual showed a model error) or named an effect neither pools nor is pooled. The
+//! pantograph's force-gauge records (`static_force` traces, issue 20) in the same window, at most
+//! [`MAX_GAUGES`], pool in too (`fit_pooled_lift_and_gauge_traces`): a lift with one gauge record
+//! is a pool; a gauge record whose own fit named an effect or withheld its joints is left out, as
+//! a lift is. No physics here: `models::lift::report` fits.
 
 use chrono::TimeDelta;
 
@@ -17,21 +20,25 @@ use crate::ingest::stored_doc;
 use crate::store::{NewFit, Store, StoreError};
 use pantowatch_models::budget::Budget;
 use pantowatch_models::drift::DriftThresholds;
-use pantowatch_models::lift::report::fit_pooled_lift_traces;
+use pantowatch_models::lift::gauge::report::GaugeChannels;
+use pantowatch_models::lift::report::fit_pooled_lift_and_gauge_traces;
 use pantowatch_models::report::MODEL_VERSION;
 
 /// How far back a pooled fit reaches from the newest lift, days.
 pub const WINDOW_DAYS: i64 = 180;
 /// Most lifts in one pooled fit (the newest included).
 pub const MAX_LIFTS: usize = 3;
+/// Most force-gauge records in one pooled fit (the newest in the window).
+pub const MAX_GAUGES: usize = 2;
 
 /// The model version of a pooled fit of `n` lifts.
 pub fn pooled_version(n: usize) -> String {
     format!("{MODEL_VERSION}; lift pooled over {n} tests")
 }
 
-/// Fit the lifts of `trace_id`'s pantograph in the window ending at it, when there are 2 or
-/// more, and store the result as its fit; then run the alert rules on it. `Ok(None)`: nothing
+/// Fit the lifts of `trace_id`'s pantograph in the window ending at it, with its force-gauge
+/// records there, when there are 2 lifts or more (or a gauge record besides the lift), and store
+/// the result as its fit; then run the alert rules on it. `Ok(None)`: nothing
 /// to pool. CPU work runs off the async runtime, under `limits` like a job's fit: past them
 /// the pooled fit is stopped and dropped (logged; the lift's own fit stands).
 pub async fn after_lift(
@@ -77,23 +84,36 @@ pub async fn after_lift(
     if store.get_fit(trace_id).await?.is_some_and(|f| withheld(&f)) {
         return Ok(None);
     }
-    let mut lifts = Vec::new();
+    let mut lifts: Vec<(crate::store::TraceMeta, _)> = Vec::new();
+    let mut gauges: Vec<(crate::store::TraceMeta, _)> = Vec::new();
     for id in ids.iter().rev() {
-        if lifts.len() == MAX_LIFTS {
+        if lifts.len() == MAX_LIFTS && gauges.len() == MAX_GAUGES {
             break;
         }
-        if let Some(m) = store.get_trace(id).await?
-            && m.kind == "lift"
-            && !lifts
-                .iter()
-                .any(|(l, _): &(crate::store::TraceMeta, _)| l.trace_id == m.trace_id)
+        let Some(m) = store.get_trace(id).await? else {
+            continue;
+        };
+        let gauge = m.kind == crate::trace::STATIC_FORCE;
+        let (taken, max) = if gauge {
+            (&gauges, MAX_GAUGES)
+        } else {
+            (&lifts, MAX_LIFTS)
+        };
+        if (!gauge && m.kind != "lift")
+            || taken.len() == max
+            || taken.iter().any(|(t, _)| t.trace_id == m.trace_id)
         {
-            if store.get_fit(id).await?.is_some_and(|f| withheld(&f)) {
-                continue;
-            }
-            let Some(channels) = store.get_samples(id).await? else {
-                continue;
-            };
+            continue;
+        }
+        if store.get_fit(id).await?.is_some_and(|f| withheld(&f)) {
+            continue;
+        }
+        let Some(channels) = store.get_samples(id).await? else {
+            continue;
+        };
+        if gauge {
+            gauges.push((m, channels));
+        } else {
             lifts.push((m, channels));
         }
     }
@@ -105,13 +125,21 @@ pub async fn after_lift(
         lifts.insert(0, own);
     }
     lifts.truncate(MAX_LIFTS);
-    if lifts.len() < 2 || lifts[0].0.trace_id != trace_id {
+    gauges.sort_by_key(|g| std::cmp::Reverse(g.0.recorded_at));
+    let least = if gauges.is_empty() { 2 } else { 1 };
+    if lifts.len() < least || lifts[0].0.trace_id != trace_id {
         return Ok(None);
     }
-    let n = lifts.len();
+    let n = lifts.len() + gauges.len();
     let version = pooled_version(n);
     let ids: Vec<String> = lifts.iter().map(|(m, _)| m.trace_id.clone()).collect();
+    let gauge_ids: Vec<String> = gauges.iter().map(|(m, _)| m.trace_id.clone()).collect();
     let docs = lifts
+        .into_iter()
+        .map(|(m, c)| stored_doc(&m, c))
+        .collect::<Result<Vec<_>, String>>()
+        .map_err(StoreError::Invalid)?;
+    let gauge_docs = gauges
         .into_iter()
         .map(|(m, c)| stored_doc(&m, c))
         .collect::<Result<Vec<_>, String>>()
@@ -125,10 +153,29 @@ pub async fn after_lift(
             .iter()
             .map(|d| d.lift_channels().map_err(|e| e.to_string()))
             .collect::<Result<Vec<_>, String>>()?;
+        let gauge_channels = gauge_docs
+            .iter()
+            .map(|d| {
+                d.static_force_channels()
+                    .map(|g| GaugeChannels {
+                        strip_height_m: g.strip_height_m,
+                        force_n: g.force_n,
+                        resolution_n: g.gauge_resolution_n,
+                    })
+                    .map_err(|e| e.to_string())
+            })
+            .collect::<Result<Vec<_>, String>>()?;
         pantowatch_models::budget::run(&budget, || {
-            fit_pooled_lift_traces(&channels, &ids, WINDOW_DAYS as f64, &thresholds)
-                .map(|r| r.result)
-                .map_err(|e| e.to_string())
+            fit_pooled_lift_and_gauge_traces(
+                &channels,
+                &ids,
+                &gauge_channels,
+                &gauge_ids,
+                WINDOW_DAYS as f64,
+                &thresholds,
+            )
+            .map(|r| r.result)
+            .map_err(|e| e.to_string())
         })
         .unwrap_or_else(|e| Err(format!("{e} (the worker's fit limits)")))
     });
@@ -159,7 +206,7 @@ pub async fn after_lift(
     let fit = NewFit::from_result(json)?;
     let w = store.insert_fit(trace_id, &version, &fit).await?;
     if w.created {
-        tracing::info!(trace = %trace_id, fit_id = w.fit_id, lifts = n, "pooled lift fit written");
+        tracing::info!(trace = %trace_id, fit_id = w.fit_id, tests = n, "pooled lift fit written");
         if let Err(e) = alerts::after_fit(store, trace_id, w.fit_id, &fit.result, alerts_opts).await
         {
             tracing::error!(trace = %trace_id, error = %e, "alert rules failed after the pooled fit");

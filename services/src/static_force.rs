@@ -55,6 +55,10 @@ pub struct StaticForceView {
     pub findings: Vec<FindingView>,
     /// Each revolute joint's dry μ used, with its source.
     pub parameters: Vec<MuSource>,
+    /// The latest force-gauge measurement of the pantograph (its latest `static_force` trace's
+    /// readings as stored, not refitted); absent when it has none. Filled by the API route.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub measured: Option<GaugeMeasurement>,
 }
 
 /// The type's limits (`[static_force]` of its data file), evaluated at `heights_m`.
@@ -205,6 +209,7 @@ fn view(
         },
         findings: findings.iter().map(FindingView::from).collect(),
         parameters,
+        measured: None,
         heights_m: c.heights_m,
         drive_torque_nm: c.drive_torque_nm,
         frictionless_n: c.frictionless_n,
@@ -242,4 +247,74 @@ pub async fn predict(store: &Store, serial: &str) -> Result<StaticForceView, Pre
     tokio::task::spawn_blocking(move || predict_blocking(&serial, &model, &mu, sources))
         .await
         .map_err(|e| PredictError::Model(e.to_string()))?
+}
+
+/// A force gauge's readings of a pantograph's static contact force: its latest stored
+/// `static_force` trace, read back as uploaded (the store keeps every sample losslessly), split
+/// into the raising and the lowering branch. Not a fit: the points the gauge showed.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct GaugeMeasurement {
+    pub trace_id: String,
+    pub recorded_at: DateTime<Utc>,
+    /// The gauge's stated resolution, N.
+    pub gauge_resolution_n: f64,
+    /// `[H m, F N]` readings raising the strip, in recorded order (the highest reading last).
+    pub raise: Vec<[f64; 2]>,
+    /// `[H m, F N]` readings lowering it after the highest, in recorded order.
+    pub lower: Vec<[f64; 2]>,
+}
+
+/// The latest `static_force` trace of `serial` as measured points; `None` when it has none, or
+/// when its stored samples no longer read as a gauge test (logged: a limit changed since the
+/// upload, or unreadable samples), so a page never fails on it.
+pub async fn latest_measurement(
+    store: &Store,
+    serial: &str,
+) -> Result<Option<GaugeMeasurement>, StoreError> {
+    let Some(meta) = store
+        .latest_trace_of_kind(serial, crate::trace::STATIC_FORCE)
+        .await?
+    else {
+        return Ok(None);
+    };
+    let channels = match store.get_samples(&meta.trace_id).await {
+        Ok(Some(c)) => c,
+        Ok(None) => return Ok(None),
+        Err(StoreError::Codec(e)) => {
+            tracing::warn!(trace = %meta.trace_id, error = %e, "gauge samples unreadable");
+            return Ok(None);
+        }
+        Err(e) => return Err(e),
+    };
+    Ok(measurement_of(&meta, channels))
+}
+
+/// The measured points of a stored `static_force` trace (see [`latest_measurement`]).
+pub fn measurement_of(
+    meta: &crate::store::TraceMeta,
+    channels: Vec<(String, Vec<f64>)>,
+) -> Option<GaugeMeasurement> {
+    let doc = match crate::ingest::stored_doc(meta, channels) {
+        Ok(d) => d,
+        Err(e) => {
+            tracing::warn!(trace = %meta.trace_id, error = %e, "stored gauge trace unreadable");
+            return None;
+        }
+    };
+    let g = match doc.static_force_channels() {
+        Ok(g) => g,
+        Err(e) => {
+            tracing::warn!(trace = %meta.trace_id, error = %e, "stored gauge trace no longer valid");
+            return None;
+        }
+    };
+    let [raise, lower] = g.branches();
+    let pts = |b: Vec<(f64, f64)>| b.into_iter().map(|(h, f)| [h, f]).collect();
+    Some(GaugeMeasurement {
+        trace_id: meta.trace_id.clone(),
+        recorded_at: meta.recorded_at,
+        gauge_resolution_n: g.gauge_resolution_n,
+        raise: pts(raise),
+        lower: pts(lower),
+    })
 }

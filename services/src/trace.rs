@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 
 use pantowatch_models::data::{self, Attachment, PantographType};
 use pantowatch_models::identify::JointTest;
+use pantowatch_models::lift::gauge::GaugeRecord;
 use pantowatch_models::lift::report::LiftChannels;
 use pantowatch_models::lift::vec2::V2;
 use pantowatch_models::quadrangle::model::{PointMass, QBody};
@@ -23,6 +24,8 @@ pub const FORMAT: &str = "pantograph-trace/1";
 pub const MAX_SAMPLES: usize = 2_000_000;
 /// The lower-quadrangle swing kind (docs/TRACE_FORMAT.md, paper Fig 12).
 pub const QUADRANGLE_SWING: &str = "quadrangle_swing";
+/// The force-gauge measurement of the static contact force (issue 20, docs/TRACE_FORMAT.md).
+pub const STATIC_FORCE: &str = "static_force";
 /// Most channels in one document.
 pub const MAX_CHANNELS: usize = 32;
 
@@ -49,6 +52,8 @@ pub enum Kind {
     Lift,
     /// The lower articulated quadrangle swinging on an inclined frame (paper, Fig 12).
     QuadrangleSwing,
+    /// A force gauge's readings of the static contact force, raising then lowering (issue 20).
+    StaticForce,
 }
 
 impl Kind {
@@ -58,7 +63,20 @@ impl Kind {
             Kind::Slider => "slider",
             Kind::Lift => "lift",
             Kind::QuadrangleSwing => QUADRANGLE_SWING,
+            Kind::StaticForce => STATIC_FORCE,
         }
+    }
+    /// Every kind of the contract, in the order the documentation lists them.
+    pub const ALL: [Kind; 5] = [
+        Kind::Pendulum,
+        Kind::Slider,
+        Kind::Lift,
+        Kind::QuadrangleSwing,
+        Kind::StaticForce,
+    ];
+    /// The kind named `name` (`test.kind`, the stored `kind` column).
+    pub fn parse(name: &str) -> Option<Kind> {
+        Kind::ALL.into_iter().find(|k| k.as_str() == name)
     }
     /// Channels the kind needs, and optional ones.
     pub fn channels(self) -> (&'static [&'static str], &'static [&'static str]) {
@@ -67,7 +85,36 @@ impl Kind {
             Kind::Slider => (&["h_mm"], &["F_N"]),
             Kind::Lift => (&["H_m", "T_Nm", "Fs_N"], &["Fm_N"]),
             Kind::QuadrangleSwing => (&["alpha_deg", "beta_deg"], &[]),
+            Kind::StaticForce => (&["H_m", "F_N"], &[]),
         }
+    }
+}
+
+/// The readings of a `static_force` test ([`TraceDoc::static_force_channels`]): the first
+/// `raise_len` readings raise the strip (the last of them the highest), the rest lower it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GaugeChannels<'a> {
+    pub t_s: &'a [f64],
+    /// Strip height above the base frame, m.
+    pub strip_height_m: &'a [f64],
+    /// The gauge's force on the strip, N, positive down.
+    pub force_n: &'a [f64],
+    /// The gauge's stated resolution, N.
+    pub gauge_resolution_n: f64,
+    /// Readings of the raising branch (the highest reading is its last).
+    pub raise_len: usize,
+}
+
+impl GaugeChannels<'_> {
+    /// (H m, F N) of the raising branch, then of the lowering branch.
+    pub fn branches(&self) -> [Vec<(f64, f64)>; 2] {
+        let pairs = |r: std::ops::Range<usize>| -> Vec<(f64, f64)> {
+            r.filter_map(|i| Some((*self.strip_height_m.get(i)?, *self.force_n.get(i)?)))
+                .collect()
+        };
+        let n = self.strip_height_m.len().min(self.force_n.len());
+        let k = self.raise_len.min(n);
+        [pairs(0..k), pairs(k..n)]
     }
 }
 
@@ -278,26 +325,36 @@ impl TraceDoc {
         let test = obj(test_v, "test")?;
         only_keys(
             test,
-            &["kind", "joint", "rig", "protocol", "release_t_s"],
+            &[
+                "kind",
+                "joint",
+                "rig",
+                "protocol",
+                "release_t_s",
+                "gauge_resolution_n",
+            ],
             "test",
         )?;
         let kind = match string(test, "kind", "test.kind", true)?.as_deref() {
-            Some("pendulum") => Kind::Pendulum,
-            Some("slider") => Kind::Slider,
-            Some("lift") => Kind::Lift,
-            Some(QUADRANGLE_SWING) => Kind::QuadrangleSwing,
-            Some(k) => {
-                return Err(bad(
+            Some(k) => Kind::parse(k).ok_or_else(|| {
+                let all: Vec<&str> = Kind::ALL.iter().map(|k| k.as_str()).collect();
+                bad(
                     "test.kind",
-                    format!("unknown kind `{k}` (pendulum, slider, lift, {QUADRANGLE_SWING})"),
-                ));
-            }
+                    format!("unknown kind `{k}` ({})", all.join(", ")),
+                )
+            })?,
             None => unreachable!("required"),
         };
         if kind != Kind::Pendulum && test.get("release_t_s").is_some_and(|v| !v.is_null()) {
             return Err(bad(
                 "test.release_t_s",
                 "only a pendulum test states its release",
+            ));
+        }
+        if kind != Kind::StaticForce && test.contains_key("gauge_resolution_n") {
+            return Err(bad(
+                "test.gauge_resolution_n",
+                "only a static_force test states a gauge resolution",
             ));
         }
         let joint = string(test, "joint", "test.joint", false)?;
@@ -402,6 +459,9 @@ impl TraceDoc {
             }
             Kind::QuadrangleSwing => {
                 doc.quadrangle_channels()?;
+            }
+            Kind::StaticForce => {
+                doc.static_force_channels()?;
             }
             Kind::Pendulum | Kind::Slider => {
                 doc.joint_test()?;
@@ -599,6 +659,90 @@ impl TraceDoc {
             .check_limits()
             .map_err(|e| bad(e.field, e.message))?;
         Ok((channels, q))
+    }
+
+    /// The readings of a `static_force` test (a force gauge on the strip, issue 20), checked
+    /// by the models' record (`lift::gauge::GaugeRecord`) against the type's `[static_force]`
+    /// data: `test.gauge_resolution_n` stated and within `gauge_resolution_range_n`, every `H_m`
+    /// within `working_height_m`, every `F_N` within `[rig_limits] lift_strip_force_n`, a raising
+    /// branch (H never decreasing up to the first highest reading) then a lowering branch (H
+    /// never increasing after it), each of at least `min_points_per_branch` readings.
+    pub fn static_force_channels(&self) -> Result<GaugeChannels<'_>, TraceError> {
+        if self.kind != Kind::StaticForce {
+            return Err(bad("test.kind", "not a static_force test"));
+        }
+        let sf = self
+            .pantograph_data()
+            .and_then(|d| d.static_force.as_ref())
+            .filter(|_| self.pantograph_model == "160EC")
+            .ok_or_else(|| {
+                bad(
+                    "pantograph.model",
+                    format!(
+                        "static_force tests are fitted with the 160EC geometry and its \
+                         [static_force] data only, got `{}`",
+                        self.pantograph_model
+                    ),
+                )
+            })?;
+        if let Some(j) = &self.joint {
+            return Err(bad(
+                "test.joint",
+                format!("a static_force test is of the whole pantograph, got joint `{j}`"),
+            ));
+        }
+        if let Some((k, _)) = self
+            .test
+            .get("rig")
+            .and_then(Value::as_object)
+            .and_then(|r| r.iter().next())
+        {
+            return Err(bad(
+                format!("test.rig.{k}"),
+                "a static_force test has no rig to state (send an empty rig or none)",
+            ));
+        }
+        if self.test.get("protocol").is_some_and(|v| !v.is_null()) {
+            return Err(bad(
+                "test.protocol",
+                "only a lift test states a drive protocol",
+            ));
+        }
+        const RES: &str = "test.gauge_resolution_n";
+        let test = self.test.as_object().cloned().unwrap_or_default();
+        let gauge_resolution_n = match number(&test, "gauge_resolution_n", RES)? {
+            None => {
+                return Err(bad(
+                    RES,
+                    "is required for a static_force test: the gauge's stated resolution, N",
+                ));
+            }
+            Some(r) if r <= 0.0 => return Err(bad(RES, format!("{r} N: must be > 0"))),
+            Some(r) => r,
+        };
+        let get = |name: &str| self.channel(name).unwrap_or_default();
+        let (t_s, h, f) = (get("t_s"), get("H_m"), get("F_N"));
+        // The record's rules are the models' (`lift::gauge::GaugeRecord`, the type's
+        // `[static_force]`): the resolution's span, every height within the working range, both
+        // branches, each never turning back and of `min_points_per_branch` readings, every
+        // force within the strip loads a drive can hold. One rule set for upload and fit.
+        let record = GaugeRecord::with_limits(h.to_vec(), f.to_vec(), gauge_resolution_n, sf)
+            .map_err(|e| {
+                let field = e.field_path().unwrap_or_else(|| "channels".to_owned());
+                let text = e.to_string();
+                let message = text
+                    .strip_prefix(&format!("{field}: "))
+                    .unwrap_or(&text)
+                    .to_owned();
+                bad(field, message)
+            })?;
+        Ok(GaugeChannels {
+            t_s,
+            strip_height_m: h,
+            force_n: f,
+            gauge_resolution_n,
+            raise_len: record.turn + 1,
+        })
     }
 
     /// The pantograph type's data when compiled in (`160EC`); `None` for other models.
@@ -810,6 +954,10 @@ impl TraceDoc {
             Kind::QuadrangleSwing => Err(bad(
                 "test.kind",
                 "a quadrangle swing is of four joints together: see `quadrangle_channels`",
+            )),
+            Kind::StaticForce => Err(bad(
+                "test.kind",
+                "a static_force test is of the whole pantograph: see `static_force_channels`",
             )),
         }
     }
@@ -1030,6 +1178,144 @@ mod tests {
         assert_eq!(rig.incline_deg, 65.0);
         assert_eq!(rig.attachments.len(), 1);
         assert_eq!(TraceDoc::from_value(&doc.to_value()).unwrap(), doc);
+    }
+
+    /// A force-gauge test (issue 20): 6 readings raising to 1.8 m, 5 lowering.
+    fn gauge() -> Value {
+        let h = [0.85, 1.0, 1.2, 1.4, 1.6, 1.8, 1.6, 1.4, 1.2, 1.0, 0.85];
+        let f = [
+            80.1, 79.5, 78.9, 78.0, 77.2, 76.4, 104.3, 105.2, 106.0, 106.9, 107.5,
+        ];
+        let t: Vec<f64> = (0..h.len()).map(|i| i as f64).collect();
+        let mut d = doc();
+        d["test"] = json!({"kind": "static_force", "gauge_resolution_n": 0.1});
+        d["channels"] = json!({"t_s": t, "H_m": h, "F_N": f});
+        d
+    }
+
+    #[test]
+    fn every_kind_parses_by_its_name() {
+        for k in Kind::ALL {
+            assert_eq!(Kind::parse(k.as_str()), Some(k));
+        }
+        assert_eq!(Kind::parse("gauge"), None);
+        assert_eq!(Kind::StaticForce.as_str(), STATIC_FORCE);
+    }
+
+    /// Issue 20: a force gauge's readings, raising then lowering, are accepted as written in
+    /// docs/TRACE_FORMAT.md, round-trip, and split at the highest reading; every bad one is
+    /// refused naming its field.
+    #[test]
+    fn a_static_force_test_is_accepted_and_each_bad_reading_named() {
+        let d = TraceDoc::from_value(&gauge()).expect("a gauge test");
+        assert_eq!(d.kind, Kind::StaticForce);
+        assert_eq!(TraceDoc::from_value(&d.to_value()).unwrap(), d);
+        let g = d.static_force_channels().unwrap();
+        assert_eq!(g.raise_len, 6);
+        assert_eq!(g.gauge_resolution_n, 0.1);
+        let [up, down] = g.branches();
+        assert_eq!((up.len(), down.len()), (6, 5));
+        assert_eq!(up[5], (1.8, 76.4));
+        assert_eq!(down[0], (1.6, 104.3));
+        // A height read twice in a branch is no turn (the gauge's scale is coarse).
+        let mut twice = gauge();
+        twice["channels"]["H_m"][2] = json!(1.0);
+        twice["channels"]["H_m"][8] = json!(1.4);
+        TraceDoc::from_value(&twice).expect("a height read twice in a branch");
+        let min = data::builtin_160ec()
+            .static_force
+            .as_ref()
+            .expect("[static_force]")
+            .min_points_per_branch;
+        assert_eq!(min, 5);
+        // `path` as `/a/b/c`: objects keyed by name, arrays by index; a missing key is added.
+        let set = |path: &str, v: Value| {
+            let mut d = gauge();
+            let mut at = &mut d;
+            for k in path.trim_start_matches('/').split('/') {
+                at = match k.parse::<usize>() {
+                    Ok(i) => &mut at[i],
+                    Err(_) => &mut at[k],
+                };
+            }
+            *at = v;
+            d
+        };
+        let keep = |n: std::ops::Range<usize>| {
+            let mut d = gauge();
+            for c in ["t_s", "H_m", "F_N"] {
+                let a = d["channels"][c].as_array().unwrap()[n.clone()].to_vec();
+                d["channels"][c] = Value::Array(a);
+            }
+            d
+        };
+        let mut no_res = gauge();
+        no_res["test"]
+            .as_object_mut()
+            .unwrap()
+            .remove("gauge_resolution_n");
+        let mut no_force = gauge();
+        no_force["channels"].as_object_mut().unwrap().remove("F_N");
+        let cases = [
+            (set("/channels/H_m/2", json!(1.85)), "channels.H_m[2]"),
+            (set("/channels/H_m/10", json!(0.79)), "channels.H_m[10]"),
+            (keep(0..6), "channels.H_m"),
+            (keep(5..11), "channels.H_m"),
+            (keep(2..11), "channels.H_m"),
+            (keep(0..10), "channels.H_m"),
+            (set("/channels/H_m/3", json!(1.1)), "channels.H_m[3]"),
+            (set("/channels/H_m/8", json!(1.5)), "channels.H_m[8]"),
+            (no_res, "test.gauge_resolution_n"),
+            (
+                set("/test/gauge_resolution_n", json!(0)),
+                "test.gauge_resolution_n",
+            ),
+            (
+                set("/test/gauge_resolution_n", json!("0.1")),
+                "test.gauge_resolution_n",
+            ),
+            (
+                set("/test/gauge_resolution_n", json!(10.0)),
+                "test.gauge_resolution_n",
+            ),
+            (no_force, "channels.F_N"),
+            (set("/channels/F_N/1", json!(-2000.0)), "channels.F_N[1]"),
+            (set("/test/joint", json!("J3")), "test.joint"),
+            (set("/test/rig", json!({"L1_m": 1.6})), "test.rig.L1_m"),
+            (set("/pantograph/model", json!("200EC")), "pantograph.model"),
+            (set("/test/kind", json!("lift")), "test.gauge_resolution_n"),
+        ];
+        for (v, field) in cases {
+            assert_eq!(field_of(v.clone()), field, "{v}");
+        }
+        // A pendulum states no gauge.
+        let mut d = doc();
+        d["test"]["gauge_resolution_n"] = json!(0.1);
+        assert_eq!(field_of(d), "test.gauge_resolution_n");
+    }
+
+    /// README "Input limits" lists the `[static_force]` limits an upload is checked against.
+    #[test]
+    fn readme_lists_the_static_force_limits() {
+        let readme = include_str!("../../README.md");
+        let sf = data::builtin_160ec()
+            .static_force
+            .as_ref()
+            .expect("[static_force]");
+        let [lo, hi] = sf.working_height_m;
+        for row in [
+            format!("| `[static_force] working_height_m` | [{lo}, {hi}] |"),
+            format!(
+                "| `[static_force] min_points_per_branch` | {} |",
+                sf.min_points_per_branch
+            ),
+            format!(
+                "| `[static_force] gauge_resolution_range_n` | [{}, {}] |",
+                sf.gauge_resolution_range_n[0], sf.gauge_resolution_range_n[1]
+            ),
+        ] {
+            assert!(readme.contains(&row), "README \"Input limits\" lacks {row}");
+        }
     }
 
     #[test]

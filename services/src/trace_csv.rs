@@ -16,7 +16,8 @@
 //! 0.002,74.19
 //! ```
 //!
-//! Metadata keys are the contract's field paths; `test.rig` and `test.protocol` are JSON objects. Rows are read by
+//! Metadata keys are the contract's field paths; `test.rig` and `test.protocol` are JSON objects,
+//! `test.gauge_resolution_n` (a `static_force` test's) a JSON number. Rows are read by
 //! the `csv` crate: separated by `,` (decimal point `.`) or, when the header row holds a `;`,
 //! by `;` with a decimal comma or point (`0,002;74,19` — what European spreadsheet tools write);
 //! fields may be quoted; `nan`/`inf` are rejected like any non-finite value. Blank lines are
@@ -31,7 +32,7 @@ use serde_json::{Map, Value};
 use crate::trace::{MAX_CHANNELS, MAX_SAMPLES, TraceDoc, TraceError};
 
 /// Metadata keys accepted in the `# key: value` header.
-pub const META_KEYS: [&str; 10] = [
+pub const META_KEYS: [&str; 11] = [
     "format",
     "trace_id",
     "vehicle_id",
@@ -42,6 +43,7 @@ pub const META_KEYS: [&str; 10] = [
     "test.joint",
     "test.rig",
     "test.protocol",
+    "test.gauge_resolution_n",
 ];
 
 /// Why a CSV body was refused: its structure (`Malformed`) or a contract rule (`Invalid`).
@@ -125,12 +127,13 @@ pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
                 format!("unknown metadata key (allowed: {})", META_KEYS.join(", ")),
             ));
         }
-        let value = if key == "test.rig" || key == "test.protocol" {
-            serde_json::from_str::<Value>(value)
-                .map_err(|e| malformed(key, format!("not valid JSON: {e}")))?
-        } else {
-            Value::String(value.to_owned())
-        };
+        let value =
+            if key == "test.rig" || key == "test.protocol" || key == "test.gauge_resolution_n" {
+                serde_json::from_str::<Value>(value)
+                    .map_err(|e| malformed(key, format!("not valid JSON: {e}")))?
+            } else {
+                Value::String(value.to_owned())
+            };
         let slot = match key.split_once('.') {
             Some(("pantograph", k)) => panto.insert(k.to_owned(), value),
             Some(("test", k)) => test.insert(k.to_owned(), value),
@@ -297,6 +300,9 @@ pub fn write(doc: &TraceDoc) -> String {
     }
     if let Some(p) = doc.test.get("protocol") {
         meta("test.protocol", &p.to_string());
+    }
+    if let Some(r) = doc.test.get("gauge_resolution_n") {
+        meta("test.gauge_resolution_n", &r.to_string());
     }
     let names: Vec<&str> = doc.channels.iter().map(|(n, _)| n.as_str()).collect();
     let _ = writeln!(s, "{}", names.join(","));

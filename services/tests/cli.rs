@@ -546,3 +546,88 @@ fn static_force_from_a_lift_trace_widens_with_j3_friction() {
         "{table}"
     );
 }
+
+/// Issue 20: `simulate --kind static_force` writes a force-gauge measurement the upload path
+/// accepts — 15 readings raising over 0.85–1.8 m, 14 lowering, one a second, each a multiple of
+/// the stated resolution; J3's dry friction ×3 widens the lowering − raising gap at every
+/// height; a viscous scale or a bad resolution is refused naming its flag; `fit` fits it as a
+/// force-gauge record (`models::lift::gauge`).
+#[test]
+fn simulate_static_force_writes_a_gauge_measurement() {
+    let gauge = |extra: &[&str]| -> serde_json::Value {
+        let out = run_ok(
+            bin()
+                .args(["simulate", "--kind", "static_force", "--seed", "3"])
+                .args(extra),
+        );
+        serde_json::from_str(&out).unwrap()
+    };
+    let nums = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let base = gauge(&[]);
+    assert_eq!(base["test"]["kind"], "static_force");
+    assert_eq!(base["test"]["gauge_resolution_n"], 0.1);
+    let (t, h, f) = (
+        nums(&base["channels"]["t_s"]),
+        nums(&base["channels"]["H_m"]),
+        nums(&base["channels"]["F_N"]),
+    );
+    assert_eq!((t.len(), h.len(), f.len()), (29, 29, 29));
+    assert!(t.windows(2).all(|w| w[1] - w[0] == 1.0), "{t:?}");
+    assert_eq!((h[0], h[14], h[28]), (0.85, 1.8, 0.85));
+    assert!(h[..15].windows(2).all(|w| w[1] > w[0]), "{h:?}");
+    assert!(h[14..].windows(2).all(|w| w[1] < w[0]), "{h:?}");
+    for x in &f {
+        assert!(
+            (x * 10.0 - (x * 10.0).round()).abs() < 1e-6,
+            "{x} is not on 0.1 N"
+        );
+        assert!((40.0..160.0).contains(x), "{x} N");
+    }
+    // The gap at each height read on both branches (the lowering reading i is at raise 13 − i).
+    let gap = |f: &[f64]| -> Vec<f64> { (0..14).map(|i| f[15 + i] - f[13 - i]).collect() };
+    let worn = gauge(&["--scale-joint", "J3:dry=3"]);
+    let (g0, g3) = (gap(&f), gap(&nums(&worn["channels"]["F_N"])));
+    for i in 0..14 {
+        assert!((10.0..60.0).contains(&g0[i]), "baseline gap {} N", g0[i]);
+        assert!(g3[i] > g0[i] + 30.0, "J3 ×3 gap {} N vs {} N", g3[i], g0[i]);
+    }
+    for (args, flag) in [
+        (vec!["--scale-joint", "J3:viscous=2"], "--scale-joint"),
+        (vec!["--gauge-resolution-n", "0"], "--gauge-resolution-n"),
+        (vec!["--effect", "stribeck:ratio=2"], "--effect"),
+    ] {
+        let out = bin()
+            .args(["simulate", "--kind", "static_force"])
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(flag), "{args:?}: {err}");
+    }
+    // Fitted as a force-gauge record: J3 ×3 shows as the J1+J3 dry combination at watch or
+    // worse, the RMSE in N.
+    let file = tmp("gauge.json");
+    std::fs::write(&file, serde_json::to_vec(&worn).unwrap()).unwrap();
+    let out = run_ok(bin().arg("fit").arg(&file).arg("--json"));
+    let r: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(r["rmse"]["unit"], "N", "{r}");
+    let combo = &r["combinations"][0];
+    assert_eq!(combo["label"], "J1+J3 dry", "{r}");
+    assert!(combo["value"].as_f64().unwrap() > 2.0, "{combo}");
+    assert!(
+        combo["status"] == "watch" || combo["status"] == "alarm",
+        "{combo}"
+    );
+    let table = run_ok(bin().arg("fit").arg(&file));
+    assert!(
+        table.contains("static_force test") && table.contains("informed by this trace: J1+J3"),
+        "{table}"
+    );
+}

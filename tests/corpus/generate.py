@@ -166,6 +166,42 @@ doc("t-record-over-an-hour", "channels.t_s",
 doc("lift-t-1e300", "channels.t_s[2]", lambda d: d["channels"].update(t_s=[0.0, 0.002, 1e300]), FULL_LIFT)
 doc("quad-t-interval-10s", "channels.t_s[2]", lambda d: d["channels"].update(t_s=[0.0, 0.002, 10.0, 10.002]), QUAD)
 
+# A force-gauge test (static_force, issue 20): 6 readings raising to 1.8 m, then 5 lowering.
+GAUGE = copy.deepcopy(BASE)
+GAUGE["test"] = {"kind": "static_force", "gauge_resolution_n": 0.1}
+GAUGE["channels"] = {"t_s": [float(i) for i in range(11)],
+                     "H_m": [0.85, 1.0, 1.2, 1.4, 1.6, 1.8, 1.6, 1.4, 1.2, 1.0, 0.85],
+                     "F_N": [80.1, 79.5, 78.9, 78.0, 77.2, 76.4, 104.3, 105.2, 106.0, 106.9, 107.5]}
+
+def gauge_readings(keep):
+    def f(d):
+        for c in ("t_s", "H_m", "F_N"):
+            d["channels"][c] = d["channels"][c][keep]
+        d["channels"]["t_s"] = [float(i) for i in range(len(d["channels"]["t_s"]))]
+    return f
+
+doc("gauge-height-above-range", "channels.H_m[5]", lambda d: d["channels"]["H_m"].__setitem__(5, 2.3), GAUGE)
+doc("gauge-height-1e308", "channels.H_m[3]", lambda d: d["channels"]["H_m"].__setitem__(3, 1e308), GAUGE)
+doc("gauge-no-lowering-branch", "channels.H_m", gauge_readings(slice(0, 6)), GAUGE)
+doc("gauge-no-raising-branch", "channels.H_m", gauge_readings(slice(5, 11)), GAUGE)
+doc("gauge-three-raising-readings", "channels.H_m", gauge_readings(slice(3, 11)), GAUGE)
+doc("gauge-height-back-down-while-raising", "channels.H_m[2]", lambda d: d["channels"]["H_m"].__setitem__(2, 0.9), GAUGE)
+doc("gauge-resolution-missing", "test.gauge_resolution_n", lambda d: d["test"].pop("gauge_resolution_n"), GAUGE)
+doc("gauge-resolution-negative", "test.gauge_resolution_n", lambda d: d["test"].update(gauge_resolution_n=-0.1), GAUGE)
+doc("gauge-resolution-string", "test.gauge_resolution_n", lambda d: d["test"].update(gauge_resolution_n="0.1 N"), GAUGE)
+doc("gauge-force-missing", "channels.F_N", lambda d: d["channels"].pop("F_N"), GAUGE)
+doc("gauge-force-1e308", "channels.F_N[1]", lambda d: d["channels"]["F_N"].__setitem__(1, 1e308), GAUGE)
+doc("gauge-on-a-pendulum", "test.gauge_resolution_n", lambda d: d["test"].update(gauge_resolution_n=0.1))
+GAUGE_CSV = ("# format: pantograph-trace/1\n# trace_id: corpus-gauge\n# vehicle_id: EN57-1021\n"
+             "# pantograph.model: 160EC\n# recorded_at: 2026-03-02T07:15:00Z\n# test.kind: static_force\n"
+             "# test.gauge_resolution_n: 0.1\nt_s,H_m,F_N\n"
+             + "".join(f"{t},{h},{f}\n" for t, h, f in zip(GAUGE["channels"]["t_s"], GAUGE["channels"]["H_m"],
+                                                          GAUGE["channels"]["F_N"])))
+raw("csv-gauge-resolution-word", "test.gauge_resolution_n",
+    GAUGE_CSV.replace("gauge_resolution_n: 0.1", "gauge_resolution_n: fine"), "text/csv")
+raw("csv-gauge-no-lowering-branch", "channels.H_m",
+    "".join(l + "\n" for l in GAUGE_CSV.splitlines()[:8 + 6]), "text/csv")
+
 manifest = []
 for i, (name, ct, body, field) in enumerate(cases, 1):
     ext = "csv" if ct == "text/csv" else "json"

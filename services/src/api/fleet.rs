@@ -32,7 +32,8 @@ pub fn router() -> OpenApiRouter<AppState> {
 
 /// The predicted static contact force of a pantograph over its type's working range, raising and
 /// lowering, with 95 % bands from its current dry-friction intervals (each from the latest test
-/// that informed it) and the findings against the type's limits (issue 20).
+/// that informed it) and the findings against the type's limits (issue 20); with the latest
+/// force-gauge measurement's readings (`measured`) when the pantograph has one.
 #[utoipa::path(get, path = "/v1/pantographs/{serial}/static-force", tag = "fleet",
     params(("serial" = String, Path, description = "pantograph serial")),
     responses(
@@ -48,10 +49,11 @@ pub async fn static_force(
     ApiPath(serial): ApiPath<String>,
 ) -> Result<Json<crate::static_force::StaticForceView>, AppError> {
     let serial = Serial::parse("serial", &serial).map_err(AppError::parameter_id)?;
-    crate::static_force::predict(&st.store, serial.as_str())
+    let mut v = crate::static_force::predict(&st.store, serial.as_str())
         .await
-        .map(Json)
-        .map_err(AppError::from)
+        .map_err(AppError::from)?;
+    v.measured = crate::static_force::latest_measurement(&st.store, serial.as_str()).await?;
+    Ok(Json(v))
 }
 
 /// Every vehicle.

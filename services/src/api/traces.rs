@@ -168,7 +168,7 @@ pub struct TraceDocument {
     pub pantograph: PantographRef,
     /// RFC 3339.
     pub recorded_at: String,
-    /// `{ kind: pendulum|slider|lift, joint, rig }`.
+    /// `{ kind: pendulum|slider|lift|quadrangle_swing|static_force, joint, rig, protocol, release_t_s, gauge_resolution_n }`.
     #[schema(value_type = Object)]
     pub test: Value,
     /// `t_s` (strictly increasing) and the kind's channels, all of one length, finite.

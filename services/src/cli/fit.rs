@@ -46,7 +46,14 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
     let id = doc.trace_id.as_deref().unwrap_or("(no trace_id)");
     let lift = doc.kind == Kind::Lift;
     let quad = doc.kind == Kind::QuadrangleSwing;
-    if quad {
+    let gauge = doc.kind == Kind::StaticForce;
+    if gauge {
+        s += &format!(
+            "trace {id}  vehicle {}  static_force test (force gauge on the whole pantograph, MAP \
+             with Table 4 prior), {} readings fitted\n",
+            doc.vehicle_id, r.fit.samples_fitted
+        );
+    } else if quad {
         s += &format!(
             "trace {id}  vehicle {}  lower-quadrangle swing (J1, J2, J2', J3; MAP with Table 4 \
              prior sd 0.5 × baseline), {} samples fitted\n",
@@ -112,6 +119,30 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
             ci[1],
             r.fit.termination,
             r.fit.iterations
+        );
+        return s;
+    }
+    if gauge {
+        let informed: Vec<&str> = r
+            .joints
+            .iter()
+            .filter(|j| j.identifiable)
+            .map(|j| j.joint.as_str())
+            .collect();
+        let effects: Vec<&str> = r.residual.effects.iter().map(|e| e.name.as_str()).collect();
+        let or_none = |v: &[&str]| {
+            if v.is_empty() {
+                "none".to_owned()
+            } else {
+                v.join(", ")
+            }
+        };
+        s += &format!(
+            "informed by this trace: {}; the others are reported at baseline, not identified\n\
+             RMSE {:.3} N of the gauge's force; residual effects: {}\n",
+            or_none(&informed),
+            r.rmse.value,
+            or_none(&effects)
         );
         return s;
     }
@@ -281,6 +312,27 @@ fn run_quadrangle(
     Ok(())
 }
 
+/// `fit` of a static_force (force-gauge) trace: the table or JSON (no plot or report yet).
+fn run_static_force(
+    args: &FitArgs,
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.plot.is_none() && args.report.is_none(),
+        "--plot and --report are not drawn for a static_force trace yet"
+    );
+    let result = crate::fitting::fit_static_force(doc, thresholds)
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .result;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&result)?);
+    } else {
+        print!("{}", table(doc, &result));
+    }
+    Ok(())
+}
+
 /// `fit` of a lift trace: the table or JSON, and H measured vs fitted as SVG.
 fn run_lift(args: &FitArgs, doc: &TraceDoc, thresholds: &DriftThresholds) -> anyhow::Result<()> {
     let rep = crate::fitting::fit_lift(doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -323,6 +375,9 @@ pub fn run(args: FitArgs, thresholds: &DriftThresholds) -> anyhow::Result<()> {
     }
     if doc.kind == Kind::QuadrangleSwing {
         return run_quadrangle(&args, &doc, thresholds);
+    }
+    if doc.kind == Kind::StaticForce {
+        return run_static_force(&args, &doc, thresholds);
     }
     let (result, fit, finding) =
         crate::fitting::fit_with_finding(&doc, thresholds).map_err(|e| anyhow::anyhow!("{e}"))?;

@@ -1,5 +1,5 @@
-//! `pantowatch simulate`: write a trace document of a pendulum, slider, lift or lower-quadrangle
-//! swing test with chosen
+//! `pantowatch simulate`: write a trace document of a pendulum, slider, lift, lower-quadrangle
+//! swing or force-gauge (`static_force`) test with chosen
 //! friction, release, noise, sample rate and seed — what the tests and the demo use.
 
 use std::path::PathBuf;
@@ -15,7 +15,7 @@ use crate::trace::{FORMAT, TraceDoc};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateArgs {
-    /// Test kind: pendulum, slider, lift or quadrangle_swing.
+    /// Test kind: pendulum, slider, lift, quadrangle_swing or static_force.
     #[arg(long, default_value = "pendulum")]
     pub kind: String,
     /// Joint: J1 J2 J2' J3 J4 J5 J6 J7 (pendulum), J8 (slider).
@@ -80,9 +80,9 @@ pub struct SimulateArgs {
     /// (JSON, checked against the stand's limits; stated in the trace as `test.protocol`).
     #[arg(long, default_value = "raise-and-lower")]
     pub protocol: String,
-    /// Lift and quadrangle_swing: scale a joint's friction from Table 4,
+    /// Lift, quadrangle_swing and static_force: scale a joint's friction from Table 4,
     /// `JOINT:dry=1.8,viscous=1.2` (repeatable; lift: J1 J2 J2' J3 J4 J5 J7 J8 viscous/dry, J9
-    /// viscous; quadrangle_swing: J1 J2 J2' J3).
+    /// viscous; quadrangle_swing: J1 J2 J2' J3; static_force: dry of J1 J2 J2' J3 J4 J5 J6 J7).
     #[arg(long = "scale-joint")]
     pub scale_joints: Vec<String>,
     /// Lift only: noise of the H channel, standard deviation in mm.
@@ -94,6 +94,18 @@ pub struct SimulateArgs {
     /// before `--h-noise-mm`, which still adds its own H noise.
     #[arg(long, default_value_t = 0.0, value_name = "K")]
     pub sensor_noise: f64,
+    /// Static_force only: the force gauge's noise, standard deviation in N (white, one draw per
+    /// reading).
+    #[arg(long, default_value_t = 0.2)]
+    pub gauge_noise_n: f64,
+    /// Static_force only: the gauge's resolution, N: every reading is rounded to it, and the
+    /// trace states it (`test.gauge_resolution_n`).
+    #[arg(long, default_value_t = 0.1)]
+    pub gauge_resolution_n: f64,
+    /// Static_force only: readings raising the strip from 0.85 m to 1.8 m; the lowering branch
+    /// reads at the same heights below the top (one fewer). One reading a second.
+    #[arg(long, default_value_t = 15)]
+    pub gauge_readings: usize,
     /// Quadrangle_swing only: the frame plane's incline to the horizontal, deg (paper: 70).
     #[arg(long, default_value_t = 70.0)]
     pub incline: f64,
@@ -113,6 +125,9 @@ pub fn simulate_doc(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     if a.kind == crate::trace::QUADRANGLE_SWING {
         return simulate_quadrangle(a);
     }
+    if a.kind == crate::trace::STATIC_FORCE {
+        return simulate_static_force(a);
+    }
     let data = builtin_160ec();
     let (test_json, channel) = match a.kind.as_str() {
         "pendulum" => (
@@ -120,7 +135,9 @@ pub fn simulate_doc(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
             "alpha_deg",
         ),
         "slider" => (json!({"kind": "slider", "joint": "J8", "rig": {}}), "h_mm"),
-        k => anyhow::bail!("--kind: `{k}` (pendulum, slider, lift or quadrangle_swing)"),
+        k => anyhow::bail!(
+            "--kind: `{k}` (pendulum, slider, lift, quadrangle_swing or static_force)"
+        ),
     };
     if !(a.fs > 0.0 && a.duration > 0.0 && a.noise >= 0.0 && a.quantum >= 0.0) {
         anyhow::bail!("--fs and --duration must be > 0, --noise and --quantum >= 0");
@@ -395,6 +412,118 @@ fn simulate_quadrangle(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     let mut doc = json!({"format": FORMAT, "vehicle_id": a.vehicle, "pantograph": {"model": "160EC", "serial": a.serial},
         "recorded_at": a.recorded_at, "test": {"kind": crate::trace::QUADRANGLE_SWING, "rig": {"incline_deg": a.incline}},
         "channels": {"t_s": rec.t_s, "alpha_deg": rec.alpha_deg, "beta_deg": rec.beta_deg}});
+    if let Some(id) = &a.trace_id {
+        doc["trace_id"] = json!(id);
+    }
+    TraceDoc::from_value(&doc).map_err(|e| anyhow::anyhow!("{e}"))
+}
+
+/// Strip heights of a simulated gauge test, m: the lowest and the highest reading.
+pub const GAUGE_HEIGHTS_M: [f64; 2] = [0.85, 1.8];
+/// Time between two simulated gauge readings, s.
+pub const GAUGE_READING_INTERVAL_S: f64 = 1.0;
+
+/// A force-gauge measurement of the static contact force (issue 20): `--gauge-readings`
+/// heights raising the strip over [`GAUGE_HEIGHTS_M`], then lowering it back (the same heights
+/// below the top), one reading every [`GAUGE_READING_INTERVAL_S`]. Each reading is the
+/// quasi-static strip force of `lift::static_force` (raising or lowering; Table 4 dry friction,
+/// `--scale-joint J3:dry=2` scales a revolute joint's; `--effect spring_rate:factor=<k>` scales
+/// the drive characteristic's slope about its first point), plus `--effect
+/// sensor_offset:offset=<N>` (the gauge's zero) and `--gauge-noise-n` white noise (seeded),
+/// rounded to
+/// `--gauge-resolution-n`. Heights are read to the millimetre.
+fn simulate_static_force(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
+    use pantowatch_models::lift::static_force::{DriveLine, MuEstimate, characteristic};
+    use pantowatch_models::lift::topology::{N_REV, RevJoint};
+    let n = a.gauge_readings;
+    anyhow::ensure!(
+        (2..=200).contains(&n),
+        "--gauge-readings must be 2 to 200 (readings raising the strip)"
+    );
+    anyhow::ensure!(
+        a.gauge_noise_n.is_finite() && a.gauge_noise_n >= 0.0,
+        "--gauge-noise-n must be finite and >= 0 N"
+    );
+    let q = a.gauge_resolution_n;
+    anyhow::ensure!(
+        q.is_finite() && q > 0.0,
+        "--gauge-resolution-n must be finite and > 0 N"
+    );
+    let g = pantowatch_models::lift::geometry::builtin_160ec();
+    let mut mu: [MuEstimate; N_REV] = std::array::from_fn(|i| MuEstimate {
+        value: g.revolute[i].dry_mu,
+        ci95: None,
+    });
+    for (joint, kind, f) in scale_specs(&a.scale_joints)? {
+        let j = RevJoint::ALL
+            .into_iter()
+            .find(|j| j.name() == joint)
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--scale-joint: `{joint}` is not a revolute joint of the pantograph (J1 J2 \
+                     J2' J3 J4 J5 J6 J7)"
+                )
+            })?;
+        anyhow::ensure!(
+            kind == "dry",
+            "--scale-joint {joint}:{kind}: a static_force test shows dry friction only (it is \
+             quasi-static: no viscous term)"
+        );
+        mu[j.index()].value *= f;
+    }
+    let (mut offset_n, mut rate_factor) = (0.0, 1.0);
+    for spec in &a.effects {
+        let (name, kv) = parse_effect(spec)?;
+        match (name, kv.get("offset"), kv.get("factor")) {
+            ("sensor_offset", Some(v), _) if kv.len() == 1 => offset_n = *v,
+            ("spring_rate", _, Some(k)) if kv.len() == 1 && *k > 0.0 => rate_factor = *k,
+            _ => anyhow::bail!(
+                "--effect {spec}: a static_force test takes `sensor_offset:offset=<N>` (the \
+                 gauge's zero) or `spring_rate:factor=<k, > 0>` (the drive characteristic's \
+                 slope × k about its first point)"
+            ),
+        }
+    }
+    let [lo, hi] = GAUGE_HEIGHTS_M;
+    let mm = |h: f64| (h * 1000.0).round() / 1000.0;
+    let up: Vec<f64> = (0..n)
+        .map(|k| mm(lo + (hi - lo) * k as f64 / (n - 1) as f64))
+        .collect();
+    let down: Vec<f64> = up.iter().rev().skip(1).copied().collect();
+    let drive = pantowatch_models::lift::gauge::simulate::spring_rate_drive(
+        &DriveLine::from_lift_test(g),
+        rate_factor,
+    );
+    let raise = characteristic(g, &mu, &drive, &up)
+        .context("static force, raising")?
+        .raise_n;
+    let lower = characteristic(g, &mu, &drive, &down)
+        .context("static force, lowering")?
+        .lower_n;
+    // Rounded to the resolution; divided by 1/q when that is whole (0.1 N: by 10), so a
+    // reading is the double nearest its decimal (96.3, not 96.30000000000001).
+    let inv = 1.0 / q;
+    let round = |f: f64| {
+        let k = (f / q).round();
+        if (inv - inv.round()).abs() < 1e-9 {
+            k / inv.round()
+        } else {
+            k * q
+        }
+    };
+    let mut rng = pantowatch_models::noise::Noise::new(a.seed);
+    let f_n: Vec<f64> = raise
+        .iter()
+        .chain(&lower)
+        .map(|f| round(f + offset_n + a.gauge_noise_n * rng.normal()))
+        .collect();
+    let h_m: Vec<f64> = up.iter().chain(&down).copied().collect();
+    let t_s: Vec<f64> = (0..h_m.len())
+        .map(|i| i as f64 * GAUGE_READING_INTERVAL_S)
+        .collect();
+    let mut doc = json!({"format": FORMAT, "vehicle_id": a.vehicle, "pantograph": {"model": "160EC", "serial": a.serial},
+        "recorded_at": a.recorded_at, "test": {"kind": crate::trace::STATIC_FORCE, "gauge_resolution_n": q},
+        "channels": {"t_s": t_s, "H_m": h_m, "F_N": f_n}});
     if let Some(id) = &a.trace_id {
         doc["trace_id"] = json!(id);
     }

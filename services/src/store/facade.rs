@@ -199,6 +199,16 @@ impl Store {
         dispatch!(self, s => s.pantograph_model(serial).await)
     }
 
+    /// The pantograph's latest stored trace of test kind `kind` (by `recorded_at`, then
+    /// `trace_id`), fitted or not; `None` when it has none.
+    pub async fn latest_trace_of_kind(
+        &self,
+        serial: &str,
+        kind: &str,
+    ) -> Result<Option<TraceMeta>> {
+        dispatch!(self, s => s.latest_trace_of_kind(serial, kind).await)
+    }
+
     /// Rows per table.
     pub async fn counts(&self) -> Result<Counts> {
         dispatch!(self, s => s.counts().await)

@@ -282,6 +282,11 @@ pub(crate) trait TraceBackend {
     fn pantograph_exists(&self, serial: &str) -> impl Future<Output = Result<bool>> + Send;
     fn pantograph_model(&self, serial: &str)
     -> impl Future<Output = Result<Option<String>>> + Send;
+    fn latest_trace_of_kind(
+        &self,
+        serial: &str,
+        kind: &str,
+    ) -> impl Future<Output = Result<Option<TraceMeta>>> + Send;
     fn close(&self) -> impl Future<Output = ()> + Send;
 }
 

@@ -120,6 +120,34 @@ impl Frame {
         });
     }
 
+    /// One measured reading at (`x`, `y`) in the group class `class` (a page tells the series
+    /// apart by it): a filled circle, or with `open` a hollow square, so the series differ in
+    /// shape as well as colour; `label` is its tooltip.
+    pub fn marker(
+        &mut self,
+        (x, y): (f64, f64),
+        class: &str,
+        color: &str,
+        open: bool,
+        label: &str,
+    ) {
+        if !(x.is_finite() && y.is_finite()) {
+            return;
+        }
+        let (sx, sy) = (self.sx(x), self.sy(y));
+        self.body.push(html! {
+            g class=(class) {
+                title { (label) }
+                @if open {
+                    rect x=(px(sx - 3.5)) y=(px(sy - 3.5)) width="7" height="7" fill="#fff"
+                        stroke=(color) stroke-width="1.5" {}
+                } @else {
+                    circle cx=(px(sx)) cy=(px(sy)) r="3.5" fill=(color) {}
+                }
+            }
+        });
+    }
+
     /// A vertical marker at `x` with a label.
     pub fn vline(&mut self, x: f64, stroke: &str, label: &str) {
         let sx = self.sx(x);
@@ -173,6 +201,33 @@ impl Frame {
                 text x="12" y=(px(H / 2.0)) font-size="11" fill="#333"
                     transform={ "rotate(-90 12 " (px(H / 2.0)) ")" } { (y_unit) }
             }
+        }
+    }
+}
+
+/// A legend entry outside the plot: a small swatch drawn as the chart draws the series, then
+/// `text`. `swatch` is `line:<colour>`, `dash:<colour>`, `band:<colour>`, `dot:<colour>` (a
+/// filled circle, as [`Frame::marker`]) or `square:<colour>` (its hollow square).
+pub fn legend_entry(swatch: &str, text: &str) -> Markup {
+    let (kind, color) = swatch.split_once(':').unwrap_or(("line", swatch));
+    html! {
+        span.legend-entry {
+            svg xmlns="http://www.w3.org/2000/svg" width="18" height="10" viewBox="0 0 18 10"
+                aria-hidden="true" {
+                @match kind {
+                    "dot" => { circle cx="9" cy="5" r="3.5" fill=(color) {} },
+                    "square" => {
+                        rect x="5.5" y="1.5" width="7" height="7" fill="#fff" stroke=(color)
+                            stroke-width="1.5" {}
+                    },
+                    "band" => { rect x="0" y="1" width="18" height="8" fill=(color) {} },
+                    _ => {
+                        line x1="0" x2="18" y1="5" y2="5" stroke=(color) stroke-width="2"
+                            stroke-dasharray=[(kind == "dash").then_some("6 4")] {}
+                    },
+                }
+            }
+            " " (text)
         }
     }
 }

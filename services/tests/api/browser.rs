@@ -461,6 +461,26 @@ pub async fn web_pages_in_headless_chromium() {
         "03-pantograph.png",
     )
     .await;
+    // A gauged pantograph (every fourth, `demo::fleet::gauged`): its static-force chart draws the
+    // latest force-gauge test's readings, a marker per reading and a class per branch (issue 20).
+    let gauged = "160EC-0102";
+    let gdom = dom(profile.path(), &format!("{base}/pantographs/{gauged}")).await;
+    let gsection = gdom
+        .split("id=\"static-force\"")
+        .nth(1)
+        .unwrap_or_else(|| panic!("{gauged}: a static force section: {gdom}"));
+    assert_eq!(
+        (
+            gsection.matches("class=\"gauge-raise\"").count(),
+            gsection.matches("class=\"gauge-lower\"").count()
+        ),
+        (15, 14),
+        "{gauged}: {gsection}"
+    );
+    assert!(
+        gsection.contains("raising, gauge (15 readings)"),
+        "{gsection}"
+    );
     // Each joint's badge and its charts' latest points carry one status (issue 18): the badge's
     // class is the worst of the classes of each parameter's latest plotted point (the joint's
     // state is each parameter from the latest test that informed it, the joint at the worst).

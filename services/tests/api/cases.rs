@@ -16,6 +16,10 @@ pub use crate::corpus::{
     corpus_uploads_are_refused_and_store_nothing, edge_dates_never_break_their_vehicle,
     hostile_requests_answer_problems_naming_their_field,
 };
+pub use crate::gauge::{
+    a_gauge_measurement_is_stored_refused_and_drawn, a_gauge_record_pools_with_the_next_lift,
+    a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,
+};
 use crate::harness::*;
 pub use crate::lift::{
     a_designed_lift_is_accepted_and_fitted, a_model_error_raises_no_wear_alarm,

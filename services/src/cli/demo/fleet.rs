@@ -4,8 +4,10 @@
 //! README). Every third month the pantograph also goes to the workshop, where each of J1–J7
 //! swings as a pendulum and the head drops on its slider (J8): the joints and the viscous
 //! damping a lift cannot inform are watched there. A third of the pantographs have one joint
-//! wearing at its own rate; the rest stay at their Table 4 baseline. Everything is
-//! deterministic (fixed seeds).
+//! wearing at its own rate; the rest stay at their Table 4 baseline. Every fourth pantograph
+//! (the second, sixth, …) also has its static contact force measured with a force gauge twice in
+//! the year ([`GAUGE_MONTHS`], a `static_force` test, issue 20), its worn joint's dry friction in
+//! the readings. Everything is deterministic (fixed seeds).
 
 use serde_json::json;
 
@@ -16,6 +18,15 @@ use crate::trace::{FORMAT, TraceDoc};
 pub const PENDULUM_JOINTS: [&str; 7] = ["J1", "J2", "J3", "J4", "J5", "J6", "J7"];
 /// Months of tests.
 pub const MONTHS: usize = 12;
+/// The months (0-based) of the force-gauge measurements on a gauged pantograph ([`gauged`]).
+pub const GAUGE_MONTHS: [usize; 2] = [3, 9];
+
+/// Whether pantograph `k` of the fleet has its static contact force measured by gauge: every
+/// fourth, from the second (so the fleet's J3 dry wear, pantograph 13, is among them).
+pub fn gauged(k: usize) -> bool {
+    k % 4 == 1
+}
+
 /// First month of the year of tests.
 const START: (i32, u32) = (2025, 5);
 
@@ -158,6 +169,9 @@ pub fn plan(vehicles: usize) -> anyhow::Result<Vec<PlannedTest>> {
             let hour = 6 + 3 * (k % 2);
             // The periodic on-vehicle test, every month.
             out.push(lift_test(&p, m, (y, mo, day), &defaults));
+            if gauged(k) && GAUGE_MONTHS.contains(&m) {
+                out.push(gauge_test(&p, m, (y, mo, day), &defaults));
+            }
             // The workshop session, every third month (staggered across the fleet): every
             // pendulum joint, then the head slider.
             let joints: Vec<&'static str> = if (m + k) % 3 == 0 {
@@ -248,6 +262,41 @@ fn lift_test(
     PlannedTest { args, true_factor }
 }
 
+/// The force-gauge measurement of pantograph `p` in month `m`, right after its lift test:
+/// `simulate --kind static_force` (15 heights raising, 14 lowering, gauge noise 0.2 N, 0.1 N
+/// resolution), its worn joint's dry friction at this month's factor (a viscous wear does not
+/// show in a quasi-static test, nor does the J8 slide's friction).
+fn gauge_test(
+    p: &Pantograph,
+    m: usize,
+    (y, mo, day): (i32, u32, usize),
+    defaults: &SimulateArgs,
+) -> PlannedTest {
+    let scale_joints = p
+        .wear
+        .as_ref()
+        .filter(|w| w.param == Param::Dry && w.joint != "J8")
+        .map(|w| vec![format!("{}:dry={}", w.joint, w.factor(m))])
+        .unwrap_or_default();
+    let args = SimulateArgs {
+        kind: crate::trace::STATIC_FORCE.into(),
+        scale_joints,
+        gauge_noise_n: 0.2,
+        gauge_resolution_n: 0.1,
+        gauge_readings: 15,
+        seed: (p.index * 1000 + m * 10 + 8) as u64,
+        vehicle: p.vehicle_id.clone(),
+        serial: p.serial.clone(),
+        trace_id: Some(format!("{}-{y}{mo:02}-gauge", p.serial)),
+        recorded_at: format!("{y}-{mo:02}-{day:02}T05:50:00Z"),
+        ..defaults.clone()
+    };
+    PlannedTest {
+        args,
+        true_factor: None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -261,13 +310,33 @@ mod tests {
         let plan = plan(30).expect("plan");
         let lifts = plan.iter().filter(|t| t.args.kind == "lift").count();
         let sliders = plan.iter().filter(|t| t.args.kind == "slider").count();
+        let gauges = plan
+            .iter()
+            .filter(|t| t.args.kind == crate::trace::STATIC_FORCE)
+            .count();
         assert_eq!(lifts, 60 * 12, "the periodic test is a monthly lift test");
         assert_eq!(sliders, 60 * 4, "a workshop session every third month");
+        assert_eq!(gauges, 15 * 2, "every fourth pantograph gauged twice");
         assert_eq!(
             plan.len(),
-            lifts + sliders * 8,
+            lifts + sliders * 8 + gauges,
             "7 pendulums and a slider per session"
         );
+        // The fleet's J3 dry wear is gauged, its readings with J3's friction scaled.
+        let worn_j3 = plan
+            .iter()
+            .find(|t| {
+                t.args.kind == crate::trace::STATIC_FORCE
+                    && t.args.scale_joints.iter().any(|s| s.starts_with("J3:dry="))
+            })
+            .expect("a gauged pantograph with J3 dry wear");
+        assert!(gauged(
+            pantographs(30)
+                .iter()
+                .find(|p| p.serial == worn_j3.args.serial)
+                .unwrap()
+                .index
+        ));
         let ids: std::collections::HashSet<_> =
             plan.iter().map(|t| t.args.trace_id.clone()).collect();
         assert_eq!(ids.len(), plan.len(), "trace ids are unique");

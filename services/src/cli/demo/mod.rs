@@ -93,7 +93,7 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
         .await
         .with_context(|| format!("creating {db}"))?;
     println!(
-        "pantowatch demo: {vehicles} vehicles × 2 pantographs × {} months (monthly lift, quarterly workshop) = {n} tests, \
+        "pantowatch demo: {vehicles} vehicles × 2 pantographs × {} months (monthly lift, quarterly workshop, force gauge twice on every fourth pantograph) = {n} tests, \
          database {db}, {workers} fitting workers",
         fleet::MONTHS
     );

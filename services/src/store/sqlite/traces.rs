@@ -226,4 +226,20 @@ impl TraceBackend for SqliteStore {
     async fn close(&self) {
         self.pool.close().await;
     }
+
+    async fn latest_trace_of_kind(&self, serial: &str, kind: &str) -> Result<Option<TraceMeta>> {
+        query(
+            "SELECT trace_id, vehicle_id, serial, model, recorded_at, kind, joint, test_json,
+                    content_sha256, sample_count, channel_names,
+                    length(samples) AS samples_bytes, created_at
+             FROM traces WHERE serial = $1 AND kind = $2
+             ORDER BY recorded_at DESC, trace_id DESC LIMIT 1",
+        )
+        .bind(serial)
+        .bind(kind)
+        .fetch_optional(&self.pool)
+        .await?
+        .map(|r| trace_from(&r))
+        .transpose()
+    }
 }

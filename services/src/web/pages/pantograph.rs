@@ -20,7 +20,7 @@ use crate::ids::Serial;
 use crate::store::{AlertFilter, JointPoint, Status};
 use crate::web::error::WebPath;
 use crate::web::layout::{badge, sev_badge};
-use crate::web::svg::{Frame, fmt_num};
+use crate::web::svg::{Frame, fmt_num, legend_entry};
 use crate::web::{PageResult, day, seg, signed_in_page};
 
 /// A parameter's status in one test: its own verdict, or the joint's when the result has none
@@ -189,9 +189,21 @@ fn describe(joint: &str, tr: &ParamTrend, pts: &[(DateTime<Utc>, f64)]) -> Strin
     d
 }
 
+/// Class of a raising gauge reading's marker on the static-force chart (one `<g>` per reading).
+pub const GAUGE_RAISE_CLASS: &str = "gauge-raise";
+/// Class of a lowering gauge reading's marker.
+pub const GAUGE_LOWER_CLASS: &str = "gauge-lower";
+const RAISE_COLOR: &str = "#1565c0";
+const LOWER_COLOR: &str = "#e65100";
+
 /// The predicted static contact force (issue 20): raising and lowering with their 95 % bands,
-/// the frictionless curve, and the type's limits (nominal, min, max) over strip height.
-fn static_force_chart(v: &crate::static_force::StaticForceView) -> Markup {
+/// the frictionless curve, and the type's limits (nominal, min, max) over strip height; with
+/// the latest force-gauge measurement's readings over it when the pantograph has one (raising:
+/// filled blue dots, lowering: hollow orange squares, as stored, not refitted).
+fn static_force_chart(
+    v: &crate::static_force::StaticForceView,
+    measured: Option<&crate::static_force::GaugeMeasurement>,
+) -> Markup {
     let h = &v.heights_m;
     let (Some(&h0), Some(&h1)) = (h.first(), h.last()) else {
         return html! {};
@@ -204,17 +216,28 @@ fn static_force_chart(v: &crate::static_force::StaticForceView) -> Markup {
         &v.limits.min_n,
         &v.limits.max_n,
     ];
+    let gauge_f = measured
+        .into_iter()
+        .flat_map(|m| m.raise.iter().chain(&m.lower))
+        .map(|p| p[1]);
     let ylo = all
         .iter()
         .flat_map(|s| s.iter())
         .copied()
+        .chain(gauge_f.clone())
         .fold(f64::INFINITY, f64::min);
     let yhi = all
         .iter()
         .flat_map(|s| s.iter())
         .copied()
+        .chain(gauge_f)
         .fold(f64::NEG_INFINITY, f64::max);
-    let mut f = Frame::new((h0, h1), (ylo, yhi));
+    let gauge_h = measured
+        .into_iter()
+        .flat_map(|m| m.raise.iter().chain(&m.lower))
+        .map(|p| p[0]);
+    let (x0, x1) = gauge_h.fold((h0, h1), |(a, b), h| (a.min(h), b.max(h)));
+    let mut f = Frame::new((x0, x1), (ylo, yhi));
     f.band(
         &xy(&v.raise_lo_n),
         &xy(&v.raise_hi_n),
@@ -231,8 +254,44 @@ fn static_force_chart(v: &crate::static_force::StaticForceView) -> Markup {
     f.polyline(&xy(&v.limits.max_n), "#c62828", 1.5, true);
     f.polyline(&xy(&v.limits.nominal_n), "#2e7d32", 1.0, true);
     f.polyline(&xy(&v.frictionless_n), "#9e9e9e", 1.0, true);
-    f.polyline(&xy(&v.raise_n), "#1565c0", 2.0, false);
-    f.polyline(&xy(&v.lower_n), "#e65100", 2.0, false);
+    f.polyline(&xy(&v.raise_n), RAISE_COLOR, 2.0, false);
+    f.polyline(&xy(&v.lower_n), LOWER_COLOR, 2.0, false);
+    let mut legend = vec![
+        (
+            "band:#bbdefb",
+            "raising, predicted with its 95 % band".to_owned(),
+        ),
+        (
+            "band:#ffe0b2",
+            "lowering, predicted with its 95 % band".to_owned(),
+        ),
+        ("dash:#c62828", "the type's limits".to_owned()),
+    ];
+    if let Some(m) = measured {
+        for (pts, class, color, open, branch) in [
+            (&m.raise, GAUGE_RAISE_CLASS, RAISE_COLOR, false, "raising"),
+            (&m.lower, GAUGE_LOWER_CLASS, LOWER_COLOR, true, "lowering"),
+        ] {
+            for (i, p) in pts.iter().enumerate() {
+                let label = format!(
+                    "gauge {} {branch} reading {}: H {} m, F {} N",
+                    m.trace_id,
+                    i + 1,
+                    fmt_num(p[0]),
+                    fmt_num(p[1])
+                );
+                f.marker((p[0], p[1]), class, color, open, &label);
+            }
+        }
+        legend.push((
+            "dot:#1565c0",
+            format!("raising, gauge ({} readings)", m.raise.len()),
+        ));
+        legend.push((
+            "square:#e65100",
+            format!("lowering, gauge ({} readings)", m.lower.len()),
+        ));
+    }
     let i0 = 0;
     let i1 = h.len() - 1;
     let mut desc = format!(
@@ -260,15 +319,30 @@ fn static_force_chart(v: &crate::static_force::StaticForceView) -> Markup {
             fmt_num(v.findings[0].height_m)
         );
     }
+    if let Some(m) = measured {
+        let _ = write!(
+            desc,
+            " Measured by force gauge on {} (test {}, resolution {} N): {} raising and {} lowering \
+             readings, drawn over the prediction.",
+            day(m.recorded_at),
+            m.trace_id,
+            fmt_num(m.gauge_resolution_n),
+            m.raise.len(),
+            m.lower.len()
+        );
+    }
     let x_labels = vec![
-        (h0, format!("{} m", fmt_num(h0))),
-        (h1, format!("{} m", fmt_num(h1))),
+        (x0, format!("{} m", fmt_num(x0))),
+        (x1, format!("{} m", fmt_num(x1))),
     ];
     html! {
         section id="static-force" {
             h2 { "Static contact force" }
             figure.chart data-param="static_force" {
                 (f.finish(&format!("{} static contact force over height", v.serial), &desc, &x_labels, "N"))
+                p.legend {
+                    @for (swatch, text) in &legend { (legend_entry(swatch, text)) " " }
+                }
                 figcaption { (desc) }
             }
             p.note {
@@ -276,6 +350,11 @@ fn static_force_chart(v: &crate::static_force::StaticForceView) -> Markup {
                  the lift-test line, from each joint's dry friction of the latest test that informed \
                  it (others at Table 4); shaded: 95 % bands; red dashed: the type's limits; green \
                  dashed: nominal; grey dashed: without friction."
+                @if let Some(m) = measured {
+                    " Dots (raising) and hollow squares (lowering): the force gauge's readings of "
+                    a href={ "/traces/" (seg(&m.trace_id)) } { (m.trace_id) }
+                    " as uploaded."
+                }
             }
         }
     }
@@ -310,8 +389,9 @@ async fn pantograph(st: &AppState, raw: &str) -> Result<Markup, AppError> {
         })
         .await?;
     // The static force prediction; a type without its model shows none, a model failure says so.
+    let measured = crate::static_force::latest_measurement(&st.store, serial.as_str()).await?;
     let static_force = match crate::static_force::predict(&st.store, serial.as_str()).await {
-        Ok(v) => static_force_chart(&v),
+        Ok(v) => static_force_chart(&v, measured.as_ref()),
         Err(crate::static_force::PredictError::Store(e)) => return Err(e.into()),
         Err(crate::static_force::PredictError::Model(e)) => html! {
             section id="static-force" { h2 { "Static contact force" } p { "Not computed: " (e) } }

@@ -28,6 +28,9 @@ fn subject(meta: &TraceMeta) -> String {
         (Some(j), _) => format!("joint {j}"),
         (None, "lift") => "the whole pantograph".to_owned(),
         (None, "quadrangle_swing") => "the lower quadrangle (J1, J2, J2′, J3)".to_owned(),
+        (None, crate::trace::STATIC_FORCE) => {
+            "the whole pantograph's static contact force (force gauge)".to_owned()
+        }
         (None, _) => "the pantograph".to_owned(),
     }
 }
@@ -227,6 +230,15 @@ fn no_curve(trace_id: &str, error: &str) -> Markup {
 /// point 4: a page never refits; `fitting::fit_document_with_curve` made it when the worker
 /// fitted the trace).
 async fn trace_charts(st: &AppState, meta: &TraceMeta, fit_id: i64) -> Markup {
+    if let (crate::trace::STATIC_FORCE, Some(serial)) = (meta.kind.as_str(), &meta.serial) {
+        return html! {
+            p {
+                "A force gauge's readings: the pantograph's latest gauge test is drawn over its \
+                 predicted static contact force on the "
+                a href={ "/pantographs/" (seg(serial)) "#static-force" } { "pantograph's page" } "."
+            }
+        };
+    }
     let curve = match st.store.fit_curve(fit_id).await {
         Ok(Some(c)) => c,
         Ok(None) => {
