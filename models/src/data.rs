@@ -174,6 +174,9 @@ pub struct StaticForceData {
     pub gauge_noise_n: f64,
     /// A simulated gauge's resolution, N.
     pub gauge_sim_resolution_n: f64,
+    /// Time between two gauge readings [shortest, longest], s (readings by hand: replaces
+    /// `rig_limits.sample_interval_s` for a `static_force` record).
+    pub gauge_reading_interval_s: [f64; 2],
 }
 
 /// The paper's whole-pantograph tests as the reference traces run them: the lower-quadrangle
@@ -280,8 +283,19 @@ impl RigLimits {
     /// `time_s`, every interval within `sample_interval_s` (named by the sample after it), and
     /// the whole record no longer than `record_duration_max_s` (named `channels.t_s`).
     pub fn check_sampling(&self, t_s: &[f64]) -> Result<(), (String, String)> {
+        self.check_sampling_within(t_s, self.sample_interval_s, "rig_limits.sample_interval_s")
+    }
+
+    /// [`RigLimits::check_sampling`] with another interval rule (`interval_s`, named by `key`
+    /// in the message): a force gauge read by hand (`static_force.gauge_reading_interval_s`).
+    pub fn check_sampling_within(
+        &self,
+        t_s: &[f64],
+        interval_s: [f64; 2],
+        key: &str,
+    ) -> Result<(), (String, String)> {
         Self::check_channel_span("t_s", t_s, self.time_s, "s")?;
-        let [lo, hi] = self.sample_interval_s;
+        let [lo, hi] = interval_s;
         if let Some(i) = t_s
             .windows(2)
             .position(|w| !(w[1] - w[0] >= lo && w[1] - w[0] <= hi))
@@ -290,7 +304,7 @@ impl RigLimits {
                 format!("channels.t_s[{}]", i + 1),
                 format!(
                     "{} s after the sample before it: a sampling interval outside [{lo}, {hi}] s \
-                     (models/data, `rig_limits.sample_interval_s`)",
+                     (models/data, `{key}`)",
                     t_s[i + 1] - t_s[i]
                 ),
             ));
@@ -469,6 +483,14 @@ impl PantographType {
                 ));
             }
             positive("static_force.gauge_noise_n", sf.gauge_noise_n)?;
+            let [g0, g1] = sf.gauge_reading_interval_s;
+            positive("static_force.gauge_reading_interval_s", g0)?;
+            if !(g1.is_finite() && g1 > g0) {
+                return Err(invalid(
+                    "static_force.gauge_reading_interval_s",
+                    "must be [shortest, longest] with longest > shortest",
+                ));
+            }
             positive(
                 "static_force.gauge_sim_resolution_n",
                 sf.gauge_sim_resolution_n,

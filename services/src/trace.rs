@@ -395,11 +395,19 @@ impl TraceDoc {
         }
         // The clock within the type's plausible sampling (issue 18: `t_s = [0, 1e300]` was
         // accepted): times, intervals and the record's length, `[rig_limits]` in models/data.
-        data::builtin(&pantograph_model)
-            .unwrap_or_else(data::builtin_160ec)
-            .rig_limits()
-            .check_sampling(&t)
-            .map_err(|(field, message)| bad(field, message))?;
+        // A force gauge is read by hand: its readings' spacing has its own rule
+        // (`[static_force] gauge_reading_interval_s`).
+        let type_data = data::builtin(&pantograph_model).unwrap_or_else(data::builtin_160ec);
+        let limits = type_data.rig_limits();
+        match (&kind, type_data.static_force.as_ref()) {
+            (Kind::StaticForce, Some(sf)) => limits.check_sampling_within(
+                &t,
+                sf.gauge_reading_interval_s,
+                "static_force.gauge_reading_interval_s",
+            ),
+            _ => limits.check_sampling(&t),
+        }
+        .map_err(|(field, message)| bad(field, message))?;
         let (needed, optional) = kind.channels();
         for name in needed {
             if !chans.contains_key(*name) {
@@ -1288,6 +1296,25 @@ mod tests {
         for (v, field) in cases {
             assert_eq!(field_of(v.clone()), field, "{v}");
         }
+        // Read by hand: readings a minute apart are a gauge test (a logger's channel may not
+        // pause over 1 s); a pause over `gauge_reading_interval_s` is refused at its reading.
+        let spaced = |dt: f64| {
+            let t: Vec<f64> = (0..11).map(|i| i as f64 * 60.0).collect();
+            let mut d = set("/channels/t_s", json!(t));
+            d["channels"]["t_s"][7] = json!(6.0 * 60.0 + dt);
+            for i in 8..11 {
+                d["channels"]["t_s"][i] = json!(6.0 * 60.0 + dt + (i - 7) as f64 * 60.0);
+            }
+            d
+        };
+        TraceDoc::from_value(&spaced(60.0)).expect("readings a minute apart");
+        assert_eq!(field_of(spaced(601.0)), "channels.t_s[7]");
+        let mut logger = doc();
+        logger["channels"]["t_s"][1] = json!(60.0);
+        assert!(
+            field_of(logger).starts_with("channels.t_s["),
+            "a logger's channel keeps its 1 s rule"
+        );
         // A pendulum states no gauge.
         let mut d = doc();
         d["test"]["gauge_resolution_n"] = json!(0.1);
@@ -1312,6 +1339,10 @@ mod tests {
             format!(
                 "| `[static_force] gauge_resolution_range_n` | [{}, {}] |",
                 sf.gauge_resolution_range_n[0], sf.gauge_resolution_range_n[1]
+            ),
+            format!(
+                "| `[static_force] gauge_reading_interval_s` | [{}, {}] |",
+                sf.gauge_reading_interval_s[0], sf.gauge_reading_interval_s[1]
             ),
         ] {
             assert!(readme.contains(&row), "README \"Input limits\" lacks {row}");
