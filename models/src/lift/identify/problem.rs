@@ -1,0 +1,225 @@
+//! The lift fit's least-squares problem: H residuals of every trace over σ_H, pooled gauge
+//! readings over their noise, and the prior rows, with their Jacobian (`identify::fit_map_in`
+//! builds and minimises it).
+
+use super::*;
+
+pub(super) struct MapProblem<'a, 'w> {
+    /// The buffers every evaluation's sensitivity run reuses.
+    pub(super) ws: &'w mut SensWorkspace,
+    pub(super) base: &'a LiftModel,
+    pub(super) traces: &'a [LiftTrace<'a>],
+    pub(super) fric: &'a [LiftParam],
+    pub(super) baseline: &'a [f64],
+    pub(super) opts: &'a LiftFitOptions,
+    /// `fric`, the offset, then the effects: the sensitivity run's parameters.
+    pub(super) with_offset: Vec<LiftParam>,
+    /// Priors of the effects (`opts.effect_params`), in their order.
+    pub(super) effect_priors: &'a [EffectPrior],
+    pub(super) n_data: usize,
+    /// Each pooled gauge record's readings at the baseline (`opts.gauge_records`' order).
+    pub(super) gauge_warm: &'a [Vec<crate::lift::gauge::solve::Warm>],
+    /// Readings of every pooled gauge record.
+    pub(super) n_gauge: usize,
+}
+
+impl MapProblem<'_, '_> {
+    pub(super) fn model_at(&self, x: &[f64]) -> LiftModel {
+        let mut m = self.base.clone();
+        let mut dummy = 0.0;
+        for (i, p) in self.fric.iter().enumerate() {
+            p.set(&mut m, &mut dummy, x[i] * self.baseline[i]);
+        }
+        let e0 = self.fric.len() + self.traces.len();
+        for (i, p) in self.opts.effect_params.iter().enumerate() {
+            p.set(&mut m, &mut dummy, x[e0 + i]);
+        }
+        m
+    }
+}
+
+impl Problem for MapProblem<'_, '_> {
+    fn n_params(&self) -> usize {
+        self.fric.len()
+            + self.traces.len()
+            + self.effect_priors.len()
+            + self.opts.gauge_records.len()
+    }
+    fn n_residuals(&self) -> usize {
+        self.n_data + self.n_gauge + self.n_params()
+    }
+    fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
+        let pf = self.fric.len();
+        let e0 = pf + self.traces.len();
+        let m = self.model_at(x);
+        let sigma = self.opts.h_noise_m;
+        // The H delay, if fitted: its index among the effects and its value, s.
+        let delay = self
+            .opts
+            .effect_params
+            .iter()
+            .position(|p| *p == LiftParam::SensorDelay)
+            .map(|e| (e, x[e0 + e]));
+        // The H zero offset, if fitted, m (`sensor_offset`: H_meas = H + b).
+        let h_offset_m = self
+            .opts
+            .effect_params
+            .iter()
+            .position(|p| *p == LiftParam::SensorOffset)
+            .map_or(0.0, |e| x[e0 + e]);
+        jac.fill(0.0);
+        let mut row = 0;
+        for (ti, tr) in self.traces.iter().enumerate() {
+            let run = simulate_sensitivities_in(
+                self.ws,
+                &m,
+                &tr.inputs,
+                &self.with_offset,
+                x[pf + ti],
+                &self.opts.sim,
+            )
+            .map_err(|e| e.to_string())?;
+            let p = self.with_offset.len();
+            let mask = self.opts.holdout_mask.as_deref().filter(|_| ti == 0);
+            // `sensor_delay`: the model's H read τ late, H(t_k − τ), linear between samples
+            // (the record starts at rest: before its first sample, the first), ∂/∂τ = −Ḣ.
+            let t_s = tr.inputs.t_s;
+            let mut j = 0;
+            for k in 0..tr.strip_height_m.len() {
+                if mask.is_some_and(|m| m.get(k) == Some(&true)) {
+                    r[row] = 0.0;
+                    row += 1;
+                    continue;
+                }
+                // Sample j and its weight w toward j + 1 (w = 0: sample k itself).
+                let (jk, w, slope) = match delay {
+                    None => (k, 0.0, 0.0),
+                    Some((_, tau)) => {
+                        let t = t_s[k] - tau;
+                        while j + 1 < k && t_s[j + 1] <= t {
+                            j += 1;
+                        }
+                        if t <= t_s[0] {
+                            (0, 0.0, 0.0)
+                        } else {
+                            let dt = t_s[j + 1] - t_s[j];
+                            let w = ((t - t_s[j]) / dt).clamp(0.0, 1.0);
+                            let dh = run.strip_height_m[j + 1] - run.strip_height_m[j];
+                            (j, w, dh / dt)
+                        }
+                    }
+                };
+                let at = |v: &dyn Fn(usize) -> f64| {
+                    if w == 0.0 {
+                        v(jk)
+                    } else {
+                        v(jk) + w * (v(jk + 1) - v(jk))
+                    }
+                };
+                r[row] =
+                    (at(&|q| run.strip_height_m[q]) + h_offset_m - tr.strip_height_m[k]) / sigma;
+                for i in 0..pf {
+                    jac[(row, i)] = at(&|q| run.d_height[q * p + i]) * self.baseline[i] / sigma;
+                }
+                jac[(row, pf + ti)] = at(&|q| run.d_height[q * p + pf]) / sigma;
+                let mut col = pf + 1;
+                for (e, ep) in self.opts.effect_params.iter().enumerate() {
+                    jac[(row, e0 + e)] = if *ep == LiftParam::SensorDelay {
+                        -slope / sigma
+                    } else if *ep == LiftParam::SensorOffset {
+                        1.0 / sigma
+                    } else {
+                        col += 1;
+                        at(&|q| run.d_height[q * p + col - 1]) / sigma
+                    };
+                }
+                row += 1;
+            }
+        }
+        // Pooled gauge records: (F_model + b_g − F)/σ_g, ∂/∂x of the dry μ by forward
+        // differences, each record's zero b_g a nuisance (as the gauge fit's, `gauge::fit`).
+        let z0 = pf + self.traces.len() + self.effect_priors.len();
+        for (gi, (g, warm)) in self
+            .opts
+            .gauge_records
+            .iter()
+            .zip(self.gauge_warm)
+            .enumerate()
+        {
+            let sigma = g.sigma_n();
+            let zero_n = x[z0 + gi];
+            let ar = m.alpha_range_rad;
+            let f = crate::lift::gauge::solve::forces_near(&m, ar, &g.drive, &g.record, warm)
+                .map_err(|e| e.to_string())?;
+            let n = f.len();
+            for (k, (a, b)) in f.iter().zip(&g.record.forces_n).enumerate() {
+                r[row + k] = (a + zero_n - b) / sigma;
+                jac[(row + k, z0 + gi)] = 1.0 / sigma;
+            }
+            for (i, p) in self.fric.iter().enumerate() {
+                let LiftParam::Dry(j) = p else { continue };
+                if *j == RevJoint::J6 {
+                    continue;
+                }
+                let mut mi = m.clone();
+                mi.friction.dry_mu[j.index()] = (x[i] + GAUGE_FD_STEP) * self.baseline[i];
+                let fi = crate::lift::gauge::solve::forces_near(&mi, ar, &g.drive, &g.record, warm)
+                    .map_err(|e| e.to_string())?;
+                for (k, (a, b)) in fi.iter().zip(&f).enumerate() {
+                    jac[(row + k, i)] = (a - b) / (GAUGE_FD_STEP * sigma);
+                }
+            }
+            row += n;
+        }
+        // Prior rows: (x − 1)/s for friction, offset/s_T for the offsets.
+        let s_rel = self.opts.prior_relative_sd;
+        for i in 0..pf {
+            r[row] = (x[i] - 1.0) / s_rel;
+            jac[(row, i)] = 1.0 / s_rel;
+            row += 1;
+        }
+        for ti in 0..self.traces.len() {
+            r[row] = x[pf + ti] / self.opts.offset_prior_sd_nm;
+            jac[(row, pf + ti)] = 1.0 / self.opts.offset_prior_sd_nm;
+            row += 1;
+        }
+        for (e, pr) in self.effect_priors.iter().enumerate() {
+            r[row] = (x[e0 + e] - pr.mean) / pr.sd;
+            jac[(row, e0 + e)] = 1.0 / pr.sd;
+            row += 1;
+        }
+        for gi in 0..self.opts.gauge_records.len() {
+            let pr = GAUGE_ZERO_PRIOR;
+            r[row] = (x[z0 + gi] - pr.mean) / pr.sd;
+            jac[(row, z0 + gi)] = 1.0 / pr.sd;
+            row += 1;
+        }
+        Ok(())
+    }
+    fn lower_bounds(&self) -> Vec<f64> {
+        let mut v = vec![0.0; self.fric.len()];
+        v.extend(std::iter::repeat_n(f64::NEG_INFINITY, self.traces.len()));
+        v.extend(self.effect_priors.iter().map(|p| p.lower));
+        v.extend(
+            self.opts
+                .gauge_records
+                .iter()
+                .map(|_| GAUGE_ZERO_PRIOR.lower),
+        );
+        v
+    }
+    /// At most 10× Table 4 (20 prior sd): far beyond any worn joint, and it keeps trial steps
+    /// out of absurd, stiff corners of the model.
+    fn upper_bounds(&self) -> Vec<f64> {
+        let mut v = vec![MAX_MULTIPLE; self.fric.len()];
+        v.extend(std::iter::repeat_n(f64::INFINITY, self.traces.len()));
+        v.extend(self.effect_priors.iter().map(|p| p.upper));
+        v.extend(
+            self.opts
+                .gauge_records
+                .iter()
+                .map(|_| GAUGE_ZERO_PRIOR.upper),
+        );
+        v
+    }
+}

@@ -1,0 +1,491 @@
+//! Each test kind's view of a parsed document: a lift's channels and protocol, a quadrangle
+//! swing's, a force gauge's readings, a single joint's test and baseline.
+
+use super::*;
+
+impl TraceDoc {
+    /// The channels of a `lift` test for the complete-pantograph model (built-in 160EC
+    /// geometry, `../shared/reference/160ec.toml`).
+    ///
+    /// The contract allows `test.rig` overrides of that geometry; none is supported yet, so a
+    /// non-empty `test.rig` is refused rather than silently ignored.
+    pub fn lift_channels(&self) -> Result<LiftChannels<'_>, TraceError> {
+        if self.kind != Kind::Lift {
+            return Err(bad("test.kind", "not a lift test"));
+        }
+        if self.pantograph_model != "160EC" {
+            return Err(bad(
+                "pantograph.model",
+                format!(
+                    "lift tests are fitted with the 160EC geometry only, got `{}`",
+                    self.pantograph_model
+                ),
+            ));
+        }
+        if let Some(j) = &self.joint {
+            return Err(bad(
+                "test.joint",
+                format!("a lift test is of the whole pantograph, got joint `{j}`"),
+            ));
+        }
+        if let Some((k, _)) = self
+            .test
+            .get("rig")
+            .and_then(Value::as_object)
+            .and_then(|r| r.iter().next())
+        {
+            return Err(bad(
+                format!("test.rig.{k}"),
+                "overrides of the 160EC lift geometry are not supported yet (send an empty rig)",
+            ));
+        }
+        let get = |name: &str| self.channel(name).unwrap_or_default();
+        lift_gaps(get("t_s"))?;
+        self.lift_protocol(get("t_s"))?;
+        let channels = LiftChannels {
+            t_s: get("t_s"),
+            strip_height_m: get("H_m"),
+            torque_nm: get("T_Nm"),
+            fs_n: get("Fs_N"),
+            fm_n: get("Fm_N"),
+        };
+        // T within the drive's range, H within the working heights, Fs and Fm within the
+        // strip loads the drive can hold (models' data files).
+        channels
+            .check_limits()
+            .map_err(|(field, message)| bad(field, message))?;
+        Ok(channels)
+    }
+
+    /// The drive protocol a lift states it ran (`test.protocol`, optional: as `pantowatch
+    /// design-test` writes it), checked against the stand's limits
+    /// (`lift::design::ProtocolLimits::stand`, issue 15 point 7): a field outside them, or a
+    /// record longer than the limit's duration, is refused naming it. `None`: not stated.
+    pub fn lift_protocol(
+        &self,
+        t_s: &[f64],
+    ) -> Result<Option<pantowatch_models::lift::protocol::LiftProtocol>, TraceError> {
+        use pantowatch_models::lift::design::ProtocolLimits;
+        let Some(v) = self.test.get("protocol") else {
+            return Ok(None);
+        };
+        let p: pantowatch_models::lift::protocol::LiftProtocol =
+            serde_json::from_value(v.clone()).map_err(|e| bad("test.protocol", e.to_string()))?;
+        let lim = ProtocolLimits::stand(pantowatch_models::lift::geometry::builtin_160ec());
+        lim.check(&p)
+            .map_err(|e| bad(format!("test.protocol.{}", e.field), e.message))?;
+        if let (Some(first), Some(last)) = (t_s.first(), t_s.last())
+            && last - first > lim.duration_max_s
+        {
+            return Err(bad(
+                "channels.t_s",
+                format!(
+                    "the record lasts {:.1} s, over the stated protocol limit of {} s",
+                    last - first,
+                    lim.duration_max_s
+                ),
+            ));
+        }
+        Ok(Some(p))
+    }
+
+    /// The channels and stand of a `quadrangle_swing` test for the lower-quadrangle model
+    /// (built-in 160EC geometry). `test.rig`: `incline_deg` (default 70), `gravity_m_s2`
+    /// (default 9.81), `attachments` (point masses fixed to a body, at body coordinates).
+    pub fn quadrangle_channels(&self) -> Result<(QuadChannels<'_>, QuadRig), TraceError> {
+        if self.kind != Kind::QuadrangleSwing {
+            return Err(bad("test.kind", "not a quadrangle_swing test"));
+        }
+        if self.pantograph_model != "160EC" {
+            return Err(bad(
+                "pantograph.model",
+                format!(
+                    "quadrangle swings are fitted with the 160EC geometry only, got `{}`",
+                    self.pantograph_model
+                ),
+            ));
+        }
+        if let Some(j) = &self.joint {
+            return Err(bad(
+                "test.joint",
+                format!(
+                    "a quadrangle swing is of joints J1, J2, J2', J3 together, got joint `{j}`"
+                ),
+            ));
+        }
+        let rig = self
+            .test
+            .get("rig")
+            .and_then(Value::as_object)
+            .cloned()
+            .unwrap_or_default();
+        only_keys(
+            &rig,
+            &["incline_deg", "gravity_m_s2", "attachments"],
+            "test.rig",
+        )?;
+        let mut q = QuadRig::default();
+        if let Some(v) = number(&rig, "incline_deg", "test.rig.incline_deg")? {
+            q.incline_deg = v;
+        }
+        if let Some(v) = number(&rig, "gravity_m_s2", "test.rig.gravity_m_s2")? {
+            q.gravity_m_s2 = v;
+        }
+        match rig.get("attachments") {
+            None | Some(Value::Null) => {}
+            Some(a) => {
+                let arr = a
+                    .as_array()
+                    .ok_or_else(|| bad("test.rig.attachments", "must be an array"))?;
+                if arr.len() > 16 {
+                    return Err(bad("test.rig.attachments", "more than 16 attachments"));
+                }
+                for (i, x) in arr.iter().enumerate() {
+                    let f = format!("test.rig.attachments[{i}]");
+                    let m = obj(x, &f)?;
+                    only_keys(m, &["kind", "mass_kg", "body", "position_m"], &f)?;
+                    if m.get("kind").and_then(Value::as_str) != Some("point") {
+                        return Err(bad(format!("{f}.kind"), "must be `point`"));
+                    }
+                    let mass_kg = number(m, "mass_kg", &format!("{f}.mass_kg"))?
+                        .ok_or_else(|| bad(format!("{f}.mass_kg"), "is required"))?;
+                    let body = match m.get("body").and_then(Value::as_str) {
+                        Some(k) => QBody::named(k),
+                        None => None,
+                    }
+                    .ok_or_else(|| {
+                        bad(
+                            format!("{f}.body"),
+                            "must be `lower_arm`, `coupling_rod` or `upper_arm`",
+                        )
+                    })?;
+                    let pos = m
+                        .get("position_m")
+                        .and_then(Value::as_array)
+                        .filter(|a| a.len() == 2)
+                        .and_then(|a| Some([a[0].as_f64()?, a[1].as_f64()?]))
+                        .ok_or_else(|| {
+                            bad(format!("{f}.position_m"), "must be two numbers [x, y], m")
+                        })?;
+                    q.attachments.push(PointMass {
+                        body,
+                        mass_kg,
+                        position_m: V2::from_array(pos),
+                    });
+                }
+            }
+        }
+        q.model().map_err(|e| bad(e.field, e.message))?;
+        let get = |name: &str| self.channel(name).unwrap_or_default();
+        let channels = QuadChannels {
+            t_s: get("t_s"),
+            alpha_deg: get("alpha_deg"),
+            beta_deg: get("beta_deg"),
+        };
+        channels
+            .check_limits()
+            .map_err(|e| bad(e.field, e.message))?;
+        Ok((channels, q))
+    }
+
+    /// The readings of a `static_force` test (a force gauge on the strip, issue 20), checked
+    /// by the models' record (`lift::gauge::GaugeRecord`) against the type's `[static_force]`
+    /// data: `test.gauge_resolution_n` stated and within `gauge_resolution_range_n`, every `H_m`
+    /// within `working_height_m`, every `F_N` within `[rig_limits] lift_strip_force_n`, a raising
+    /// branch (H never decreasing up to the first highest reading) then a lowering branch (H
+    /// never increasing after it), each of at least `min_points_per_branch` readings.
+    pub fn static_force_channels(&self) -> Result<GaugeChannels<'_>, TraceError> {
+        if self.kind != Kind::StaticForce {
+            return Err(bad("test.kind", "not a static_force test"));
+        }
+        let sf = self
+            .pantograph_data()
+            .and_then(|d| d.static_force.as_ref())
+            .filter(|_| self.pantograph_model == "160EC")
+            .ok_or_else(|| {
+                bad(
+                    "pantograph.model",
+                    format!(
+                        "static_force tests are fitted with the 160EC geometry and its \
+                         [static_force] data only, got `{}`",
+                        self.pantograph_model
+                    ),
+                )
+            })?;
+        if let Some(j) = &self.joint {
+            return Err(bad(
+                "test.joint",
+                format!("a static_force test is of the whole pantograph, got joint `{j}`"),
+            ));
+        }
+        if let Some((k, _)) = self
+            .test
+            .get("rig")
+            .and_then(Value::as_object)
+            .and_then(|r| r.iter().next())
+        {
+            return Err(bad(
+                format!("test.rig.{k}"),
+                "a static_force test has no rig to state (send an empty rig or none)",
+            ));
+        }
+        if self.test.get("protocol").is_some_and(|v| !v.is_null()) {
+            return Err(bad(
+                "test.protocol",
+                "only a lift test states a drive protocol",
+            ));
+        }
+        const RES: &str = "test.gauge_resolution_n";
+        let test = self.test.as_object().cloned().unwrap_or_default();
+        let gauge_resolution_n = match number(&test, "gauge_resolution_n", RES)? {
+            None => {
+                return Err(bad(
+                    RES,
+                    "is required for a static_force test: the gauge's stated resolution, N",
+                ));
+            }
+            Some(r) if r <= 0.0 => return Err(bad(RES, format!("{r} N: must be > 0"))),
+            Some(r) => r,
+        };
+        let get = |name: &str| self.channel(name).unwrap_or_default();
+        let (t_s, h, f) = (get("t_s"), get("H_m"), get("F_N"));
+        // The record's rules are the models' (`lift::gauge::GaugeRecord`, the type's
+        // `[static_force]`): the resolution's span, every height within the working range, both
+        // branches, each never turning back and of `min_points_per_branch` readings, every
+        // force within the strip loads a drive can hold. One rule set for upload and fit.
+        let record = GaugeRecord::with_limits(h.to_vec(), f.to_vec(), gauge_resolution_n, sf)
+            .map_err(|e| {
+                let field = e.field_path().unwrap_or_else(|| "channels".to_owned());
+                let text = e.to_string();
+                let message = text
+                    .strip_prefix(&format!("{field}: "))
+                    .unwrap_or(&text)
+                    .to_owned();
+                bad(field, message)
+            })?;
+        Ok(GaugeChannels {
+            t_s,
+            strip_height_m: h,
+            force_n: f,
+            gauge_resolution_n,
+            raise_len: record.turn + 1,
+        })
+    }
+
+    /// The pantograph type's data when compiled in (`160EC`); `None` for other models.
+    pub fn pantograph_data(&self) -> Option<&'static PantographType> {
+        data::builtin(&self.pantograph_model)
+    }
+
+    /// `test.release_t_s` (issue 17, point 2): when the body was let go, s, on the trace's
+    /// clock; only a pendulum states it. It must lie within `t` and leave at least 20 samples of
+    /// free motion (what a fit needs).
+    fn release_t_s(&self, t: &[f64]) -> Result<Option<f64>, TraceError> {
+        const FIELD: &str = "test.release_t_s";
+        let Some(test) = self.test.as_object() else {
+            return Ok(None);
+        };
+        let Some(r) = number(test, "release_t_s", FIELD)? else {
+            return Ok(None);
+        };
+        match pantowatch_models::identify::release::stated_release(t, r, 20) {
+            Some(_) => Ok(Some(r)),
+            None => Err(bad(
+                FIELD,
+                format!(
+                    "{r} s lies outside the trace ({} to {} s) or leaves fewer than 20 samples \
+                     after it",
+                    t.first().copied().unwrap_or(f64::NAN),
+                    t.last().copied().unwrap_or(f64::NAN)
+                ),
+            )),
+        }
+    }
+
+    /// The models' single-joint test (pendulum or slider) with its Table 4 baseline.
+    pub fn joint_test(&self) -> Result<(JointTest, Baseline), TraceError> {
+        let rig = self
+            .test
+            .get("rig")
+            .and_then(Value::as_object)
+            .cloned()
+            .unwrap_or_default();
+        let t = self.channel("t_s").unwrap_or_default().to_vec();
+        let data = self.pantograph_data();
+        let rig_err = |e: pantowatch_models::rig::RigError| bad(e.field, e.message);
+        match self.kind {
+            Kind::Pendulum => {
+                let joint = self
+                    .joint
+                    .clone()
+                    .ok_or_else(|| bad("test.joint", "is required for a pendulum test"))?;
+                const JOINTS: [&str; 9] =
+                    ["J1", "J2", "J2'", "J3", "J4", "J5", "J6", "J7", "custom"];
+                if !JOINTS.contains(&joint.as_str()) {
+                    return Err(bad(
+                        "test.joint",
+                        format!("unknown joint `{joint}` (J1 J2 J2' J3 J4 J5 J6 J7 custom)"),
+                    ));
+                }
+                only_keys(
+                    &rig,
+                    &[
+                        "body",
+                        "attachments",
+                        "pin_radius_m",
+                        "gravity_m_s2",
+                        "initial_rate_deg_s",
+                    ],
+                    "test.rig",
+                )?;
+                let body = match rig.get("body") {
+                    None | Some(Value::Null) => None,
+                    Some(b) => {
+                        let b = obj(b, "test.rig.body")?;
+                        only_keys(
+                            b,
+                            &["mass_kg", "inertia_kgm2", "com_distance_m"],
+                            "test.rig.body",
+                        )?;
+                        let get = |k: &str| {
+                            number(b, k, &format!("test.rig.body.{k}"))?
+                                .ok_or_else(|| bad(format!("test.rig.body.{k}"), "is required"))
+                        };
+                        Some(BodySpec {
+                            mass_kg: get("mass_kg")?,
+                            inertia_kgm2: get("inertia_kgm2")?,
+                            com_distance_m: get("com_distance_m")?,
+                        })
+                    }
+                };
+                let attachments = match rig.get("attachments") {
+                    None | Some(Value::Null) => None,
+                    Some(a) => {
+                        let arr = a
+                            .as_array()
+                            .ok_or_else(|| bad("test.rig.attachments", "must be an array"))?;
+                        let mut out = Vec::new();
+                        for (i, x) in arr.iter().enumerate() {
+                            let f = format!("test.rig.attachments[{i}]");
+                            let m = obj(x, &f)?;
+                            let req = |k: &str| {
+                                number(m, k, &format!("{f}.{k}"))?
+                                    .ok_or_else(|| bad(format!("{f}.{k}"), "is required"))
+                            };
+                            out.push(match m.get("kind").and_then(Value::as_str) {
+                                Some("point") => {
+                                    only_keys(m, &["kind", "mass_kg", "distance_m"], &f)?;
+                                    Attachment::Point {
+                                        mass_kg: req("mass_kg")?,
+                                        distance_m: req("distance_m")?,
+                                    }
+                                }
+                                Some("rod") => {
+                                    only_keys(m, &["kind", "mass_kg", "length_m"], &f)?;
+                                    Attachment::Rod {
+                                        mass_kg: req("mass_kg")?,
+                                        length_m: req("length_m")?,
+                                    }
+                                }
+                                _ => {
+                                    return Err(bad(
+                                        format!("{f}.kind"),
+                                        "must be `point` or `rod`",
+                                    ));
+                                }
+                            });
+                        }
+                        Some(out)
+                    }
+                };
+                let spec = PendulumSpec {
+                    joint,
+                    body,
+                    attachments,
+                    pin_radius_m: number(&rig, "pin_radius_m", "test.rig.pin_radius_m")?,
+                    gravity_m_s2: number(&rig, "gravity_m_s2", "test.rig.gravity_m_s2")?,
+                    initial_rate_deg_s: number(
+                        &rig,
+                        "initial_rate_deg_s",
+                        "test.rig.initial_rate_deg_s",
+                    )?,
+                };
+                let y = self.channel("alpha_deg").unwrap_or_default().to_vec();
+                let release_t_s = self.release_t_s(&t)?;
+                spec.joint_test(data, t, y)
+                    .map(|(test, baseline)| {
+                        (
+                            JointTest {
+                                release_t_s,
+                                ..test
+                            },
+                            baseline,
+                        )
+                    })
+                    .map_err(rig_err)
+            }
+            Kind::Slider => {
+                if let Some(j) = &self.joint
+                    && j != "J8"
+                    && j != "custom"
+                {
+                    return Err(bad(
+                        "test.joint",
+                        format!("a slider test is of joint J8 (or `custom`), got `{j}`"),
+                    ));
+                }
+                only_keys(
+                    &rig,
+                    &[
+                        "moving_mass_kg",
+                        "springs",
+                        "spring_stiffness_n_per_mm",
+                        "normal_force_n",
+                    ],
+                    "test.rig",
+                )?;
+                // A whole number here; its span (`[rig_limits] springs`, 0 = none) is the
+                // models' one rule, checked with the rest of the rig.
+                let springs = match rig.get("springs") {
+                    None | Some(Value::Null) => None,
+                    Some(v) => Some(
+                        v.as_u64()
+                            .map(|n| u32::try_from(n).unwrap_or(u32::MAX))
+                            .ok_or_else(|| {
+                                bad(
+                                    "test.rig.springs",
+                                    "must be a whole number of springs (0 for none)",
+                                )
+                            })?,
+                    ),
+                };
+                let spec = SliderSpec {
+                    custom: self.joint.as_deref() == Some("custom"),
+                    moving_mass_kg: number(&rig, "moving_mass_kg", "test.rig.moving_mass_kg")?,
+                    springs,
+                    spring_stiffness_n_per_mm: number(
+                        &rig,
+                        "spring_stiffness_n_per_mm",
+                        "test.rig.spring_stiffness_n_per_mm",
+                    )?,
+                    normal_force_n: number(&rig, "normal_force_n", "test.rig.normal_force_n")?,
+                };
+                let y = self.channel("h_mm").unwrap_or_default().to_vec();
+                let f = self.channel("F_N").map(<[f64]>::to_vec);
+                spec.joint_test(data, t, y, f).map_err(rig_err)
+            }
+            Kind::Lift => Err(bad(
+                "test.kind",
+                "a lift test is of the whole pantograph: see `lift_channels`",
+            )),
+            Kind::QuadrangleSwing => Err(bad(
+                "test.kind",
+                "a quadrangle swing is of four joints together: see `quadrangle_channels`",
+            )),
+            Kind::StaticForce => Err(bad(
+                "test.kind",
+                "a static_force test is of the whole pantograph: see `static_force_channels`",
+            )),
+        }
+    }
+}

@@ -1,0 +1,384 @@
+use super::*;
+use serde_json::json;
+
+fn doc() -> Value {
+    json!({"format": FORMAT, "vehicle_id": "EN57-1021", "pantograph": {"model": "160EC", "serial": "160EC-0042"},
+               "recorded_at": "2026-03-02T07:15:00Z", "test": {"kind": "pendulum", "joint": "J1", "rig": {}},
+               "channels": {"t_s": [0.0, 0.002, 0.004], "alpha_deg": [74.2, 74.19, 74.17]}})
+}
+
+fn field_of(v: Value) -> String {
+    TraceDoc::from_value(&v).unwrap_err().field
+}
+
+/// Issue 17, point 3: a slider that is not the pantograph's head says so (`test.joint`:
+/// `custom`): it is reported under that label, with no Table 4 baseline to judge it by, the
+/// same physics fitted; its rig is stated in full, a missing value named.
+#[test]
+fn a_custom_slider_is_reported_as_custom_with_its_own_rig() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/examples/slider_baseline.json"
+    );
+    let head: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    let mut custom = head.clone();
+    custom["test"]["joint"] = json!("custom");
+    let thresholds = pantowatch_models::drift::DriftThresholds::default();
+    let fit = |v: &Value| {
+        crate::fitting::fit_document(&TraceDoc::from_value(v).unwrap(), &thresholds).unwrap()
+    };
+    let (j8, mine) = (fit(&head), fit(&custom));
+    assert_eq!(j8.joints[0].joint, "J8");
+    let c = &mine.joints[0];
+    assert_eq!(c.joint, "custom");
+    assert_eq!(c.status, pantowatch_models::drift::Status::Unknown);
+    assert!(c.dry.baseline.is_none() && c.viscous.baseline.is_none());
+    assert!((c.dry.value - j8.joints[0].dry.value).abs() <= 1e-9 * j8.joints[0].dry.value);
+    for key in [
+        "moving_mass_kg",
+        "springs",
+        "spring_stiffness_n_per_mm",
+        "normal_force_n",
+    ] {
+        let mut d = custom.clone();
+        d["test"]["rig"].as_object_mut().unwrap().remove(key);
+        assert_eq!(field_of(d), format!("test.rig.{key}"));
+    }
+    let mut d = custom.clone();
+    d["test"]["joint"] = json!("J3");
+    assert_eq!(field_of(d), "test.joint");
+}
+
+/// Issue 18: one rule for a slider's springs (`[rig_limits] springs` in models/data): a
+/// custom slider's "0 for none" is accepted — the range check refused it while the parser
+/// said "0 to 64" — and a count outside the span or not whole is refused naming the field.
+#[test]
+fn a_custom_slider_without_springs_is_accepted() {
+    let mut d = doc();
+    d["test"] = json!({"kind": "slider", "joint": "custom",
+            "rig": {"moving_mass_kg": 2.0, "springs": 0, "normal_force_n": 10.0}});
+    d["channels"] = json!({"t_s": [0.0, 0.002, 0.004], "h_mm": [1.0, 0.9, 0.8]});
+    TraceDoc::from_value(&d).expect("a custom slider with no spring");
+    for bad in [
+        json!(17),
+        json!(64),
+        json!(4_294_967_296_u64),
+        json!(1.5),
+        json!(-1),
+    ] {
+        let mut d = d.clone();
+        d["test"]["rig"]["springs"] = bad.clone();
+        d["test"]["rig"]["spring_stiffness_n_per_mm"] = json!(4.0);
+        assert_eq!(field_of(d), "test.rig.springs", "{bad}");
+    }
+}
+
+#[test]
+fn accepts_the_contract_example() {
+    let d = TraceDoc::from_value(&doc()).unwrap();
+    assert_eq!(d.kind, Kind::Pendulum);
+    assert_eq!(d.channels[0].0, "t_s");
+    assert_eq!(TraceDoc::from_value(&d.to_value()).unwrap(), d);
+}
+
+#[test]
+fn every_rule_names_its_field() {
+    let mut cases: Vec<(Value, &str)> = Vec::new();
+    let mut d = doc();
+    d["format"] = json!("pantograph-trace/2");
+    cases.push((d, "format"));
+    let mut d = doc();
+    d.as_object_mut().unwrap().remove("vehicle_id");
+    cases.push((d, "vehicle_id"));
+    let mut d = doc();
+    d["pantograph"].as_object_mut().unwrap().remove("model");
+    cases.push((d, "pantograph.model"));
+    let mut d = doc();
+    d["recorded_at"] = json!("2026-02-30T07:15:00Z");
+    cases.push((d, "recorded_at"));
+    let mut d = doc();
+    d["test"]["kind"] = json!("swing");
+    cases.push((d, "test.kind"));
+    let mut d = doc();
+    d["test"]["joint"] = json!("J9");
+    cases.push((d, "test.joint"));
+    let mut d = doc();
+    d["test"] = json!({"kind": "quadrangle_swing", "rig": {"incline_deg": 70.0}});
+    cases.push((d, "channels.beta_deg"));
+    let quad = |rig: Value| {
+        let mut d = doc();
+        d["test"] = json!({"kind": "quadrangle_swing", "rig": rig});
+        d["channels"]["beta_deg"] = json!([1.0, 2.0, 3.0]);
+        d
+    };
+    cases.push((quad(json!({"incline_deg": 95.0})), "test.rig.incline_deg"));
+    cases.push((quad(json!({"incline": 70.0})), "test.rig.incline"));
+    cases.push((
+            quad(json!({"attachments": [{"kind": "point", "mass_kg": 10.0, "body": "head", "position_m": [1.0, 0.0]}]})),
+            "test.rig.attachments[0].body",
+        ));
+    cases.push((
+            quad(json!({"attachments": [{"kind": "point", "mass_kg": 0.0, "body": "lower_arm", "position_m": [1.0, 0.0]}]})),
+            "test.rig.attachments[0].mass_kg",
+        ));
+    cases.push((
+            quad(json!({"attachments": [{"kind": "point", "mass_kg": 1.0, "body": "lower_arm", "position_m": [1.0]}]})),
+            "test.rig.attachments[0].position_m",
+        ));
+    let mut d = quad(json!({}));
+    d["test"]["joint"] = json!("J3");
+    cases.push((d, "test.joint"));
+    let mut d = doc();
+    d["test"] = json!({"kind": "lift", "rig": {"L1_m": 1.6}});
+    d["channels"] =
+        json!({"t_s": [0.0, 0.1], "H_m": [1.0, 1.0], "T_Nm": [0.0, 0.0], "Fs_N": [0.0, 0.0]});
+    cases.push((d, "test.rig.L1_m"));
+    let mut d = doc();
+    d["channels"]["t_s"] = json!([0.0, 0.002, 0.002]);
+    cases.push((d, "channels.t_s[2]"));
+    let mut d = doc();
+    d["channels"]["alpha_deg"] = json!([1.0, 2.0]);
+    cases.push((d, "channels.alpha_deg"));
+    let mut d = doc();
+    d["channels"]["alpha_deg"] = json!([1.0, "x", 2.0]);
+    cases.push((d, "channels.alpha_deg[1]"));
+    let mut d = doc();
+    d["channels"].as_object_mut().unwrap().remove("alpha_deg");
+    cases.push((d, "channels.alpha_deg"));
+    let mut d = doc();
+    d["test"]["rig"] =
+        json!({"body": {"mass_kg": -1.0, "inertia_kgm2": 1.0, "com_distance_m": 0.1}});
+    cases.push((d, "test.rig.body.mass_kg"));
+    let mut d = doc();
+    d["test"]["rig"] = json!({"pin_radius": 0.01});
+    cases.push((d, "test.rig.pin_radius"));
+    let mut d = doc();
+    d["test"]["joint"] = json!("custom");
+    cases.push((d, "test.rig.body"));
+    let mut d = doc();
+    d["trace_id"] = json!("a b; DROP TABLE traces");
+    cases.push((d, "trace_id"));
+    for (v, field) in cases {
+        assert_eq!(field_of(v.clone()), field, "{v}");
+    }
+    assert_eq!(
+        TraceDoc::from_json(b"{\"format\": ").unwrap_err().field,
+        "body"
+    );
+    assert_eq!(
+        TraceDoc::from_json(b"{\"a\": NaN}").unwrap_err().field,
+        "body"
+    );
+}
+
+/// A quadrangle swing with its rig is accepted as written in docs/TRACE_FORMAT.md and
+/// round-trips; its channels and stand reach the model.
+#[test]
+fn accepts_a_quadrangle_swing() {
+    let mut d = doc();
+    d["test"] = json!({"kind": "quadrangle_swing", "rig": {"incline_deg": 65.0,
+            "attachments": [{"kind": "point", "mass_kg": 5.0, "body": "upper_arm", "position_m": [0.5, 0.0]}]}});
+    d["channels"]["beta_deg"] = json!([-3.6, -3.6, -3.59]);
+    let doc = TraceDoc::from_value(&d).unwrap();
+    assert_eq!(doc.kind, Kind::QuadrangleSwing);
+    let (ch, rig) = doc.quadrangle_channels().unwrap();
+    assert_eq!(ch.beta_deg, [-3.6, -3.6, -3.59]);
+    assert_eq!(rig.incline_deg, 65.0);
+    assert_eq!(rig.attachments.len(), 1);
+    assert_eq!(TraceDoc::from_value(&doc.to_value()).unwrap(), doc);
+}
+
+/// A force-gauge test (issue 20): 6 readings raising to 1.8 m, 5 lowering.
+fn gauge() -> Value {
+    let h = [0.85, 1.0, 1.2, 1.4, 1.6, 1.8, 1.6, 1.4, 1.2, 1.0, 0.85];
+    let f = [
+        80.1, 79.5, 78.9, 78.0, 77.2, 76.4, 104.3, 105.2, 106.0, 106.9, 107.5,
+    ];
+    let t: Vec<f64> = (0..h.len()).map(|i| i as f64).collect();
+    let mut d = doc();
+    d["test"] = json!({"kind": "static_force", "gauge_resolution_n": 0.1});
+    d["channels"] = json!({"t_s": t, "H_m": h, "F_N": f});
+    d
+}
+
+#[test]
+fn every_kind_parses_by_its_name() {
+    for k in Kind::ALL {
+        assert_eq!(Kind::parse(k.as_str()), Some(k));
+    }
+    assert_eq!(Kind::parse("gauge"), None);
+    assert_eq!(Kind::StaticForce.as_str(), STATIC_FORCE);
+}
+
+/// Issue 20: a force gauge's readings, raising then lowering, are accepted as written in
+/// docs/TRACE_FORMAT.md, round-trip, and split at the highest reading; every bad one is
+/// refused naming its field.
+#[test]
+fn a_static_force_test_is_accepted_and_each_bad_reading_named() {
+    let d = TraceDoc::from_value(&gauge()).expect("a gauge test");
+    assert_eq!(d.kind, Kind::StaticForce);
+    assert_eq!(TraceDoc::from_value(&d.to_value()).unwrap(), d);
+    let g = d.static_force_channels().unwrap();
+    assert_eq!(g.raise_len, 6);
+    assert_eq!(g.gauge_resolution_n, 0.1);
+    let [up, down] = g.branches();
+    assert_eq!((up.len(), down.len()), (6, 5));
+    assert_eq!(up[5], (1.8, 76.4));
+    assert_eq!(down[0], (1.6, 104.3));
+    // A height read twice in a branch is no turn (the gauge's scale is coarse).
+    let mut twice = gauge();
+    twice["channels"]["H_m"][2] = json!(1.0);
+    twice["channels"]["H_m"][8] = json!(1.4);
+    TraceDoc::from_value(&twice).expect("a height read twice in a branch");
+    let min = data::builtin_160ec()
+        .static_force
+        .as_ref()
+        .expect("[static_force]")
+        .min_points_per_branch;
+    assert_eq!(min, 5);
+    // `path` as `/a/b/c`: objects keyed by name, arrays by index; a missing key is added.
+    let set = |path: &str, v: Value| {
+        let mut d = gauge();
+        let mut at = &mut d;
+        for k in path.trim_start_matches('/').split('/') {
+            at = match k.parse::<usize>() {
+                Ok(i) => &mut at[i],
+                Err(_) => &mut at[k],
+            };
+        }
+        *at = v;
+        d
+    };
+    let keep = |n: std::ops::Range<usize>| {
+        let mut d = gauge();
+        for c in ["t_s", "H_m", "F_N"] {
+            let a = d["channels"][c].as_array().unwrap()[n.clone()].to_vec();
+            d["channels"][c] = Value::Array(a);
+        }
+        d
+    };
+    let mut no_res = gauge();
+    no_res["test"]
+        .as_object_mut()
+        .unwrap()
+        .remove("gauge_resolution_n");
+    let mut no_force = gauge();
+    no_force["channels"].as_object_mut().unwrap().remove("F_N");
+    let cases = [
+        (set("/channels/H_m/2", json!(1.85)), "channels.H_m[2]"),
+        (set("/channels/H_m/10", json!(0.79)), "channels.H_m[10]"),
+        (keep(0..6), "channels.H_m"),
+        (keep(5..11), "channels.H_m"),
+        (keep(2..11), "channels.H_m"),
+        (keep(0..10), "channels.H_m"),
+        (set("/channels/H_m/3", json!(1.1)), "channels.H_m[3]"),
+        (set("/channels/H_m/8", json!(1.5)), "channels.H_m[8]"),
+        (no_res, "test.gauge_resolution_n"),
+        (
+            set("/test/gauge_resolution_n", json!(0)),
+            "test.gauge_resolution_n",
+        ),
+        (
+            set("/test/gauge_resolution_n", json!("0.1")),
+            "test.gauge_resolution_n",
+        ),
+        (
+            set("/test/gauge_resolution_n", json!(10.0)),
+            "test.gauge_resolution_n",
+        ),
+        (no_force, "channels.F_N"),
+        (set("/channels/F_N/1", json!(-2000.0)), "channels.F_N[1]"),
+        (set("/test/joint", json!("J3")), "test.joint"),
+        (set("/test/rig", json!({"L1_m": 1.6})), "test.rig.L1_m"),
+        (set("/pantograph/model", json!("200EC")), "pantograph.model"),
+        (set("/test/kind", json!("lift")), "test.gauge_resolution_n"),
+    ];
+    for (v, field) in cases {
+        assert_eq!(field_of(v.clone()), field, "{v}");
+    }
+    // Read by hand: readings a minute apart are a gauge test (a logger's channel may not
+    // pause over 1 s); a pause over `gauge_reading_interval_s` is refused at its reading.
+    let spaced = |dt: f64| {
+        let t: Vec<f64> = (0..11).map(|i| i as f64 * 60.0).collect();
+        let mut d = set("/channels/t_s", json!(t));
+        d["channels"]["t_s"][7] = json!(6.0 * 60.0 + dt);
+        for i in 8..11 {
+            d["channels"]["t_s"][i] = json!(6.0 * 60.0 + dt + (i - 7) as f64 * 60.0);
+        }
+        d
+    };
+    TraceDoc::from_value(&spaced(60.0)).expect("readings a minute apart");
+    assert_eq!(field_of(spaced(601.0)), "channels.t_s[7]");
+    let mut logger = doc();
+    logger["channels"]["t_s"][1] = json!(60.0);
+    assert!(
+        field_of(logger).starts_with("channels.t_s["),
+        "a logger's channel keeps its 1 s rule"
+    );
+    // A pendulum states no gauge.
+    let mut d = doc();
+    d["test"]["gauge_resolution_n"] = json!(0.1);
+    assert_eq!(field_of(d), "test.gauge_resolution_n");
+}
+
+/// README "Input limits" lists the `[static_force]` limits an upload is checked against.
+#[test]
+fn readme_lists_the_static_force_limits() {
+    let readme = include_str!("../../../README.md");
+    let sf = data::builtin_160ec()
+        .static_force
+        .as_ref()
+        .expect("[static_force]");
+    let [lo, hi] = sf.working_height_m;
+    for row in [
+        format!("| `[static_force] working_height_m` | [{lo}, {hi}] |"),
+        format!(
+            "| `[static_force] min_points_per_branch` | {} |",
+            sf.min_points_per_branch
+        ),
+        format!(
+            "| `[static_force] gauge_resolution_range_n` | [{}, {}] |",
+            sf.gauge_resolution_range_n[0], sf.gauge_resolution_range_n[1]
+        ),
+        format!(
+            "| `[static_force] gauge_reading_interval_s` | [{}, {}] |",
+            sf.gauge_reading_interval_s[0], sf.gauge_reading_interval_s[1]
+        ),
+    ] {
+        assert!(readme.contains(&row), "README \"Input limits\" lacks {row}");
+    }
+}
+
+#[test]
+fn rfc3339() {
+    for ok in [
+        "2026-03-02T07:15:00Z",
+        "2024-02-29T23:59:60.123+01:00",
+        "2026-03-02t07:15:00z",
+    ] {
+        assert!(check_rfc3339(ok), "{ok}");
+    }
+    for no in [
+        "2026-03-02",
+        "2026-03-02T07:15:00",
+        "2025-02-29T00:00:00Z",
+        "2026-13-01T00:00:00Z",
+        "2026-03-02T07:15:00+0100",
+        "2026-03-02T07:15:00.Z",
+        // Issue 18: outside the years 1…9999 once the offset is applied.
+        "9999-12-31T23:59:59-23:59",
+        "0000-06-01T00:00:00Z",
+        "0001-01-01T00:30:00+01:00",
+    ] {
+        assert!(!check_rfc3339(no), "{no}");
+    }
+    for edge in [
+        "9999-12-31T23:59:59Z",
+        "0001-01-01T00:00:00Z",
+        "0001-01-01T00:30:00-01:00",
+    ] {
+        assert!(check_rfc3339(edge), "{edge}");
+    }
+    let why = rfc3339_problem("9999-12-31T23:59:59-23:59").unwrap();
+    assert!(why.contains("year 10000"), "{why}");
+}
