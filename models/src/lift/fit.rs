@@ -396,6 +396,27 @@ pub struct Combination {
 }
 
 impl Combination {
+    /// The contract's view of it: label, members with their weights, level and verdict.
+    pub fn to_result(&self) -> crate::report::CombinationResult {
+        crate::report::CombinationResult {
+            label: self.label(),
+            members: self
+                .params
+                .iter()
+                .zip(&self.weights)
+                .map(|(p, w)| crate::report::CombinationMember {
+                    joint: p.joint().into(),
+                    kind: p.kind().into(),
+                    weight: *w,
+                })
+                .collect(),
+            value: self.value,
+            ci95: self.ci95,
+            identifiable: self.informed,
+            status: self.status,
+        }
+    }
+
     /// A reader's name: `J1+J3 dry`, or `J3 dry+J8 viscous` when the kinds differ.
     pub fn label(&self) -> String {
         let kind = self.params[0].kind();

@@ -35,8 +35,8 @@ use super::simulate::LiftInputs;
 use super::topology::RevJoint;
 use crate::drift::{DriftThresholds, Status};
 use crate::report::{
-    CombinationMember, CombinationResult, FitDetails, FitResult, JointResult, MODEL_VERSION,
-    ParamResult, Quantity, ResidualResult,
+    CombinationResult, FitDetails, FitResult, JointResult, MODEL_VERSION, ParamResult, Quantity,
+    ResidualResult,
 };
 use crate::stats::Z95;
 
@@ -635,23 +635,7 @@ fn build_result(
     let combinations: Vec<CombinationResult> = fit
         .combinations
         .iter()
-        .map(|c| CombinationResult {
-            label: c.label(),
-            members: c
-                .params
-                .iter()
-                .zip(&c.weights)
-                .map(|(p, w)| CombinationMember {
-                    joint: p.joint().into(),
-                    kind: p.kind().into(),
-                    weight: *w,
-                })
-                .collect(),
-            value: c.value,
-            ci95: c.ci95,
-            identifiable: c.informed,
-            status: c.status,
-        })
+        .map(Combination::to_result)
         .collect();
     let rmse = fit.rmse_m.first().copied().unwrap_or(f64::NAN);
     let offset = fit.offsets.first();

@@ -34,8 +34,8 @@ use super::fit::{GaugeEffect, GaugeFit, GaugeFitOptions};
 use super::{GaugeError, GaugeRecord};
 use crate::drift::{DriftThresholds, Status};
 use crate::report::{
-    CombinationMember, CombinationResult, EffectResult, FitDetails, FitResult, JointResult,
-    MODEL_VERSION, ParamResult, Quantity, ResidualResult,
+    CombinationResult, EffectResult, FitDetails, FitResult, JointResult, MODEL_VERSION,
+    ParamResult, Quantity, ResidualResult,
 };
 use crate::stats::Z95;
 
@@ -149,23 +149,7 @@ pub fn gauge_result(
     let mut combinations: Vec<CombinationResult> = fit
         .combinations
         .iter()
-        .map(|c| CombinationResult {
-            label: c.label(),
-            members: c
-                .params
-                .iter()
-                .zip(&c.weights)
-                .map(|(p, w)| CombinationMember {
-                    joint: p.joint().into(),
-                    kind: p.kind().into(),
-                    weight: *w,
-                })
-                .collect(),
-            value: c.value,
-            ci95: c.ci95,
-            identifiable: c.informed,
-            status: c.status,
-        })
+        .map(Combination::to_result)
         .collect();
     let withheld = lp.verdict == GaugeVerdict::Unexplained;
     if withheld {
