@@ -89,15 +89,17 @@ impl Dof {
         }
     }
 
-    /// This degree of freedom with a pendulum's inertia about its pin × `scale` (the
-    /// `inertia_error` effect, issue 17: a stated J off by a few per cent sets the swing's
-    /// period wrong). Mass and centre-of-mass distance, hence gravity and the reaction's static
-    /// part, are unchanged. A slider is returned as it is (its moving mass also sets its
-    /// weight: no inertia-only error).
+    /// This degree of freedom with its inertia × `scale` (the `inertia_error` effect, issue 17:
+    /// a body parameter off its stated value). A pendulum: its inertia about the pin (a stated J
+    /// off by a few per cent sets the swing's period wrong); its mass and centre-of-mass
+    /// distance, hence gravity and the reaction's static part, are unchanged. A slider: its
+    /// moving mass, which in this model is inertia only (the spring force is measured from the
+    /// loaded rest position and the normal force is stated, so the weight enters neither).
     pub fn with_inertia_scale(&self, scale: f64) -> Dof {
         let mut d = self.clone();
-        if let Mechanism::Pendulum(r) = &mut d.mech {
-            r.inertia_kgm2 *= scale;
+        match &mut d.mech {
+            Mechanism::Pendulum(r) => r.inertia_kgm2 *= scale,
+            Mechanism::Slider(r) => r.moving_mass_kg *= scale,
         }
         d
     }

@@ -17,10 +17,11 @@ pub enum Effect {
     Backlash,
     SensorOffset,
     SensorDelay,
-    /// pantowatch's addition (issue 17, point 1): the pendulum's stated inertia about its pin is
-    /// off, J = J_stated·e^λ, so the model swings at the wrong period and the residual grows like
-    /// a phase drift. Body parameters are measured with an uncertainty; a friction law cannot
-    /// absorb a period mismatch. Pendulums only (a slider's moving mass is also its weight).
+    /// pantowatch's addition (issue 17, points 1 and 3): the stated inertia is off, J =
+    /// J_stated·e^λ — a pendulum's about its pin (the model swings at the wrong period and the
+    /// residual grows like a phase drift), a slider's moving mass (its force–acceleration
+    /// balance is off). Body parameters are measured with an uncertainty; a friction law cannot
+    /// absorb them.
     InertiaError,
 }
 

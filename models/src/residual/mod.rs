@@ -226,10 +226,6 @@ fn score_tests(
         .unwrap_or_else(|_| DMatrix::zeros(gram.nrows(), gram.ncols()));
     let mut out = Vec::new();
     for e in Effect::SEARCHED {
-        if e == Effect::InertiaError && !matches!(test.dof.mech, Mechanism::Pendulum(_)) {
-            out.push((e, None));
-            continue;
-        }
         let cols: Vec<usize> = params
             .iter()
             .enumerate()
