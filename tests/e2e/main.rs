@@ -3,6 +3,7 @@
 
 mod architecture;
 mod coverage;
+mod driven;
 mod examples;
 mod lift;
 mod quadrangle;
