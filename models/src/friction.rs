@@ -17,10 +17,8 @@ pub enum DynParam {
     StribeckSpeed,
     /// Quadratic drag coefficient C: N·m·s²/rad² (revolute) or N·s²/m² (slider).
     QuadraticDrag,
-    /// Position friction, linear term a of μ(q) = μ·(1 + a·u + b·u²), u = q/q_ref (1).
-    PositionLinear,
-    /// Position friction, quadratic term b (1).
-    PositionQuadratic,
+    /// Position friction: c_k, the factor on μ at knot k minus 1 ([`PositionFriction`]) (1).
+    Position(u8),
 }
 
 /// Stribeck friction: μ(v) = μ · (1 + (r − 1)·exp(−(v/vs)²)); static capacity uses μ·r.
@@ -30,15 +28,161 @@ pub struct Stribeck {
     pub speed: f64,
 }
 
-/// Position-dependent dry friction (an out-of-round pin, a worn patch on a slide):
-/// μ(q) = μ·(1 + a·u + b·u²), u = q/q_ref with q_ref = 1 rad (revolute) or 10 mm (slider).
-/// Assumed small: the factor is floored at 0 (friction never drives).
+/// Knots of [`PositionFriction`]'s grid.
+pub const POSITION_KNOTS: usize = 9;
+
+/// Position-dependent dry friction (an out-of-round pin, a worn or dirty patch on a pin or
+/// slide), the vocabulary's `position_friction`: μ(q) = μ·ψ(q) with ψ piecewise linear on
+/// [`POSITION_KNOTS`] evenly spaced knots q_k = lo + k·step, ψ(q_k) = 1 + c_k, constant beyond
+/// the end knots. It takes any shape along the travel a band or a cosine has at the grid's
+/// resolution, and it depends on position only, never on speed (that is Stribeck friction).
+/// One knot, the anchor (nearest the rest position q = 0), keeps c = 0 in a fit: μ is the
+/// friction there, and the other c_k are not collinear with μ. Assumed: the factor is floored
+/// at 0 (friction never drives).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PositionFriction {
-    pub linear: f64,
-    pub quadratic: f64,
-    /// q_ref: rad or m.
-    pub scale: f64,
+    /// First knot: rad or m.
+    pub lo: f64,
+    /// Knot spacing: rad or m (> 0).
+    pub step: f64,
+    pub coeffs: [f64; POSITION_KNOTS],
+}
+
+impl PositionFriction {
+    /// A flat grid (every c_k = 0) spanning `lo..=hi`.
+    pub fn flat(lo: f64, hi: f64) -> Self {
+        let span = (hi - lo).max(1e-9);
+        Self {
+            lo,
+            step: span / (POSITION_KNOTS - 1) as f64,
+            coeffs: [0.0; POSITION_KNOTS],
+        }
+    }
+
+    /// The knot nearest q = 0, whose coefficient a fit holds at 0.
+    pub fn anchor(&self) -> usize {
+        ((-self.lo / self.step).round().max(0.0) as usize).min(POSITION_KNOTS - 1)
+    }
+
+    pub fn knot(&self, k: usize) -> f64 {
+        self.lo + k as f64 * self.step
+    }
+
+    /// The hat weights at q: (k, w_k, w_{k+1}) with ψ − 1 = w_k·c_k + w_{k+1}·c_{k+1}, and
+    /// ∂w_{k+1}/∂q (0 beyond the ends).
+    #[inline]
+    fn weights(&self, q: f64) -> (usize, f64, f64, f64) {
+        let x = (q - self.lo) / self.step;
+        if x <= 0.0 {
+            (0, 1.0, 0.0, 0.0)
+        } else if x >= (POSITION_KNOTS - 1) as f64 {
+            (POSITION_KNOTS - 2, 0.0, 1.0, 0.0)
+        } else {
+            let k = (x.floor() as usize).min(POSITION_KNOTS - 2);
+            let f = x - k as f64;
+            (k, 1.0 - f, f, 1.0 / self.step)
+        }
+    }
+
+    /// The knots whose coefficients shape ψ at q, with their weights (summing to 1).
+    pub fn hat_weights(&self, q: f64) -> [(usize, f64); 2] {
+        let (k, a, b, _) = self.weights(q);
+        [(k, a), (k + 1, b)]
+    }
+
+    /// ψ(q) − 1 before the floor, and its derivative.
+    #[inline]
+    fn excess(&self, q: f64) -> (f64, f64) {
+        let (k, a, b, db) = self.weights(q);
+        let (c0, c1) = (self.coeffs[k], self.coeffs[k + 1]);
+        (a * c0 + b * c1, db * (c1 - c0))
+    }
+
+    /// ∂ψ/∂c_j at q (before the floor).
+    #[inline]
+    fn d_coeff(&self, j: usize, q: f64) -> f64 {
+        let (k, a, b, _) = self.weights(q);
+        if j == k {
+            a
+        } else if j == k + 1 {
+            b
+        } else {
+            0.0
+        }
+    }
+}
+
+/// A shape of μ along the joint's travel that the simulator makes but the fit does not carry:
+/// the residual loop's test cases for position-dependent friction (issue 17, point 6), which the
+/// vocabulary's [`PositionFriction`] must name from a shape it was not written as. μ is
+/// multiplied by the shape's factor (floored at 0, as [`PositionFriction`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PositionProfile {
+    /// Friction growing away from the rest position (a worn pin end):
+    /// factor 1 + a·u + b·u², u = q/scale (scale: rad or m).
+    Polynomial {
+        linear: f64,
+        quadratic: f64,
+        scale: f64,
+    },
+    /// A band of higher (gain > 0) or lower friction between `from` and `to` (rad or m), with
+    /// logistic edges of width `edge` (a worn or dirty patch on the pin or slide):
+    /// factor 1 + gain·σ((q − from)/edge)·σ((to − q)/edge).
+    Band {
+        gain: f64,
+        from: f64,
+        to: f64,
+        edge: f64,
+    },
+    /// A periodic modulation (an out-of-round pin): factor 1 + amplitude·cos(2π·q/period + phase).
+    Cosine {
+        amplitude: f64,
+        period: f64,
+        phase: f64,
+    },
+}
+
+impl PositionProfile {
+    /// The factor on μ at q and its derivative ∂/∂q.
+    fn factor(&self, q: f64) -> (f64, f64) {
+        match *self {
+            PositionProfile::Polynomial {
+                linear,
+                quadratic,
+                scale,
+            } => {
+                let u = q / scale;
+                (
+                    1.0 + linear * u + quadratic * u * u,
+                    (linear + 2.0 * quadratic * u) / scale,
+                )
+            }
+            PositionProfile::Band {
+                gain,
+                from,
+                to,
+                edge,
+            } => {
+                let sig = |x: f64| 1.0 / (1.0 + (-x).exp());
+                let (a, b) = (sig((q - from) / edge), sig((to - q) / edge));
+                (
+                    1.0 + gain * a * b,
+                    gain * (a * (1.0 - a) * b - a * b * (1.0 - b)) / edge,
+                )
+            }
+            PositionProfile::Cosine {
+                amplitude,
+                period,
+                phase,
+            } => {
+                let w = std::f64::consts::TAU / period;
+                (
+                    1.0 + amplitude * (w * q + phase).cos(),
+                    -amplitude * w * (w * q + phase).sin(),
+                )
+            }
+        }
+    }
 }
 
 /// A joint's friction law: the paper's viscous + dry, plus optional effects.
@@ -50,6 +194,8 @@ pub struct FrictionLaw {
     /// Extra torque C·v·|v| (aerodynamic or fluid drag).
     pub quadratic_drag: Option<f64>,
     pub position: Option<PositionFriction>,
+    /// A simulated shape of μ along the travel, never fitted ([`PositionProfile`]).
+    pub profile: Option<PositionProfile>,
 }
 
 /// Friction torque (or force) and its partial derivatives.
@@ -71,6 +217,7 @@ impl FrictionLaw {
             stribeck: None,
             quadratic_drag: None,
             position: None,
+            profile: None,
         }
     }
 
@@ -81,17 +228,12 @@ impl FrictionLaw {
             DynParam::StribeckRatio => self.stribeck.map_or(1.0, |s| s.ratio),
             DynParam::StribeckSpeed => self.stribeck.map_or(1.0, |s| s.speed),
             DynParam::QuadraticDrag => self.quadratic_drag.unwrap_or(0.0),
-            DynParam::PositionLinear => self.position.map_or(0.0, |p| p.linear),
-            DynParam::PositionQuadratic => self.position.map_or(0.0, |p| p.quadratic),
+            DynParam::Position(k) => self.position.map_or(0.0, |p| p.coeffs[k as usize]),
         }
     }
 
     pub fn set(&mut self, p: DynParam, x: f64) {
-        let pos = PositionFriction {
-            linear: 0.0,
-            quadratic: 0.0,
-            scale: 1.0,
-        };
+        let pos = PositionFriction::flat(-1.0, 1.0);
         match p {
             DynParam::Viscous => self.viscous = x,
             DynParam::Dry => self.dry = x,
@@ -112,8 +254,7 @@ impl FrictionLaw {
                     .speed = x
             }
             DynParam::QuadraticDrag => self.quadratic_drag = Some(x),
-            DynParam::PositionLinear => self.position.get_or_insert(pos).linear = x,
-            DynParam::PositionQuadratic => self.position.get_or_insert(pos).quadratic = x,
+            DynParam::Position(k) => self.position.get_or_insert(pos).coeffs[k as usize] = x,
         }
     }
 
@@ -133,22 +274,40 @@ impl FrictionLaw {
         }
     }
 
-    /// Position factor ψ(q) = max(0, 1 + a·u + b·u²) and ∂ψ/∂q.
+    /// Position factor ψ(q) = max(0, 1 + a·u + b·u²) (times a simulated profile's factor) and
+    /// ∂ψ/∂q.
     #[inline]
     fn position_shape(&self, q: f64) -> (f64, f64) {
-        match self.position {
-            None => (1.0, 0.0),
-            Some(PositionFriction {
-                linear,
-                quadratic,
-                scale,
-            }) => {
-                let u = q / scale;
-                let psi = 1.0 + linear * u + quadratic * u * u;
-                if psi <= 0.0 {
+        let (psi, dpsi) = self.fitted_position_shape(q);
+        match self.profile {
+            None => (psi, dpsi),
+            Some(p) => {
+                let (f, df) = p.factor(q);
+                if psi * f <= 0.0 {
                     (0.0, 0.0)
                 } else {
-                    (psi, (linear + 2.0 * quadratic * u) / scale)
+                    (psi * f, dpsi * f + psi * df)
+                }
+            }
+        }
+    }
+
+    /// The simulated profile's factor at q (1 without one).
+    #[inline]
+    fn profile_factor(&self, q: f64) -> f64 {
+        self.profile.map_or(1.0, |p| p.factor(q).0)
+    }
+
+    #[inline]
+    fn fitted_position_shape(&self, q: f64) -> (f64, f64) {
+        match self.position {
+            None => (1.0, 0.0),
+            Some(pf) => {
+                let (e, de) = pf.excess(q);
+                if 1.0 + e <= 0.0 {
+                    (0.0, 0.0)
+                } else {
+                    (1.0 + e, de)
                 }
             }
         }
@@ -208,16 +367,9 @@ impl FrictionLaw {
                 None => 0.0,
             },
             DynParam::QuadraticDrag => v * v.abs(),
-            DynParam::PositionLinear | DynParam::PositionQuadratic => match self.position {
+            DynParam::Position(k) => match self.position {
                 Some(pf) if psi > 0.0 => {
-                    let u = q / pf.scale;
-                    base * self.dry
-                        * phi
-                        * if p == DynParam::PositionLinear {
-                            u
-                        } else {
-                            u * u
-                        }
+                    base * self.dry * phi * self.profile_factor(q) * pf.d_coeff(k as usize, q)
                 }
                 _ => 0.0,
             },
@@ -232,16 +384,10 @@ impl FrictionLaw {
         match p {
             DynParam::Dry => phi0 * psi,
             DynParam::StribeckRatio if self.stribeck.is_some() => self.dry * psi,
-            DynParam::PositionLinear | DynParam::PositionQuadratic if psi > 0.0 => {
-                let u = q / self.position.map_or(1.0, |pf| pf.scale);
-                self.dry
-                    * phi0
-                    * if p == DynParam::PositionLinear {
-                        u
-                    } else {
-                        u * u
-                    }
-            }
+            DynParam::Position(k) if psi > 0.0 => match self.position {
+                Some(pf) => self.dry * phi0 * self.profile_factor(q) * pf.d_coeff(k as usize, q),
+                None => 0.0,
+            },
             _ => 0.0,
         }
     }
@@ -269,11 +415,9 @@ mod tests {
             speed: 0.3,
         });
         law.quadratic_drag = Some(0.02);
-        law.position = Some(PositionFriction {
-            linear: 0.2,
-            quadratic: -0.1,
-            scale: 1.0,
-        });
+        let mut pf = PositionFriction::flat(-0.55, 0.7);
+        pf.coeffs = [0.1, -0.2, 0.3, 0.05, 0.0, 0.4, -0.1, 0.2, 0.1];
+        law.position = Some(pf);
         let (q, v, s, n, r) = (0.4, 0.21, 1.0, 75.0, 0.01);
         for p in [
             DynParam::Viscous,
@@ -281,8 +425,9 @@ mod tests {
             DynParam::StribeckRatio,
             DynParam::StribeckSpeed,
             DynParam::QuadraticDrag,
-            DynParam::PositionLinear,
-            DynParam::PositionQuadratic,
+            DynParam::Position(2),
+            DynParam::Position(6),
+            DynParam::Position(7),
         ] {
             let h = 1e-6 * law.get(p).abs().max(1e-3);
             let (mut a, mut b) = (law, law);
@@ -296,6 +441,40 @@ mod tests {
             );
             let fd_s = (a.static_mu(q) - b.static_mu(q)) / (2.0 * h);
             assert!((fd_s - law.d_static_mu(p, q)).abs() < 1e-6, "{p:?} static");
+        }
+        for profile in [
+            None,
+            Some(PositionProfile::Band {
+                gain: 0.8,
+                from: 0.3,
+                to: 0.6,
+                edge: 0.05,
+            }),
+            Some(PositionProfile::Cosine {
+                amplitude: 0.3,
+                period: 1.2,
+                phase: 0.4,
+            }),
+        ] {
+            let law = FrictionLaw { profile, ..law };
+            let h = 1e-7;
+            let e = law.eval(q, v, s, n, r);
+            let fd_q =
+                (law.eval(q + h, v, s, n, r).value - law.eval(q - h, v, s, n, r).value) / (2.0 * h);
+            assert!(
+                (fd_q - e.d_q).abs() < 1e-6,
+                "{profile:?}: {fd_q} vs {}",
+                e.d_q
+            );
+            let p = DynParam::Position(7);
+            let (mut a, mut b) = (law, law);
+            a.set(p, law.get(p) + 1e-6);
+            b.set(p, law.get(p) - 1e-6);
+            let fd = (a.eval(q, v, s, n, r).value - b.eval(q, v, s, n, r).value) / 2e-6;
+            assert!(
+                (fd - law.d_param(p, q, v, s, n, r)).abs() < 1e-6,
+                "{profile:?}"
+            );
         }
         let h = 1e-7;
         let e = law.eval(q, v, s, n, r);

@@ -44,6 +44,14 @@ pub fn chi2_upper_quantile(k: usize, p_upper: f64) -> f64 {
 }
 
 /// Ljung–Box Q over `lags` lags.
+/// A χ²ₖ statistic as the standard-normal z of its upper tail (Wilson–Hilferty), so statistics
+/// with different degrees of freedom rank by how unlikely they are under the null.
+pub fn chi2_to_z(stat: f64, k: usize) -> f64 {
+    let k = k.max(1) as f64;
+    let a = 2.0 / (9.0 * k);
+    ((stat.max(0.0) / k).cbrt() - (1.0 - a)) / a.sqrt()
+}
+
 pub fn ljung_box(r: &[f64], lags: usize) -> f64 {
     let n = r.len();
     if n < 2 {

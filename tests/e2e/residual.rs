@@ -6,7 +6,7 @@
 use pantowatch_models::data::builtin_160ec;
 use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::dynamics::{Dof, Input, Mechanism};
-use pantowatch_models::friction::{FrictionLaw, PositionFriction, Stribeck};
+use pantowatch_models::friction::{FrictionLaw, PositionProfile, Stribeck};
 use pantowatch_models::identify::{FitOptions, JointTest, Readout};
 use pantowatch_models::report::FitResult;
 use pantowatch_models::rig::{PendulumRig, SliderRig};
@@ -213,7 +213,7 @@ fn cases() -> Vec<(&'static str, &'static str, Truth, Truth)> {
         ));
         // Friction growing away from the bottom of the swing (a worn pin end).
         let pos = |a: f64| FrictionLaw {
-            position: Some(PositionFriction {
+            profile: Some(PositionProfile::Polynomial {
                 linear: a,
                 quadratic: 3.0 * a,
                 scale: 1.0,
@@ -311,7 +311,13 @@ fn clear_effects_are_named_halve_the_error_and_keep_the_base_friction() {
         }
         let j = &r.joints[0];
         let (tv, td) = (clear.law.viscous, clear.law.dry);
-        if (j.dry.value / td - 1.0).abs() >= 0.05 {
+        if name == "position_friction" {
+            // Friction that varies along the swing has no one "base" value: the fitted μ(q) is
+            // checked against the truth's at the grid's knots instead.
+            if let Err(why) = profile_recovered(&r, &clear.law) {
+                fail(why);
+            }
+        } else if (j.dry.value / td - 1.0).abs() >= 0.05 {
             fail(format!("dry {} vs {td}", j.dry.value));
         }
         if j.viscous.identifiable && (j.viscous.value / tv - 1.0).abs() >= 0.15 {
@@ -442,7 +448,7 @@ fn the_two_shipped_examples_with_effects_are_found() {
 fn a_pair_refit_never_ends_worse_than_its_single() {
     let b = base("J3");
     let drag = Some(0.4);
-    let pos = Some(PositionFriction {
+    let pos = Some(PositionProfile::Polynomial {
         linear: 1.0,
         quadratic: 3.0,
         scale: 1.0,
@@ -460,7 +466,7 @@ fn a_pair_refit_never_ends_worse_than_its_single() {
             "drag+position",
             FrictionLaw {
                 quadratic_drag: drag,
-                position: pos,
+                profile: pos,
                 ..b
             },
             Readout::default(),
@@ -478,7 +484,7 @@ fn a_pair_refit_never_ends_worse_than_its_single() {
         ),
         (
             "position+backlash",
-            FrictionLaw { position: pos, ..b },
+            FrictionLaw { profile: pos, ..b },
             backlash,
             60.0,
         ),
@@ -504,7 +510,7 @@ fn a_pair_refit_never_ends_worse_than_its_single() {
             "stribeck+position",
             FrictionLaw {
                 stribeck: strib,
-                position: pos,
+                profile: pos,
                 ..b
             },
             Readout::default(),
@@ -514,7 +520,7 @@ fn a_pair_refit_never_ends_worse_than_its_single() {
             "position+drag@30",
             FrictionLaw {
                 quadratic_drag: drag,
-                position: pos,
+                profile: pos,
                 ..b
             },
             Readout::default(),
@@ -685,5 +691,226 @@ fn a_stated_inertia_off_by_1_to_3_percent_is_named_and_the_friction_recovered() 
             got.is_empty() || got[0] == "inertia_error",
             "inertia ×1.001 on {joint}: named {got:?}"
         );
+    }
+}
+
+/// The truth's μ(q) projected (least squares in q) onto the piecewise-linear grid with these
+/// knots (degrees): what a grid of that resolution can show of a shape, a band's sharp edges
+/// included. Mass matrix tridiagonal (h/6, 2h/3, h/6; h/3 at the ends), solved by Thomas.
+fn grid_projection(truth: &FrictionLaw, knots_deg: &[f64]) -> Vec<f64> {
+    let n = knots_deg.len();
+    let h = knots_deg[1] - knots_deg[0];
+    let rhs: Vec<f64> = knots_deg
+        .iter()
+        .enumerate()
+        .map(|(k, &q)| {
+            let (lo, hi) = (
+                if k == 0 { 0 } else { -400 },
+                if k == n - 1 { 0 } else { 400 },
+            );
+            (lo..=hi)
+                .map(|i| {
+                    let x = f64::from(i) / 400.0;
+                    (1.0 - x.abs()) * truth.static_mu((q + x * h) / DEG) * h / 400.0
+                })
+                .sum::<f64>()
+        })
+        .collect();
+    let diag = |k: usize| {
+        if k == 0 || k == n - 1 {
+            h / 3.0
+        } else {
+            2.0 * h / 3.0
+        }
+    };
+    let off = h / 6.0;
+    let (mut c, mut d) = (vec![0.0; n], vec![0.0; n]);
+    for k in 0..n {
+        let m = diag(k) - if k > 0 { off * c[k - 1] } else { 0.0 };
+        c[k] = off / m;
+        d[k] = (rhs[k] - if k > 0 { off * d[k - 1] } else { 0.0 }) / m;
+    }
+    let mut x = vec![0.0; n];
+    for k in (0..n).rev() {
+        x[k] = d[k] - if k + 1 < n { c[k] * x[k + 1] } else { 0.0 };
+    }
+    x
+}
+
+/// The fitted position friction μ·(1 + c_k) at the grid's knots against the truth's μ(q) as the
+/// grid resolves it ([`grid_projection`]), at the interior knots: their means within 10 % and the
+/// highest friction at the same knot (unless the truth is flat there). Single knots are not held
+/// to a bound: the grid has no smoothness prior, and where the swing gives little information
+/// neighbouring knots trade off (measured: up to ±50 % beside a J5 band at the bottom, a few %
+/// on smooth shapes where the swing dwells).
+fn profile_recovered(r: &FitResult, truth: &FrictionLaw) -> Result<(), String> {
+    let e = r
+        .residual
+        .effects
+        .iter()
+        .find(|e| e.name == "position_friction")
+        .ok_or("no position_friction")?;
+    let knots: Vec<f64> = serde_json::from_value(e.params["knots_deg"].clone()).unwrap();
+    let factor: Vec<f64> = serde_json::from_value(e.params["factor"].clone()).unwrap();
+    let mu = r.joints[0].dry.value;
+    let projected = grid_projection(truth, &knots);
+    let pairs: Vec<(f64, f64, f64)> = knots
+        .iter()
+        .zip(&factor)
+        .zip(&projected)
+        .map(|((q, f), p)| (*q, mu * f, *p))
+        .collect();
+    // The end knots: only the first swing reaches them.
+    let pairs = &pairs[1..pairs.len() - 1];
+    let mean = |i: usize| {
+        pairs
+            .iter()
+            .map(|p| if i == 0 { p.1 } else { p.2 })
+            .sum::<f64>()
+            / pairs.len() as f64
+    };
+    let worst = pairs
+        .iter()
+        .map(|p| (p.1 / p.2 - 1.0).abs())
+        .fold(0.0, f64::max);
+    let peak = |i: usize| {
+        (0..pairs.len())
+            .max_by(|&a, &b| {
+                let v = |k: usize| if i == 0 { pairs[k].1 } else { pairs[k].2 };
+                v(a).total_cmp(&v(b))
+            })
+            .unwrap()
+    };
+    let flat = pairs.iter().all(|p| (p.2 / pairs[0].2 - 1.0).abs() < 0.05);
+    eprintln!(
+        "   μ(q) mean {:.3}/{:.3}, worst knot {:.0} %",
+        mean(0),
+        mean(1),
+        100.0 * worst
+    );
+    if (mean(0) / mean(1) - 1.0).abs() < 0.10 && (flat || peak(0) == peak(1)) {
+        Ok(())
+    } else {
+        Err(format!("μ(q) fitted/true at the knots: {pairs:.3?}"))
+    }
+}
+
+/// Issue 17, point 6: friction that varies with angle — a band over part of the swing, a cosine
+/// in angle, neither the shape the vocabulary's grid is written as — is named
+/// `position_friction`, never `stribeck` (which depends on speed), with μ(q) recovered; and
+/// Stribeck friction stays `stribeck` with no extra effect. J3 and J5 (Table 4 friction, stand
+/// noise 0.05°, 0.01° steps), released at 60°; two seeds each.
+#[test]
+fn position_dependent_friction_is_named_and_told_from_stribeck() {
+    let d = 1.0 / DEG;
+    let shapes = [
+        (
+            "band +10°..30° ×2",
+            PositionProfile::Band {
+                gain: 1.0,
+                from: 10.0 * d,
+                to: 30.0 * d,
+                edge: 1.0 * d,
+            },
+        ),
+        (
+            "band −5°..5° ×2",
+            PositionProfile::Band {
+                gain: 1.0,
+                from: -5.0 * d,
+                to: 5.0 * d,
+                edge: 1.0 * d,
+            },
+        ),
+        (
+            "cosine 0.3, 120°",
+            PositionProfile::Cosine {
+                amplitude: 0.3,
+                period: 120.0 * d,
+                phase: 0.5,
+            },
+        ),
+        (
+            "cosine 0.3, 60°",
+            PositionProfile::Cosine {
+                amplitude: 0.3,
+                period: 60.0 * d,
+                phase: 0.0,
+            },
+        ),
+    ];
+    let (mut named, mut total, mut wrong) = (0, 0, Vec::new());
+    for joint in ["J3", "J5"] {
+        let b = base(joint);
+        for (label, shape) in shapes {
+            for seed in [21, 22] {
+                let law = FrictionLaw {
+                    profile: Some(shape),
+                    ..b
+                };
+                let truth = Truth {
+                    law,
+                    readout: Readout::default(),
+                    dry_fade: 0.0,
+                };
+                let (test, bl) = pendulum_test(joint, &truth, 60.0, 0.0, seed);
+                let r = fit(&test, &bl);
+                let got = names(&r);
+                let res = &r.residual;
+                eprintln!(
+                    "{joint} {label} seed {seed}: {got:?} {:?}, error {:.4} -> {:.4}°, held out {:.4} -> {:.4}°",
+                    res.verdict,
+                    res.rmse_before,
+                    res.rmse_after,
+                    res.holdout_rmse_before,
+                    res.holdout_rmse_after
+                );
+                total += 1;
+                if got.first().map(String::as_str) == Some("position_friction") {
+                    named += 1;
+                    // At least half the held-out excess over the fitted error (≈ the noise) gone.
+                    let excess = |h: f64| h * h - res.rmse_after * res.rmse_after;
+                    assert!(
+                        excess(res.holdout_rmse_after) <= 0.5 * excess(res.holdout_rmse_before),
+                        "{joint} {label}: held out {:.4} -> {:.4}",
+                        res.holdout_rmse_before,
+                        res.holdout_rmse_after
+                    );
+                    if let Err(why) = profile_recovered(&r, &law) {
+                        panic!("{joint} {label} seed {seed}: {why}");
+                    }
+                }
+                if got
+                    .iter()
+                    .any(|n| n != "position_friction" && n != "sensor_offset")
+                {
+                    wrong.push(format!("{joint} {label} seed {seed}: {got:?}"));
+                }
+            }
+        }
+    }
+    eprintln!("position friction named in {named} of {total}");
+    assert!(wrong.is_empty(), "wrong names: {wrong:#?}");
+    assert!(
+        named * 10 >= total * 9,
+        "named {named} of {total}: under 90 %"
+    );
+    // Stribeck friction on the same joints' rig, released low as its clear case: named alone.
+    for (joint, seed) in [("J1", 23), ("J3", 24)] {
+        let b = base(joint);
+        let truth = Truth {
+            law: FrictionLaw {
+                stribeck: Some(Stribeck {
+                    ratio: 2.5,
+                    speed: 0.3,
+                }),
+                ..b
+            },
+            readout: Readout::default(),
+            dry_fade: 0.0,
+        };
+        let (test, bl) = pendulum_test(joint, &truth, release_for("stribeck"), 0.0, seed);
+        let got = names(&fit(&test, &bl));
+        assert_eq!(got, vec!["stribeck".to_string()], "Stribeck on {joint}");
     }
 }

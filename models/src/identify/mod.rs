@@ -350,9 +350,8 @@ impl lm::Problem for OutputError<'_> {
                 Param::Dyn(DynParam::StribeckSpeed) => 1e-4,
                 // A Stribeck hump: static friction above the Coulomb level.
                 Param::Dyn(DynParam::StribeckRatio) => 1.0,
-                Param::Dyn(DynParam::PositionLinear | DynParam::PositionQuadratic) => {
-                    f64::NEG_INFINITY
-                }
+                // Position friction: the factor 1 + c at a knot is ≥ 0 (friction never drives).
+                Param::Dyn(DynParam::Position(_)) => -1.0,
                 Param::Dyn(_) => 0.0,
                 Param::Backlash => 0.0,
                 _ => f64::NEG_INFINITY,

@@ -2,7 +2,7 @@
 //! parameters, null values, starting values, and how a found effect is reported.
 
 use crate::dynamics::Mechanism;
-use crate::friction::{DynParam, PositionFriction, Stribeck};
+use crate::friction::{DynParam, POSITION_KNOTS, PositionFriction, Stribeck};
 use crate::identify::{FitOutcome, FitSpec, JointTest, Param};
 use crate::report::EffectResult;
 use serde::Serialize;
@@ -69,14 +69,24 @@ impl Effect {
                 Param::Dyn(DynParam::StribeckSpeed),
             ],
             Effect::QuadraticDrag => vec![Param::Dyn(DynParam::QuadraticDrag)],
-            Effect::PositionFriction => vec![
-                Param::Dyn(DynParam::PositionLinear),
-                Param::Dyn(DynParam::PositionQuadratic),
-            ],
+            // Every knot's coefficient; a fit frees all but the anchor's.
+            Effect::PositionFriction => (0..POSITION_KNOTS as u8)
+                .map(|k| Param::Dyn(DynParam::Position(k)))
+                .collect(),
             Effect::Backlash => vec![Param::Backlash],
             Effect::SensorOffset => vec![Param::Offset],
             Effect::SensorDelay => vec![Param::Delay],
             Effect::InertiaError => vec![Param::Inertia],
+        }
+    }
+
+    /// Degrees of freedom of the effect's score statistic: the parameters it frees at its null
+    /// (Stribeck's speed is not defined there; position friction holds its anchor knot).
+    pub fn score_dof(self) -> usize {
+        match self {
+            Effect::Stribeck => 1,
+            Effect::PositionFriction => POSITION_KNOTS - 1,
+            e => e.params().len(),
         }
     }
 
@@ -85,10 +95,9 @@ impl Effect {
         match self {
             Effect::Stribeck => vec![(Param::Dyn(DynParam::StribeckRatio), 1.0)],
             Effect::QuadraticDrag => vec![(Param::Dyn(DynParam::QuadraticDrag), 0.0)],
-            Effect::PositionFriction => vec![
-                (Param::Dyn(DynParam::PositionLinear), 0.0),
-                (Param::Dyn(DynParam::PositionQuadratic), 0.0),
-            ],
+            Effect::PositionFriction => (0..POSITION_KNOTS as u8)
+                .map(|k| (Param::Dyn(DynParam::Position(k)), 0.0))
+                .collect(),
             Effect::Backlash => vec![(Param::Backlash, 0.0)],
             Effect::SensorOffset => vec![(Param::Offset, 0.0)],
             Effect::SensorDelay => vec![(Param::Delay, 0.0)],
@@ -119,13 +128,14 @@ impl Effect {
                 spec.free.push(DynParam::QuadraticDrag);
             }
             Effect::PositionFriction => {
-                spec.law.position = Some(PositionFriction {
-                    linear: 0.0,
-                    quadratic: 0.0,
-                    scale: scales.q_ref,
-                });
-                spec.free
-                    .extend([DynParam::PositionLinear, DynParam::PositionQuadratic]);
+                let pf = PositionFriction::flat(scales.q_range[0], scales.q_range[1]);
+                let anchor = pf.anchor();
+                spec.law.position = Some(pf);
+                spec.free.extend(
+                    (0..POSITION_KNOTS)
+                        .filter(|&k| k != anchor)
+                        .map(|k| DynParam::Position(k as u8)),
+                );
             }
             Effect::Backlash => {
                 spec.backlash = Some(if at_null {
@@ -146,7 +156,8 @@ pub(super) struct Scales {
     pub(super) v_max: f64,
     /// Typical friction torque/force: D·v_max + lever·N_rest·μ.
     pub(super) friction: f64,
-    pub(super) q_ref: f64,
+    /// The travel the free motion covers, rad or m: the position-friction grid's span.
+    pub(super) q_range: [f64; 2],
     /// Sensor noise in model units.
     pub(super) noise_model: f64,
 }
@@ -176,13 +187,32 @@ pub(super) fn effect_result(e: Effect, fit: &FitOutcome, test: &JointTest) -> Ef
             },
             Param::Dyn(DynParam::QuadraticDrag),
         ),
+        // The factor on μ at each knot, 1 + c_k, with its interval (the anchor's is 1 exactly).
         Effect::PositionFriction => {
-            put("linear".into(), Param::Dyn(DynParam::PositionLinear));
-            put("quadratic".into(), Param::Dyn(DynParam::PositionQuadratic));
-            params.insert(
-                format!("q_ref_{pos}"),
-                serde_json::json!(fit.law.position.map_or(1.0, |p| p.scale)),
-            );
+            if let Some(pf) = fit.law.position {
+                let (scale, unit) = if pos == "rad" {
+                    (180.0 / std::f64::consts::PI, "deg")
+                } else {
+                    (1000.0, "mm")
+                };
+                let knots: Vec<f64> = (0..POSITION_KNOTS).map(|k| scale * pf.knot(k)).collect();
+                let (mut factor, mut ci95) = (Vec::new(), Vec::new());
+                for k in 0..POSITION_KNOTS {
+                    match fit.get(Param::Dyn(DynParam::Position(k as u8))) {
+                        Some((v, _, ci)) => {
+                            factor.push(1.0 + v);
+                            ci95.push([1.0 + ci[0], 1.0 + ci[1]]);
+                        }
+                        None => {
+                            factor.push(1.0 + pf.coeffs[k]);
+                            ci95.push([1.0 + pf.coeffs[k]; 2]);
+                        }
+                    }
+                }
+                params.insert(format!("knots_{unit}"), serde_json::json!(knots));
+                params.insert("factor".into(), serde_json::json!(factor));
+                params.insert("factor_ci95".into(), serde_json::json!(ci95));
+            }
         }
         Effect::Backlash => put(format!("half_width_{pos}"), Param::Backlash),
         Effect::SensorDelay => put("delay_s".into(), Param::Delay),

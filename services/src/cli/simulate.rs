@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use pantowatch_models::data::builtin_160ec;
-use pantowatch_models::friction::{FrictionLaw, PositionFriction, Stribeck};
+use pantowatch_models::friction::{FrictionLaw, PositionProfile, Stribeck};
 use pantowatch_models::identify::Readout;
 use pantowatch_models::synth::{Sensor, Truth, grid, measure_truth};
 use serde_json::json;
@@ -61,6 +61,9 @@ pub struct SimulateArgs {
     /// An effect the paper's model lacks, `NAME:key=value,…` (repeatable). Vocabulary:
     /// `stribeck:ratio=2,speed=0.3` (μs/μ, rad/s or m/s), `quadratic_drag:c=0.02`,
     /// `position_friction:linear=0.5,quadratic=1.5` (μ·(1 + a·u + b·u²), u = q/(1 rad or 10 mm)),
+    /// or a band `position_friction:gain=1,from=10,to=30[,edge=0.5]` (μ·(1 + gain) between
+    /// `from` and `to`, channel units), or a cosine
+    /// `position_friction:amplitude=0.3,period=120[,phase=0]` (μ·(1 + A·cos(2π·q/period + φ))),
     /// `backlash:half_width=0.3` (channel units), `sensor_offset:offset=0.5` (channel units),
     /// `sensor_delay:delay_s=0.008`; outside it: `torsional_spring:k=4` (N·m/rad or N/m),
     /// `fading_friction:fade=0.5` (share of μ lost over the trace). A lift (`--kind lift`)
@@ -570,10 +573,32 @@ fn apply_effect(
         }
         "quadratic_drag" => truth.law.quadratic_drag = Some(get("c")?),
         "position_friction" => {
-            truth.law.position = Some(PositionFriction {
-                linear: kv.get("linear").copied().unwrap_or(0.0),
-                quadratic: kv.get("quadratic").copied().unwrap_or(0.0),
-                scale: if slider { 0.01 } else { 1.0 },
+            // Positions in the channel's units (deg or mm), turned into the model's.
+            let at = |k: &str| get(k).map(|x| x / scale);
+            truth.law.profile = Some(if kv.contains_key("gain") {
+                PositionProfile::Band {
+                    gain: get("gain")?,
+                    from: at("from")?,
+                    to: at("to")?,
+                    // Default edges: 0.5° or 0.1 mm.
+                    edge: kv
+                        .get("edge")
+                        .copied()
+                        .unwrap_or(if slider { 0.1 } else { 0.5 })
+                        / scale,
+                }
+            } else if kv.contains_key("amplitude") {
+                PositionProfile::Cosine {
+                    amplitude: get("amplitude")?,
+                    period: at("period")?,
+                    phase: kv.get("phase").copied().unwrap_or(0.0),
+                }
+            } else {
+                PositionProfile::Polynomial {
+                    linear: kv.get("linear").copied().unwrap_or(0.0),
+                    quadratic: kv.get("quadratic").copied().unwrap_or(0.0),
+                    scale: if slider { 0.01 } else { 1.0 },
+                }
             })
         }
         "backlash" => truth.readout.backlash = get("half_width")? / scale,
