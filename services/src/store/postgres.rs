@@ -187,9 +187,7 @@ impl PgStore {
     async fn begin(&self) -> Result<sqlx::Transaction<'static, sqlx::Postgres>> {
         Ok(self.pool.begin().await?)
     }
-}
 
-impl PgStore {
     /// Fails the jobs whose lease ran out at the attempt limit, then leases the oldest queued
     /// (or expired) job; `FOR UPDATE SKIP LOCKED`: concurrent workers never wait or collide.
     async fn claim_job(&self, worker: &str, lease: Duration) -> Result<Option<Job>> {

@@ -179,9 +179,7 @@ impl SqliteStore {
     async fn begin(&self) -> Result<sqlx::Transaction<'static, sqlx::Sqlite>> {
         Ok(self.pool.begin_with("BEGIN IMMEDIATE").await?)
     }
-}
 
-impl SqliteStore {
     /// Fails the jobs whose lease ran out at the attempt limit, then leases the oldest queued
     /// (or expired) job: one `BEGIN IMMEDIATE` transaction, so two workers never share a job.
     async fn claim_job(&self, worker: &str, lease: Duration) -> Result<Option<Job>> {

@@ -1,7 +1,8 @@
 //! Alerts, alert events, webhook subscriptions and the delivery outbox: written once,
 //! instantiated with `alerts_impl!();`. Every write is one transaction (alert row + event +
 //! outbox rows together); raises serialise per (serial, joint) (`lock_alert_pair` on
-//! PostgreSQL, `BEGIN IMMEDIATE` on SQLite); deliveries are claimed `claim_lock!()`.
+//! PostgreSQL, `BEGIN IMMEDIATE` on SQLite); deliveries are claimed with `claim_lock!()`
+//! (`SKIP LOCKED` on PostgreSQL).
 
 macro_rules! alerts_impl {
     () => {

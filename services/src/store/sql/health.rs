@@ -1,5 +1,5 @@
-//! Vehicles, joint history, joint states and fleet health. Written once, instantiated by each backend with
-//! `health_impl!();`.
+//! Vehicles, joint history, joint states and fleet health: written once, instantiated by each
+//! backend with `health_impl!();` (see `sql/mod.rs` for the dialect it names).
 
 macro_rules! health_impl {
     () => {

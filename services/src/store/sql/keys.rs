@@ -1,5 +1,5 @@
-//! API keys. Written once, instantiated by each backend with
-//! `keys_impl!();`.
+//! API keys: written once, instantiated by each backend with `keys_impl!();`
+//! (see `sql/mod.rs` for the dialect it names).
 
 macro_rules! keys_impl {
     () => {

@@ -1,11 +1,12 @@
 //! The store's SQL and logic, written once for both backends (issue 19, point 2): one file per
 //! concern, each a `macro_rules!` body that `sqlite.rs` and `postgres.rs` instantiate
 //! (`traces_impl!();` …). The body names the backend's dialect, defined in the instantiating
-//! file: the types `Backend`, `Conn`, `DbRow`; `ts` (a timestamp as the backend binds it);
-//! `lock_serial`, `lock_alert_pair` (PostgreSQL row/advisory locks; no-ops under SQLite's
-//! `BEGIN IMMEDIATE`); and SQL fragments as macros, so every statement stays a `concat!` of
-//! literals: `now!`, `for_update!`, `claim_lock!`, `jsonb!`, `ts_cast!`, `blob_len!`,
-//! `not_ok_agg!`, `queued_age!`, `lease_until!`, `fleet_sql!`.
+//! file: the types `Backend`, `Conn`, `DbRow` (tests only); `ts` (a timestamp as the backend
+//! binds it) and `lease_param`; `lock_serial`, `lock_alert_pair` (PostgreSQL row and advisory
+//! locks; no-ops under SQLite's `BEGIN IMMEDIATE`); `Backend::claim_job`; and SQL fragments as
+//! macros, so every statement stays a `concat!` of literals: `now!`, `for_update!`,
+//! `claim_lock!`, `jsonb!`, `ts_cast!`, `blob_len!`, `not_ok_agg!`, `queued_age!`,
+//! `lease_until!`, `fleet_sql!`.
 //!
 //! Why macros and not a generic `impl<DB: sqlx::Database>`: the two backends bind different
 //! timestamp types and need SQL fragments spliced into constant statements (sqlx 0.9 accepts
