@@ -225,35 +225,11 @@ impl PgStore {
     }
 }
 
-impl RowExt for PgRow {
-    fn text(&self, c: &str) -> Result<String> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_text(&self, c: &str) -> Result<Option<String>> {
-        Ok(self.try_get(c)?)
-    }
-    fn int(&self, c: &str) -> Result<i64> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_int(&self, c: &str) -> Result<Option<i64>> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_real(&self, c: &str) -> Result<Option<f64>> {
-        Ok(self.try_get(c)?)
-    }
-    fn flag(&self, c: &str) -> Result<bool> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_flag(&self, c: &str) -> Result<Option<bool>> {
-        Ok(self.try_get(c)?)
-    }
-    fn ts(&self, c: &str) -> Result<DateTime<Utc>> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_ts(&self, c: &str) -> Result<Option<DateTime<Utc>>> {
-        Ok(self.try_get(c)?)
-    }
+/// A stored timestamp (`timestamptz`) read back.
+fn read_ts(t: DateTime<Utc>) -> Result<DateTime<Utc>> {
+    Ok(t)
 }
+row_ext_impl!(PgRow, DateTime<Utc>);
 
 traces_impl!();
 jobs_impl!();

@@ -218,35 +218,11 @@ impl SqliteStore {
     }
 }
 
-impl RowExt for SqliteRow {
-    fn text(&self, c: &str) -> Result<String> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_text(&self, c: &str) -> Result<Option<String>> {
-        Ok(self.try_get(c)?)
-    }
-    fn int(&self, c: &str) -> Result<i64> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_int(&self, c: &str) -> Result<Option<i64>> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_real(&self, c: &str) -> Result<Option<f64>> {
-        Ok(self.try_get(c)?)
-    }
-    fn flag(&self, c: &str) -> Result<bool> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_flag(&self, c: &str) -> Result<Option<bool>> {
-        Ok(self.try_get(c)?)
-    }
-    fn ts(&self, c: &str) -> Result<DateTime<Utc>> {
-        parse_ts_text(&self.text(c)?)
-    }
-    fn opt_ts(&self, c: &str) -> Result<Option<DateTime<Utc>>> {
-        self.opt_text(c)?.map(|s| parse_ts_text(&s)).transpose()
-    }
+/// A stored timestamp (text) read back.
+fn read_ts(s: String) -> Result<DateTime<Utc>> {
+    parse_ts_text(&s)
 }
+row_ext_impl!(SqliteRow, String);
 
 traces_impl!();
 jobs_impl!();

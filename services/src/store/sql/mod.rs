@@ -1,12 +1,12 @@
 //! The store's SQL and logic, written once for both backends (issue 19, point 2): one file per
 //! concern, each a `macro_rules!` body that `sqlite.rs` and `postgres.rs` instantiate
-//! (`traces_impl!();` …). The body names the backend's dialect, defined in the instantiating
-//! file: the types `Backend`, `Conn`, `DbRow` (tests only); `ts` (a timestamp as the backend
-//! binds it) and `lease_param`; `lock_serial`, `lock_alert_pair` (PostgreSQL row and advisory
-//! locks; no-ops under SQLite's `BEGIN IMMEDIATE`); `Backend::claim_job`; and SQL fragments as
-//! macros, so every statement stays a `concat!` of literals: `now!`, `for_update!`,
-//! `claim_lock!`, `jsonb!`, `ts_cast!`, `blob_len!`, `not_ok_agg!`, `queued_age!`,
-//! `lease_until!`, `fleet_sql!`.
+//! (`traces_impl!();` …; `row_ext_impl!` for the row type). The body names the backend's
+//! dialect, defined in the instantiating file: the types `Backend`, `Conn`, `DbRow` (tests
+//! only); `ts` (a timestamp as the backend binds it), `read_ts` and `lease_param`;
+//! `lock_serial`, `lock_alert_pair` (PostgreSQL row and advisory locks; no-ops under SQLite's
+//! `BEGIN IMMEDIATE`); `Backend::claim_job`; and SQL fragments as macros, so every statement
+//! stays a `concat!` of literals: `now!`, `for_update!`, `claim_lock!`, `jsonb!`, `ts_cast!`,
+//! `blob_len!`, `not_ok_agg!`, `queued_age!`, `lease_until!`, `fleet_sql!`.
 //!
 //! Why macros and not a generic `impl<DB: sqlx::Database>`: the two backends bind different
 //! timestamp types and need SQL fragments spliced into constant statements (sqlx 0.9 accepts
@@ -82,6 +82,42 @@ macro_rules! fleet_cte {
                   AND (CAST($2 AS TEXT) IS NULL OR mount.vehicle_id = CAST($2 AS TEXT))
             ) "
         )
+    };
+}
+
+/// `RowExt` for the backend's row type `$row`: each column by `try_get`; a timestamp read as
+/// the backend stores it (`$ts`), then by the backend's `read_ts`.
+macro_rules! row_ext_impl {
+    ($row:ty, $ts:ty) => {
+        impl RowExt for $row {
+            fn text(&self, c: &str) -> Result<String> {
+                Ok(self.try_get(c)?)
+            }
+            fn opt_text(&self, c: &str) -> Result<Option<String>> {
+                Ok(self.try_get(c)?)
+            }
+            fn int(&self, c: &str) -> Result<i64> {
+                Ok(self.try_get(c)?)
+            }
+            fn opt_int(&self, c: &str) -> Result<Option<i64>> {
+                Ok(self.try_get(c)?)
+            }
+            fn opt_real(&self, c: &str) -> Result<Option<f64>> {
+                Ok(self.try_get(c)?)
+            }
+            fn flag(&self, c: &str) -> Result<bool> {
+                Ok(self.try_get(c)?)
+            }
+            fn opt_flag(&self, c: &str) -> Result<Option<bool>> {
+                Ok(self.try_get(c)?)
+            }
+            fn ts(&self, c: &str) -> Result<DateTime<Utc>> {
+                read_ts(self.try_get::<$ts, _>(c)?)
+            }
+            fn opt_ts(&self, c: &str) -> Result<Option<DateTime<Utc>>> {
+                self.try_get::<Option<$ts>, _>(c)?.map(read_ts).transpose()
+            }
+        }
     };
 }
 
