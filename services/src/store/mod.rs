@@ -3,15 +3,22 @@
 //!
 //! Both backends implement the same crate-private traits, one per concern (`TraceBackend`,
 //! `JobBackend`, `HealthBackend`, `KeyBackend`, `AlertBackend`), so their signatures cannot
-//! drift; [`Store`] is an enum that dispatches to them (no `dyn`, no `async_trait`).
+//! drift; [`Store`] is an enum that dispatches to them (no `dyn`, no `async_trait`). The SQL and
+//! logic of each concern is written once, in `sql/`, and instantiated by each backend with its
+//! dialect (issue 19, point 2).
 //!
 //! # Layout
 //! - `mod.rs`: errors, the status/role/job-state words, the concern traits, the joint-state SQL;
 //! - `records.rs`: what callers write and read; `facade.rs`: `Store`'s methods (the callers'
 //!   checks, then the backend); `rows.rs`: rows to records, for both backends;
-//! - `sqlite.rs` + `sqlite/{traces,jobs,health,keys,alerts}.rs` and the same for `postgres`:
-//!   each backend's connection, transactions and SQL per concern (`*_alerts.rs`: alert SQL);
-//! - `samples.rs` (the packed channels), `keys.rs` (API-key hashing), `fault.rs`;
+//! - `sql/{traces,jobs,health,keys,alerts}.rs`: each concern's statements and steps, once, as a
+//!   macro body (`traces_impl!()` …); `sql/mod.rs`: the SQL fragments they share and the
+//!   dialect they name (why macros: see there);
+//! - `sqlite.rs`, `postgres.rs`: what differs per backend, and nothing else: connection and
+//!   migrations, transactions and locking (`BEGIN IMMEDIATE` against row and advisory locks,
+//!   each backend's job claim), timestamp types, and the dialect's SQL fragments;
+//! - `alerts.rs` (alert and webhook records), `samples.rs` (the packed channels), `keys.rs`
+//!   (API-key hashing), `fault.rs`;
 //! - `tests/`: the contract suite, one file per concern, run on both backends.
 //!
 //! Migrations are embedded per backend (`migrations/sqlite`, `migrations/postgres`) and run on
@@ -74,9 +81,7 @@ macro_rules! joint_state_select {
 
 mod fault;
 pub mod keys;
-mod postgres;
 pub mod samples;
-mod sqlite;
 #[cfg(test)]
 mod tests;
 
@@ -253,8 +258,11 @@ macro_rules! delivery_cols {
 }
 
 pub mod alerts;
-mod pg_alerts;
-mod sqlite_alerts;
+// The shared SQL and logic (macros) first, then the backends that instantiate it.
+#[macro_use]
+mod sql;
+mod postgres;
+mod sqlite;
 use alerts::Target;
 pub use alerts::{
     Alert, AlertEvent, AlertFilter, AlertState, AttemptResult, Delivery, DeliveryState,
@@ -262,7 +270,7 @@ pub use alerts::{
 };
 
 /// The operations each backend implements, one trait per concern; [`Store`] dispatches to them
-/// (each backend: `sqlite/<concern>.rs`, `postgres/<concern>.rs`).
+/// (each concern's implementation, written once: `sql/<concern>.rs`).
 pub(crate) trait TraceBackend {
     // traces, fits and their curves, the database itself
     fn ping(&self) -> impl Future<Output = Result<()>> + Send;
@@ -376,7 +384,7 @@ pub(crate) trait KeyBackend {
 }
 
 pub(crate) trait AlertBackend {
-    // alerts and the webhook outbox (SQL in the `*_alerts` files)
+    // alerts and the webhook outbox
     fn raise_alert(&self, a: &NewAlert) -> impl Future<Output = Result<RaiseOutcome>> + Send;
     fn acknowledge_alert(
         &self,

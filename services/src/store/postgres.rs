@@ -1,5 +1,7 @@
 //! PostgreSQL backend: timestamps are `timestamptz` set by the server clock, fit results JSONB;
 //! the job queue claims with `FOR UPDATE SKIP LOCKED` so concurrent workers never wait or collide.
+//! Here: the connection, migrations, transactions and locking, the claim, and the dialect the
+//! shared SQL (`sql/`, see its module doc) names; the logic itself is instantiated at the end.
 
 use std::time::Duration;
 
@@ -8,9 +10,44 @@ use sqlx::migrate::{Migrate, Migrator};
 use sqlx::postgres::{PgConnectOptions, PgConnection, PgPool, PgPoolOptions, PgRow, PgSslMode};
 use sqlx::{Row, query, query_scalar};
 
+use super::alerts::*;
 use super::*;
 
 pub(crate) static MIGRATOR: Migrator = sqlx::migrate!("../migrations/postgres");
+
+type Backend = PgStore;
+type Conn = PgConnection;
+#[cfg(test)]
+type DbRow = PgRow;
+
+/// A timestamp as PostgreSQL binds it: `timestamptz`.
+fn ts(t: DateTime<Utc>) -> DateTime<Utc> {
+    t
+}
+
+/// A lease's length in seconds, bound as `lease_until!()`'s `$3` (the server clock adds it).
+fn lease_param(lease: Duration) -> f64 {
+    lease.as_secs_f64()
+}
+
+/// Locks the pantograph's row: uploads and fit refreshes of one serial run one after the other.
+async fn lock_serial(c: &mut Conn, serial: &str) -> Result<()> {
+    query("SELECT serial FROM pantographs WHERE serial = $1 FOR UPDATE")
+        .bind(serial)
+        .execute(&mut *c)
+        .await?;
+    Ok(())
+}
+
+/// Serialises raises of one (serial, joint) on a transaction-scoped advisory lock.
+async fn lock_alert_pair(c: &mut Conn, serial: &str, joint: &str) -> Result<()> {
+    query("SELECT pg_advisory_xact_lock(hashtextextended($1 || '/' || $2, 0))")
+        .bind(serial)
+        .bind(joint)
+        .execute(&mut *c)
+        .await?;
+    Ok(())
+}
 
 /// Current time, from the server clock (the same clock for every worker).
 macro_rules! now {
@@ -19,82 +56,76 @@ macro_rules! now {
     };
 }
 
-/// Every joint point from each trace's current fit; `$extra` narrows the trace/joint set.
-/// `rn = 1` is a joint's latest *informed* verdict (a test that could not identify the joint — a
-/// lift for J2, say — does not hide the last test that could), else its latest.
-macro_rules! points_cte {
-    ($extra:literal) => {
-        concat!(
-            "WITH cur AS (
-                SELECT f.id, f.trace_id, f.model_version, f.created_at
-                FROM fits f
-                WHERE f.id = (SELECT max(f2.id) FROM fits f2 WHERE f2.trace_id = f.trace_id)
-            ),
-            pts AS (
-                SELECT t.serial, t.vehicle_id, t.trace_id, t.recorded_at, cur.model_version,
-                       cur.id AS fit_id, cur.created_at AS fitted_at,
-                       j.joint, j.viscous, j.viscous_lo, j.viscous_hi, j.dry, j.dry_lo, j.dry_hi,
-                       j.identifiable, j.status, j.viscous_informed, j.viscous_status,
-                       j.dry_informed, j.dry_status,
-                       ROW_NUMBER() OVER (PARTITION BY t.serial, j.joint
-                                          ORDER BY j.identifiable DESC, t.recorded_at DESC, t.trace_id DESC) AS rn
-                FROM cur
-                JOIN traces t ON t.trace_id = cur.trace_id
-                JOIN fit_joints j ON j.fit_id = cur.id
-                WHERE t.serial IS NOT NULL ",
-            $extra,
-            ") "
-        )
+/// Row locks taken by the reads that precede a write in one transaction.
+macro_rules! for_update {
+    () => {
+        " FOR UPDATE"
+    };
+}
+/// Deliveries due: claimed without waiting for another sender's rows.
+macro_rules! claim_lock {
+    () => {
+        " FOR UPDATE OF d SKIP LOCKED"
     };
 }
 
-/// The mount in effect now for each serial.
-macro_rules! current_mount {
+/// JSON is stored as JSONB; timestamps bound as `Option` need their type named.
+macro_rules! jsonb {
     () => {
-        "m.since = (SELECT max(m2.since) FROM pantograph_mounts m2 WHERE m2.serial = m.serial)"
+        "::jsonb"
+    };
+}
+macro_rules! ts_cast {
+    () => {
+        "::timestamptz"
     };
 }
 
-/// Fleet rows with the filters `$1` (worst rank) and `$2` (current vehicle), by a window over
-/// every fit: the definition `pantograph_health` is kept equal to (tests compare the two).
-#[cfg(test)]
-macro_rules! fleet_cte {
+macro_rules! blob_len {
+    () => {
+        "octet_length(samples)::bigint"
+    };
+}
+
+/// A pantograph's joints that are not `ok`, as `joint:status` joined by U+001F.
+macro_rules! not_ok_agg {
+    () => {
+        "string_agg(CASE WHEN status <> 'ok' THEN joint || ':' || status END, chr(31))"
+    };
+}
+
+/// Seconds since the oldest `created_at` of the rows aggregated.
+macro_rules! queued_age {
+    () => {
+        "EXTRACT(EPOCH FROM now() - min(created_at))::float8"
+    };
+}
+
+/// A renewed lease's end: `$3` seconds from now, by the server clock.
+macro_rules! lease_until {
+    () => {
+        "now() + make_interval(secs => $3)"
+    };
+}
+
+/// Fleet rows from `pantograph_health` with the filters `$1` (worst rank) and `$2` (current
+/// vehicle); the current mount by `DISTINCT ON`, one index scan.
+macro_rules! fleet_sql {
     () => {
         concat!(
-            points_cte!(""),
-            ", latest AS (SELECT serial, joint, status FROM (",
-            joint_state_select!("t.serial IS NOT NULL"),
-            ") s),
-            agg AS (
-                SELECT serial,
-                       max(CASE status WHEN 'alarm' THEN 3 WHEN 'watch' THEN 2 WHEN 'ok' THEN 1 ELSE 0 END)::bigint
-                           AS worst,
-                       string_agg(CASE WHEN status <> 'ok' THEN joint || ':' || status END,
-                                  chr(31)) AS not_ok
-                FROM latest GROUP BY serial
+            "WITH mount AS (
+                SELECT DISTINCT ON (serial) serial, vehicle_id FROM pantograph_mounts
+                ORDER BY serial, since DESC
             ),
-            mount AS (SELECT m.serial, m.vehicle_id FROM pantograph_mounts m WHERE ",
-            current_mount!(),
-            "),
-            lt AS (SELECT serial, max(recorded_at) AS last_test FROM traces
-                   WHERE serial IS NOT NULL GROUP BY serial),
             fleet AS (
-                SELECT p.serial, p.model, mount.vehicle_id, agg.worst, agg.not_ok, lt.last_test
+                SELECT p.serial, p.model, m.vehicle_id, h.worst, h.not_ok
                 FROM pantographs p
-                LEFT JOIN mount ON mount.serial = p.serial
-                LEFT JOIN agg ON agg.serial = p.serial
-                LEFT JOIN lt ON lt.serial = p.serial
-                WHERE ($1::bigint IS NULL OR agg.worst = $1::bigint)
-                  AND ($2::text IS NULL OR mount.vehicle_id = $2::text)
+                LEFT JOIN mount m ON m.serial = p.serial
+                LEFT JOIN pantograph_health h ON h.serial = p.serial
+                WHERE ($1::bigint IS NULL OR h.worst = $1::bigint)
+                  AND ($2::text IS NULL OR m.vehicle_id = $2::text)
             ) "
         )
-    };
-}
-
-macro_rules! job_cols {
-    () => {
-        " id, trace_id, model_version, state, attempts, lease_until, worker, last_error,
-          created_at, updated_at "
     };
 }
 
@@ -156,249 +187,55 @@ impl PgStore {
     async fn begin(&self) -> Result<sqlx::Transaction<'static, sqlx::Postgres>> {
         Ok(self.pool.begin().await?)
     }
-}
 
-impl RowExt for PgRow {
-    fn text(&self, c: &str) -> Result<String> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_text(&self, c: &str) -> Result<Option<String>> {
-        Ok(self.try_get(c)?)
-    }
-    fn int(&self, c: &str) -> Result<i64> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_int(&self, c: &str) -> Result<Option<i64>> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_real(&self, c: &str) -> Result<Option<f64>> {
-        Ok(self.try_get(c)?)
-    }
-    fn flag(&self, c: &str) -> Result<bool> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_flag(&self, c: &str) -> Result<Option<bool>> {
-        Ok(self.try_get(c)?)
-    }
-    fn ts(&self, c: &str) -> Result<DateTime<Utc>> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_ts(&self, c: &str) -> Result<Option<DateTime<Utc>>> {
-        Ok(self.try_get(c)?)
-    }
-}
-
-fn mount_row(r: Option<PgRow>) -> Result<Option<(String, DateTime<Utc>)>> {
-    r.map(|r| Ok((r.text("vehicle_id")?, r.ts("since")?)))
-        .transpose()
-}
-
-/// Fleet rows from `pantograph_health` with the filters `$1` (worst rank) and `$2` (current
-/// vehicle); the current mount by `DISTINCT ON`, one index scan.
-macro_rules! fleet_sql {
-    () => {
-        concat!(
-            "WITH mount AS (
-                SELECT DISTINCT ON (serial) serial, vehicle_id FROM pantograph_mounts
-                ORDER BY serial, since DESC
-            ),
-            fleet AS (
-                SELECT p.serial, p.model, m.vehicle_id, h.worst, h.not_ok
-                FROM pantographs p
-                LEFT JOIN mount m ON m.serial = p.serial
-                LEFT JOIN pantograph_health h ON h.serial = p.serial
-                WHERE ($1::bigint IS NULL OR h.worst = $1::bigint)
-                  AND ($2::text IS NULL OR m.vehicle_id = $2::text)
-            ) "
+    /// Fails the jobs whose lease ran out at the attempt limit, then leases the oldest queued
+    /// (or expired) job; `FOR UPDATE SKIP LOCKED`: concurrent workers never wait or collide.
+    async fn claim_job(&self, worker: &str, lease: Duration) -> Result<Option<Job>> {
+        let mut tx = self.begin().await?;
+        let reaped = query(
+            "UPDATE jobs SET state = 'failed', lease_until = NULL, updated_at = now(),
+                             last_error = 'lease expired ' || attempts || ' times (worker died?)'
+             WHERE id IN (SELECT id FROM jobs
+                          WHERE state = 'running' AND lease_until < now() AND attempts >= $1
+                          FOR UPDATE SKIP LOCKED)",
         )
-    };
-}
-
-/// Rewrites the health rows (`joint_latest`, `pantograph_health`) of the trace's pantograph
-/// inside the caller's transaction, which has just written a fit of the trace. The pantograph
-/// row is locked first, so fits of one serial written concurrently refresh one after the other
-/// and the later one (READ COMMITTED: a fresh snapshot per statement) sees the earlier fit.
-async fn refresh_health(conn: &mut PgConnection, trace_id: &str) -> Result<()> {
-    let serial: Option<Option<String>> =
-        query_scalar("SELECT serial FROM traces WHERE trace_id = $1")
-            .bind(trace_id)
-            .fetch_optional(&mut *conn)
-            .await?;
-    let Some(serial) = serial.flatten() else {
-        return Ok(());
-    };
-    query("SELECT serial FROM pantographs WHERE serial = $1 FOR UPDATE")
-        .bind(&serial)
-        .execute(&mut *conn)
-        .await?;
-    query("DELETE FROM joint_latest WHERE serial = $1")
-        .bind(&serial)
-        .execute(&mut *conn)
-        .await?;
-    query(JOINT_LATEST_REFRESH_SQL)
-        .bind(&serial)
-        .execute(&mut *conn)
-        .await?;
-    query("DELETE FROM pantograph_health WHERE serial = $1")
-        .bind(&serial)
-        .execute(&mut *conn)
-        .await?;
-    query(
-        "INSERT INTO pantograph_health (serial, worst, not_ok)
-         SELECT serial,
-                max(CASE status WHEN 'alarm' THEN 3 WHEN 'watch' THEN 2 WHEN 'ok' THEN 1 ELSE 0 END),
-                string_agg(CASE WHEN status <> 'ok' THEN joint || ':' || status END, chr(31))
-         FROM joint_latest WHERE serial = $1 GROUP BY serial",
-    )
-    .bind(&serial)
-    .execute(&mut *conn)
-    .await?;
-    Ok(())
-}
-
-#[cfg(test)]
-impl PgStore {
-    /// The fleet health by the window over every fit (the pre-0004 query), for the tests.
-    pub(crate) async fn fleet_health_by_window(
-        &self,
-        filter: &FleetFilter,
-        page: Page,
-    ) -> Result<FleetPage> {
-        let rank = filter.status.map(Status::rank);
-        let total: i64 = query_scalar(concat!(fleet_cte!(), "SELECT count(*) FROM fleet"))
-            .bind(rank)
-            .bind(&filter.vehicle_id)
-            .fetch_one(&self.pool)
-            .await?;
-        let rows = query(concat!(
-            fleet_cte!(),
-            "SELECT * FROM fleet ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4"
-        ))
-        .bind(rank)
-        .bind(&filter.vehicle_id)
-        .bind(i64::from(page.limit))
-        .bind(i64::try_from(page.offset).unwrap_or(i64::MAX))
-        .fetch_all(&self.pool)
+        .bind(MAX_ATTEMPTS)
+        .execute(&mut *tx)
         .await?
-        .iter()
-        .map(fleet_row_from)
-        .collect::<Result<Vec<_>>>()?;
-        Ok(FleetPage {
-            total: u64::try_from(total).unwrap_or(0),
-            rows,
-        })
-    }
-
-    /// Each joint's latest state by the window (left) and from `joint_latest` (right), sorted.
-    pub(crate) async fn latest_both_ways(&self) -> Result<(Vec<LatestRow>, Vec<LatestRow>)> {
-        let window = query(concat!(
-            "SELECT serial, joint, trace_id, fit_id, status FROM (",
-            joint_state_select!("t.serial IS NOT NULL"),
-            ") s ORDER BY serial, joint"
+        .rows_affected();
+        let row = query(concat!(
+            "UPDATE jobs SET state = 'running', attempts = attempts + 1, worker = $1,
+                             lease_until = now() + make_interval(secs => $2), updated_at = now()
+             WHERE id = (SELECT id FROM jobs
+                         WHERE state = 'queued'
+                            OR (state = 'running' AND lease_until < now() AND attempts < $3)
+                         ORDER BY id LIMIT 1
+                         FOR UPDATE SKIP LOCKED)
+             RETURNING",
+            job_cols!()
         ))
-        .fetch_all(&self.pool)
+        .bind(worker)
+        .bind(lease.as_secs_f64())
+        .bind(MAX_ATTEMPTS)
+        .fetch_optional(&mut *tx)
         .await?;
-        let table = query(
-            "SELECT serial, joint, trace_id, fit_id, status FROM joint_latest ORDER BY serial, joint",
-        )
-        .fetch_all(&self.pool)
-        .await?;
-        let rows = |v: Vec<PgRow>| -> Result<Vec<LatestRow>> {
-            v.iter()
-                .map(|r| {
-                    Ok((
-                        r.text("serial")?,
-                        r.text("joint")?,
-                        r.text("trace_id")?,
-                        r.int("fit_id")?,
-                        r.text("status")?,
-                    ))
-                })
-                .collect()
-        };
-        Ok((rows(window)?, rows(table)?))
+        tx.commit().await?;
+        super::count_lease_expired(reaped);
+        row.map(|r| job_from(&r)).transpose()
     }
 }
 
-/// Writes the fit for (trace, model version) once, inside the caller's transaction.
-async fn insert_fit_tx(
-    conn: &mut PgConnection,
-    trace_id: &str,
-    model_version: &str,
-    fit: &NewFit,
-) -> Result<FitWrite> {
-    let result = serde_json::to_string(&fit.result)
-        .map_err(|e| StoreError::Invalid(format!("fit result: {e}")))?;
-    let id: Option<i64> = query_scalar(
-        "INSERT INTO fits (trace_id, model_version, result_json, rmse, status)
-         VALUES ($1, $2, $3::jsonb, $4, $5)
-         ON CONFLICT (trace_id, model_version) DO NOTHING
-         RETURNING id",
-    )
-    .bind(trace_id)
-    .bind(model_version)
-    .bind(result)
-    .bind(fit.rmse)
-    .bind(fit.status().map(Status::as_str))
-    .fetch_optional(&mut *conn)
-    .await?;
-    let Some(fit_id) = id else {
-        let fit_id: i64 =
-            query_scalar("SELECT id FROM fits WHERE trace_id = $1 AND model_version = $2")
-                .bind(trace_id)
-                .bind(model_version)
-                .fetch_one(&mut *conn)
-                .await?;
-        return Ok(FitWrite {
-            fit_id,
-            created: false,
-        });
-    };
-    for j in &fit.joints {
-        query(
-            "INSERT INTO fit_joints (fit_id, joint, viscous, viscous_lo, viscous_hi,
-                                     dry, dry_lo, dry_hi, identifiable, status,
-                                     viscous_informed, viscous_status, dry_informed, dry_status)
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)",
-        )
-        .bind(fit_id)
-        .bind(&j.joint)
-        .bind(j.viscous)
-        .bind(j.viscous_lo)
-        .bind(j.viscous_hi)
-        .bind(j.dry)
-        .bind(j.dry_lo)
-        .bind(j.dry_hi)
-        .bind(j.identifiable)
-        .bind(j.status.as_str())
-        .bind(j.viscous_informed)
-        .bind(j.viscous_status.map(Status::as_str))
-        .bind(j.dry_informed)
-        .bind(j.dry_status.map(Status::as_str))
-        .execute(&mut *conn)
-        .await?;
-    }
-    if let Some(curve) = &fit.curve {
-        let json = serde_json::to_string(curve)
-            .map_err(|e| StoreError::Invalid(format!("fit curve: {e}")))?;
-        query("INSERT INTO fit_curves (fit_id, curve_json) VALUES ($1, $2::jsonb)")
-            .bind(fit_id)
-            .bind(json)
-            .execute(&mut *conn)
-            .await?;
-    }
-    refresh_health(conn, trace_id).await?;
-    Ok(FitWrite {
-        fit_id,
-        created: true,
-    })
+/// A stored timestamp (`timestamptz`) read back.
+fn read_ts(t: DateTime<Utc>) -> Result<DateTime<Utc>> {
+    Ok(t)
 }
+row_ext_impl!(PgRow, DateTime<Utc>);
 
-mod alerts;
-mod health;
-mod jobs;
-mod keys;
-mod traces;
+traces_impl!();
+jobs_impl!();
+health_impl!();
+keys_impl!();
+alerts_impl!();
 
 #[cfg(test)]
 mod loopback_tests {

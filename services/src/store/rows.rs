@@ -220,6 +220,12 @@ pub(crate) const JOINT_LATEST_REFRESH_SQL: &str = concat!(
     ") s"
 );
 
+/// A pantograph mount read back: (vehicle, since).
+pub(crate) fn mount_row<R: RowExt>(r: Option<R>) -> Result<Option<(String, DateTime<Utc>)>> {
+    r.map(|r| Ok((r.text("vehicle_id")?, r.ts("since")?)))
+        .transpose()
+}
+
 /// A joint's latest state as `joint_latest` holds it: (serial, joint, trace, fit, status).
 #[cfg(test)]
 pub(crate) type LatestRow = (String, String, String, i64, String);

@@ -1,5 +1,7 @@
 //! SQLite backend: one file, WAL, foreign keys on, `synchronous=FULL`; every write transaction
 //! is `BEGIN IMMEDIATE`, which serialises writers and gives the job queue its claim contract.
+//! Here: the connection, migrations, transactions and locking, the claim, and the dialect the
+//! shared SQL (`sql/`, see its module doc) names; the logic itself is instantiated at the end.
 
 use std::str::FromStr;
 use std::time::Duration;
@@ -12,9 +14,35 @@ use sqlx::sqlite::{
 };
 use sqlx::{Row, query, query_scalar};
 
+use super::alerts::*;
 use super::*;
 
 pub(crate) static MIGRATOR: Migrator = sqlx::migrate!("../migrations/sqlite");
+
+type Backend = SqliteStore;
+type Conn = SqliteConnection;
+#[cfg(test)]
+type DbRow = SqliteRow;
+
+/// A timestamp as SQLite stores it: fixed-width UTC text (text order = time order).
+fn ts(t: DateTime<Utc>) -> String {
+    ts_text(t)
+}
+
+/// The end of a lease from now, bound as `lease_until!()`'s `$3`.
+fn lease_param(lease: Duration) -> String {
+    ts_text(Utc::now() + lease_delta(lease))
+}
+
+/// `BEGIN IMMEDIATE` already serialises every writer: no row lock to take.
+async fn lock_serial(_: &mut Conn, _: &str) -> Result<()> {
+    Ok(())
+}
+
+/// `BEGIN IMMEDIATE` already serialises every raise.
+async fn lock_alert_pair(_: &mut Conn, _: &str, _: &str) -> Result<()> {
+    Ok(())
+}
 
 /// Current time in the stored text format, computed by SQLite.
 macro_rules! now {
@@ -23,80 +51,71 @@ macro_rules! now {
     };
 }
 
-/// Every joint point from each trace's current fit; `$extra` narrows the trace/joint set.
-/// `rn = 1` is a joint's latest *informed* verdict (a test that could not identify the joint — a
-/// lift for J2, say — does not hide the last test that could), else its latest.
-macro_rules! points_cte {
-    ($extra:literal) => {
-        concat!(
-            "WITH cur AS (
-                SELECT f.id, f.trace_id, f.model_version, f.created_at
-                FROM fits f
-                WHERE f.id = (SELECT max(f2.id) FROM fits f2 WHERE f2.trace_id = f.trace_id)
-            ),
-            pts AS (
-                SELECT t.serial, t.vehicle_id, t.trace_id, t.recorded_at, cur.model_version,
-                       cur.id AS fit_id, cur.created_at AS fitted_at,
-                       j.joint, j.viscous, j.viscous_lo, j.viscous_hi, j.dry, j.dry_lo, j.dry_hi,
-                       j.identifiable, j.status, j.viscous_informed, j.viscous_status,
-                       j.dry_informed, j.dry_status,
-                       ROW_NUMBER() OVER (PARTITION BY t.serial, j.joint
-                                          ORDER BY j.identifiable DESC, t.recorded_at DESC, t.trace_id DESC) AS rn
-                FROM cur
-                JOIN traces t ON t.trace_id = cur.trace_id
-                JOIN fit_joints j ON j.fit_id = cur.id
-                WHERE t.serial IS NOT NULL ",
-            $extra,
-            ") "
-        )
+/// Row locks (none: the transaction holds the write lock).
+macro_rules! for_update {
+    () => {
+        ""
+    };
+}
+macro_rules! claim_lock {
+    () => {
+        ""
     };
 }
 
-/// The mount in effect now for each serial.
-macro_rules! current_mount {
+/// JSON is stored as text: no cast.
+macro_rules! jsonb {
     () => {
-        "m.since = (SELECT max(m2.since) FROM pantograph_mounts m2 WHERE m2.serial = m.serial)"
+        ""
+    };
+}
+macro_rules! ts_cast {
+    () => {
+        ""
     };
 }
 
-/// Fleet rows with the filters `$1` (worst rank) and `$2` (current vehicle), by a window over
-/// every fit: the definition `pantograph_health` is kept equal to (tests compare the two).
-#[cfg(test)]
-macro_rules! fleet_cte {
+macro_rules! blob_len {
+    () => {
+        "length(samples)"
+    };
+}
+
+/// A pantograph's joints that are not `ok`, as `joint:status` joined by U+001F.
+macro_rules! not_ok_agg {
+    () => {
+        "group_concat(CASE WHEN status <> 'ok' THEN joint || ':' || status END, char(31))"
+    };
+}
+
+/// Seconds since the oldest `created_at` of the rows aggregated.
+macro_rules! queued_age {
+    () => {
+        "(julianday('now') - julianday(min(created_at))) * 86400.0"
+    };
+}
+
+/// A renewed lease's end: `$3`, computed by [`lease_param`].
+macro_rules! lease_until {
+    () => {
+        "$3"
+    };
+}
+
+/// Fleet rows from `pantograph_health` with the filters `$1` (worst rank) and `$2` (current
+/// vehicle); `last_test` is looked up only for the page's rows (index `traces_serial`).
+macro_rules! fleet_sql {
     () => {
         concat!(
-            points_cte!(""),
-            ", latest AS (SELECT serial, joint, status FROM (",
-            joint_state_select!("t.serial IS NOT NULL"),
-            ") s),
-            agg AS (
-                SELECT serial,
-                       max(CASE status WHEN 'alarm' THEN 3 WHEN 'watch' THEN 2 WHEN 'ok' THEN 1 ELSE 0 END) AS worst,
-                       group_concat(CASE WHEN status <> 'ok' THEN joint || ':' || status END,
-                                    char(31)) AS not_ok
-                FROM latest GROUP BY serial
-            ),
-            mount AS (SELECT m.serial, m.vehicle_id FROM pantograph_mounts m WHERE ",
-            current_mount!(),
-            "),
-            lt AS (SELECT serial, max(recorded_at) AS last_test FROM traces
-                   WHERE serial IS NOT NULL GROUP BY serial),
-            fleet AS (
-                SELECT p.serial, p.model, mount.vehicle_id, agg.worst, agg.not_ok, lt.last_test
+            "WITH fleet AS (
+                SELECT p.serial, p.model, m.vehicle_id, h.worst, h.not_ok
                 FROM pantographs p
-                LEFT JOIN mount ON mount.serial = p.serial
-                LEFT JOIN agg ON agg.serial = p.serial
-                LEFT JOIN lt ON lt.serial = p.serial
-                WHERE ($1 IS NULL OR agg.worst = $1) AND ($2 IS NULL OR mount.vehicle_id = $2)
+                LEFT JOIN pantograph_mounts m ON m.serial = p.serial AND ",
+            current_mount!(),
+            " LEFT JOIN pantograph_health h ON h.serial = p.serial
+                WHERE ($1 IS NULL OR h.worst = $1) AND ($2 IS NULL OR m.vehicle_id = $2)
             ) "
         )
-    };
-}
-
-macro_rules! job_cols {
-    () => {
-        " id, trace_id, model_version, state, attempts, lease_until, worker, last_error,
-          created_at, updated_at "
     };
 }
 
@@ -160,237 +179,53 @@ impl SqliteStore {
     async fn begin(&self) -> Result<sqlx::Transaction<'static, sqlx::Sqlite>> {
         Ok(self.pool.begin_with("BEGIN IMMEDIATE").await?)
     }
-}
 
-impl RowExt for SqliteRow {
-    fn text(&self, c: &str) -> Result<String> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_text(&self, c: &str) -> Result<Option<String>> {
-        Ok(self.try_get(c)?)
-    }
-    fn int(&self, c: &str) -> Result<i64> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_int(&self, c: &str) -> Result<Option<i64>> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_real(&self, c: &str) -> Result<Option<f64>> {
-        Ok(self.try_get(c)?)
-    }
-    fn flag(&self, c: &str) -> Result<bool> {
-        Ok(self.try_get(c)?)
-    }
-    fn opt_flag(&self, c: &str) -> Result<Option<bool>> {
-        Ok(self.try_get(c)?)
-    }
-    fn ts(&self, c: &str) -> Result<DateTime<Utc>> {
-        parse_ts_text(&self.text(c)?)
-    }
-    fn opt_ts(&self, c: &str) -> Result<Option<DateTime<Utc>>> {
-        self.opt_text(c)?.map(|s| parse_ts_text(&s)).transpose()
-    }
-}
-
-fn mount_row(r: Option<SqliteRow>) -> Result<Option<(String, DateTime<Utc>)>> {
-    r.map(|r| Ok((r.text("vehicle_id")?, r.ts("since")?)))
-        .transpose()
-}
-
-/// Fleet rows from `pantograph_health` with the filters `$1` (worst rank) and `$2` (current
-/// vehicle); `last_test` is looked up only for the page's rows (index `traces_serial`).
-macro_rules! fleet_sql {
-    () => {
-        concat!(
-            "WITH fleet AS (
-                SELECT p.serial, p.model, m.vehicle_id, h.worst, h.not_ok
-                FROM pantographs p
-                LEFT JOIN pantograph_mounts m ON m.serial = p.serial AND ",
-            current_mount!(),
-            " LEFT JOIN pantograph_health h ON h.serial = p.serial
-                WHERE ($1 IS NULL OR h.worst = $1) AND ($2 IS NULL OR m.vehicle_id = $2)
-            ) "
-        )
-    };
-}
-
-/// Rewrites the health rows (`joint_latest`, `pantograph_health`) of the trace's pantograph
-/// inside the caller's transaction, which has just written a fit of the trace. `BEGIN
-/// IMMEDIATE` serialises writers, so no other fit of the serial can interleave.
-async fn refresh_health(conn: &mut SqliteConnection, trace_id: &str) -> Result<()> {
-    let serial: Option<Option<String>> =
-        query_scalar("SELECT serial FROM traces WHERE trace_id = $1")
-            .bind(trace_id)
-            .fetch_optional(&mut *conn)
-            .await?;
-    let Some(serial) = serial.flatten() else {
-        return Ok(());
-    };
-    query("DELETE FROM joint_latest WHERE serial = $1")
-        .bind(&serial)
-        .execute(&mut *conn)
-        .await?;
-    query(JOINT_LATEST_REFRESH_SQL)
-        .bind(&serial)
-        .execute(&mut *conn)
-        .await?;
-    query("DELETE FROM pantograph_health WHERE serial = $1")
-        .bind(&serial)
-        .execute(&mut *conn)
-        .await?;
-    query(
-        "INSERT INTO pantograph_health (serial, worst, not_ok)
-         SELECT serial,
-                max(CASE status WHEN 'alarm' THEN 3 WHEN 'watch' THEN 2 WHEN 'ok' THEN 1 ELSE 0 END),
-                group_concat(CASE WHEN status <> 'ok' THEN joint || ':' || status END, char(31))
-         FROM joint_latest WHERE serial = $1 GROUP BY serial",
-    )
-    .bind(&serial)
-    .execute(&mut *conn)
-    .await?;
-    Ok(())
-}
-
-#[cfg(test)]
-impl SqliteStore {
-    /// The fleet health by the window over every fit (the pre-0004 query), for the tests.
-    pub(crate) async fn fleet_health_by_window(
-        &self,
-        filter: &FleetFilter,
-        page: Page,
-    ) -> Result<FleetPage> {
-        let rank = filter.status.map(Status::rank);
-        let total: i64 = query_scalar(concat!(fleet_cte!(), "SELECT count(*) FROM fleet"))
-            .bind(rank)
-            .bind(&filter.vehicle_id)
-            .fetch_one(&self.pool)
-            .await?;
-        let rows = query(concat!(
-            fleet_cte!(),
-            "SELECT * FROM fleet ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4"
+    /// Fails the jobs whose lease ran out at the attempt limit, then leases the oldest queued
+    /// (or expired) job: one `BEGIN IMMEDIATE` transaction, so two workers never share a job.
+    async fn claim_job(&self, worker: &str, lease: Duration) -> Result<Option<Job>> {
+        let now = Utc::now();
+        let now_s = ts_text(now);
+        let until = ts_text(now + lease_delta(lease));
+        let mut tx = self.begin().await?;
+        let reaped = query(concat!(
+            "UPDATE jobs SET state = 'failed', lease_until = NULL, updated_at = ",
+            now!(),
+            ", last_error = 'lease expired ' || attempts || ' times (worker died?)'
+             WHERE state = 'running' AND lease_until < $1 AND attempts >= $2"
         ))
-        .bind(rank)
-        .bind(&filter.vehicle_id)
-        .bind(i64::from(page.limit))
-        .bind(i64::try_from(page.offset).unwrap_or(i64::MAX))
-        .fetch_all(&self.pool)
+        .bind(&now_s)
+        .bind(MAX_ATTEMPTS)
+        .execute(&mut *tx)
         .await?
-        .iter()
-        .map(fleet_row_from)
-        .collect::<Result<Vec<_>>>()?;
-        Ok(FleetPage {
-            total: u64::try_from(total).unwrap_or(0),
-            rows,
-        })
-    }
-
-    /// Each joint's latest state by the window (left) and from `joint_latest` (right), sorted.
-    pub(crate) async fn latest_both_ways(&self) -> Result<(Vec<LatestRow>, Vec<LatestRow>)> {
-        let window = query(concat!(
-            "SELECT serial, joint, trace_id, fit_id, status FROM (",
-            joint_state_select!("t.serial IS NOT NULL"),
-            ") s ORDER BY serial, joint"
+        .rows_affected();
+        let row = query(concat!(
+            "UPDATE jobs SET state = 'running', attempts = attempts + 1, worker = $1,
+                             lease_until = $2, updated_at = $3
+             WHERE id = (SELECT id FROM jobs
+                         WHERE state = 'queued' OR (state = 'running' AND lease_until < $3)
+                         ORDER BY id LIMIT 1)
+             RETURNING",
+            job_cols!()
         ))
-        .fetch_all(&self.pool)
+        .bind(worker)
+        .bind(&until)
+        .bind(&now_s)
+        .fetch_optional(&mut *tx)
         .await?;
-        let table = query(
-            "SELECT serial, joint, trace_id, fit_id, status FROM joint_latest ORDER BY serial, joint",
-        )
-        .fetch_all(&self.pool)
-        .await?;
-        let rows = |v: Vec<SqliteRow>| -> Result<Vec<LatestRow>> {
-            v.iter()
-                .map(|r| {
-                    Ok((
-                        r.text("serial")?,
-                        r.text("joint")?,
-                        r.text("trace_id")?,
-                        r.int("fit_id")?,
-                        r.text("status")?,
-                    ))
-                })
-                .collect()
-        };
-        Ok((rows(window)?, rows(table)?))
+        tx.commit().await?;
+        super::count_lease_expired(reaped);
+        row.map(|r| job_from(&r)).transpose()
     }
 }
 
-/// Writes the fit for (trace, model version) once, inside the caller's transaction.
-async fn insert_fit_tx(
-    conn: &mut SqliteConnection,
-    trace_id: &str,
-    model_version: &str,
-    fit: &NewFit,
-) -> Result<FitWrite> {
-    let result = serde_json::to_string(&fit.result)
-        .map_err(|e| StoreError::Invalid(format!("fit result: {e}")))?;
-    let id: Option<i64> = query_scalar(
-        "INSERT INTO fits (trace_id, model_version, result_json, rmse, status)
-         VALUES ($1, $2, $3, $4, $5)
-         ON CONFLICT (trace_id, model_version) DO NOTHING
-         RETURNING id",
-    )
-    .bind(trace_id)
-    .bind(model_version)
-    .bind(result)
-    .bind(fit.rmse)
-    .bind(fit.status().map(Status::as_str))
-    .fetch_optional(&mut *conn)
-    .await?;
-    let Some(fit_id) = id else {
-        let fit_id: i64 =
-            query_scalar("SELECT id FROM fits WHERE trace_id = $1 AND model_version = $2")
-                .bind(trace_id)
-                .bind(model_version)
-                .fetch_one(&mut *conn)
-                .await?;
-        return Ok(FitWrite {
-            fit_id,
-            created: false,
-        });
-    };
-    for j in &fit.joints {
-        query(
-            "INSERT INTO fit_joints (fit_id, joint, viscous, viscous_lo, viscous_hi,
-                                     dry, dry_lo, dry_hi, identifiable, status,
-                                     viscous_informed, viscous_status, dry_informed, dry_status)
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)",
-        )
-        .bind(fit_id)
-        .bind(&j.joint)
-        .bind(j.viscous)
-        .bind(j.viscous_lo)
-        .bind(j.viscous_hi)
-        .bind(j.dry)
-        .bind(j.dry_lo)
-        .bind(j.dry_hi)
-        .bind(j.identifiable)
-        .bind(j.status.as_str())
-        .bind(j.viscous_informed)
-        .bind(j.viscous_status.map(Status::as_str))
-        .bind(j.dry_informed)
-        .bind(j.dry_status.map(Status::as_str))
-        .execute(&mut *conn)
-        .await?;
-    }
-    if let Some(curve) = &fit.curve {
-        let json = serde_json::to_string(curve)
-            .map_err(|e| StoreError::Invalid(format!("fit curve: {e}")))?;
-        query("INSERT INTO fit_curves (fit_id, curve_json) VALUES ($1, $2)")
-            .bind(fit_id)
-            .bind(json)
-            .execute(&mut *conn)
-            .await?;
-    }
-    refresh_health(conn, trace_id).await?;
-    Ok(FitWrite {
-        fit_id,
-        created: true,
-    })
+/// A stored timestamp (text) read back.
+fn read_ts(s: String) -> Result<DateTime<Utc>> {
+    parse_ts_text(&s)
 }
+row_ext_impl!(SqliteRow, String);
 
-mod alerts;
-mod health;
-mod jobs;
-mod keys;
-mod traces;
+traces_impl!();
+jobs_impl!();
+health_impl!();
+keys_impl!();
+alerts_impl!();

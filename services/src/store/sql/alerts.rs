@@ -1,27 +1,17 @@
-//! PostgreSQL side of alerts, alert events, webhook subscriptions and the delivery outbox: raises
-//! serialise per (serial, joint) on an advisory lock; deliveries are claimed `SKIP LOCKED`.
+//! Alerts, alert events, webhook subscriptions and the delivery outbox: written once,
+//! instantiated with `alerts_impl!();`. Every write is one transaction (alert row + event +
+//! outbox rows together); raises serialise per (serial, joint) (`lock_alert_pair` on
+//! PostgreSQL, `BEGIN IMMEDIATE` on SQLite); deliveries are claimed with `claim_lock!()`
+//! (`SKIP LOCKED` on PostgreSQL).
 
-use std::time::Duration;
-
-use chrono::Utc;
-use sqlx::postgres::PgConnection;
-use sqlx::{query, query_scalar};
-
-use super::alerts::*;
-use super::*;
-
-/// Current time, from the server clock.
-macro_rules! now {
+macro_rules! alerts_impl {
     () => {
-        "now()"
-    };
-}
-
-async fn alert_by_id(c: &mut PgConnection, id: i64) -> Result<Option<Alert>> {
+async fn alert_by_id(c: &mut Conn, id: i64) -> Result<Option<Alert>> {
     query(concat!(
         "SELECT ",
         alert_cols!(),
-        " FROM alerts WHERE id = $1 FOR UPDATE"
+        " FROM alerts WHERE id = $1",
+        for_update!()
     ))
     .bind(id)
     .fetch_optional(&mut *c)
@@ -30,12 +20,12 @@ async fn alert_by_id(c: &mut PgConnection, id: i64) -> Result<Option<Alert>> {
     .transpose()
 }
 
-async fn live_alert(c: &mut PgConnection, serial: &str, joint: &str) -> Result<Option<Alert>> {
+async fn live_alert(c: &mut Conn, serial: &str, joint: &str) -> Result<Option<Alert>> {
     query(concat!(
         "SELECT ",
         alert_cols!(),
-        " FROM alerts WHERE serial = $1 AND joint = $2 AND state <> 'resolved'
-         FOR UPDATE"
+        " FROM alerts WHERE serial = $1 AND joint = $2 AND state <> 'resolved'",
+        for_update!()
     ))
     .bind(serial)
     .bind(joint)
@@ -46,7 +36,7 @@ async fn live_alert(c: &mut PgConnection, serial: &str, joint: &str) -> Result<O
 }
 
 async fn add_event(
-    c: &mut PgConnection,
+    c: &mut Conn,
     a: &Alert,
     kind: &str,
     actor: &str,
@@ -69,13 +59,15 @@ async fn add_event(
 }
 
 /// The outbox rows of one alert change: one per live subscription to its severity.
-async fn enqueue_deliveries(c: &mut PgConnection, a: &Alert, event: &str) -> Result<()> {
+async fn enqueue_deliveries(c: &mut Conn, a: &Alert, event: &str) -> Result<()> {
     let body = payload(event, a)?;
-    query(
+    query(concat!(
         "INSERT INTO webhook_deliveries (webhook_id, alert_id, event, payload)
-         SELECT id, $1, $2, $3::jsonb FROM webhooks
-         WHERE deleted_at IS NULL AND (',' || severities || ',') LIKE ('%,' || $4 || ',%')",
-    )
+         SELECT id, $1, $2, $3",
+        jsonb!(),
+        " FROM webhooks
+         WHERE deleted_at IS NULL AND (',' || severities || ',') LIKE ('%,' || $4 || ',%')"
+    ))
     .bind(a.id)
     .bind(event)
     .bind(body)
@@ -89,52 +81,20 @@ fn evidence_text(a: &NewAlert) -> Result<String> {
     serde_json::to_string(&a.evidence).map_err(|e| StoreError::Invalid(format!("evidence: {e}")))
 }
 
-impl PgStore {
-    async fn tx(&self) -> Result<sqlx::Transaction<'static, sqlx::Postgres>> {
-        Ok(self.pool().begin().await?)
-    }
-
-    pub(super) async fn a_serial_history(&self, serial: &str) -> Result<Vec<JointPoint>> {
-        query(
-            "WITH cur AS (
-                SELECT f.id, f.trace_id, f.model_version, f.created_at
-                FROM fits f
-                WHERE f.id = (SELECT max(f2.id) FROM fits f2 WHERE f2.trace_id = f.trace_id)
-            )
-            SELECT t.trace_id, t.vehicle_id, t.recorded_at, cur.model_version,
-                   cur.id AS fit_id, cur.created_at AS fitted_at,
-                   j.joint, j.viscous, j.viscous_lo, j.viscous_hi, j.dry, j.dry_lo, j.dry_hi,
-                   j.identifiable, j.status, j.viscous_informed, j.viscous_status,
-                   j.dry_informed, j.dry_status
-            FROM cur
-            JOIN traces t ON t.trace_id = cur.trace_id
-            JOIN fit_joints j ON j.fit_id = cur.id
-            WHERE t.serial = $1
-            ORDER BY t.recorded_at, t.trace_id, j.joint",
-        )
-        .bind(serial)
-        .fetch_all(self.pool())
-        .await?
-        .iter()
-        .map(joint_point_from)
-        .collect()
-    }
-
-    pub(super) async fn a_raise(&self, a: &NewAlert) -> Result<RaiseOutcome> {
+impl AlertBackend for Backend {
+    async fn raise_alert(&self, a: &NewAlert) -> Result<RaiseOutcome> {
         let ev = evidence_text(a)?;
-        let mut tx = self.tx().await?;
-        query("SELECT pg_advisory_xact_lock(hashtextextended($1 || '/' || $2, 0))")
-            .bind(&a.serial)
-            .bind(&a.joint)
-            .execute(&mut *tx)
-            .await?;
+        let mut tx = self.begin().await?;
+        lock_alert_pair(&mut tx, &a.serial, &a.joint).await?;
         let out = match live_alert(&mut tx, &a.serial, &a.joint).await? {
             None => {
-                let id: i64 = query_scalar(
+                let id: i64 = query_scalar(concat!(
                     "INSERT INTO alerts (serial, joint, vehicle_id, severity, reason,
                                          evidence_json, trace_id)
-                     VALUES ($1, $2, $3, $4, $5, $6::jsonb, $7) RETURNING id",
-                )
+                     VALUES ($1, $2, $3, $4, $5, $6",
+                    jsonb!(),
+                    ", $7) RETURNING id"
+                ))
                 .bind(&a.serial)
                 .bind(&a.joint)
                 .bind(&a.vehicle_id)
@@ -168,8 +128,12 @@ impl PgStore {
                     cur.state
                 };
                 query(concat!(
-                    "UPDATE alerts SET severity = $2, state = $3, reason = $4, evidence_json = $5::jsonb,
-                            trace_id = $6, vehicle_id = coalesce($7::text, vehicle_id), updated_at = ", now!(), "
+                    "UPDATE alerts SET severity = $2, state = $3, reason = $4, evidence_json = $5",
+                    jsonb!(),
+                    ", trace_id = $6, vehicle_id = coalesce(CAST($7 AS TEXT), vehicle_id),
+                            updated_at = ",
+                    now!(),
+                    "
                      WHERE id = $1"
                 ))
                 .bind(cur.id)
@@ -214,13 +178,13 @@ impl PgStore {
         Ok(out)
     }
 
-    pub(super) async fn a_acknowledge(
+    async fn acknowledge_alert(
         &self,
         id: i64,
         actor: &str,
         note: &str,
     ) -> Result<Transition> {
-        let mut tx = self.tx().await?;
+        let mut tx = self.begin().await?;
         let Some(cur) = alert_by_id(&mut tx, id).await? else {
             tx.rollback().await?;
             return Ok(Transition::NotFound);
@@ -249,14 +213,14 @@ impl PgStore {
         Ok(Transition::Done(al))
     }
 
-    pub(super) async fn a_resolve(
+    async fn resolve_alert(
         &self,
         target: Target<'_>,
         actor: &str,
         note: &str,
         trace_id: Option<&str>,
     ) -> Result<Transition> {
-        let mut tx = self.tx().await?;
+        let mut tx = self.begin().await?;
         let cur = match target {
             Target::Id(id) => alert_by_id(&mut tx, id).await?,
             Target::Pair(s, j) => live_alert(&mut tx, s, j).await?,
@@ -290,11 +254,15 @@ impl PgStore {
         Ok(Transition::Done(al))
     }
 
-    pub(super) async fn a_list(&self, f: &AlertFilter) -> Result<Vec<Alert>> {
+    async fn list_alerts(&self, f: &AlertFilter) -> Result<Vec<Alert>> {
         query(concat!(
-            "SELECT ", alert_cols!(), " FROM alerts
-             WHERE ($1::text IS NULL OR state = $1::text) AND ($2::text IS NULL OR severity = $2::text)
-               AND ($3::text IS NULL OR vehicle_id = $3::text) AND (NOT $4::boolean OR state <> 'resolved')
+            "SELECT ",
+            alert_cols!(),
+            " FROM alerts
+             WHERE (CAST($1 AS TEXT) IS NULL OR state = CAST($1 AS TEXT))
+               AND (CAST($2 AS TEXT) IS NULL OR severity = CAST($2 AS TEXT))
+               AND (CAST($3 AS TEXT) IS NULL OR vehicle_id = CAST($3 AS TEXT))
+               AND (NOT CAST($4 AS BOOLEAN) OR state <> 'resolved')
              ORDER BY id DESC"
         ))
         .bind(f.state.map(AlertState::as_str))
@@ -308,7 +276,7 @@ impl PgStore {
         .collect()
     }
 
-    pub(super) async fn a_get(&self, id: i64) -> Result<Option<Alert>> {
+    async fn get_alert(&self, id: i64) -> Result<Option<Alert>> {
         query(concat!(
             "SELECT ",
             alert_cols!(),
@@ -321,7 +289,7 @@ impl PgStore {
         .transpose()
     }
 
-    pub(super) async fn a_events(&self, id: i64) -> Result<Vec<AlertEvent>> {
+    async fn alert_events(&self, id: i64) -> Result<Vec<AlertEvent>> {
         query(
             "SELECT id, alert_id, at, kind, severity, actor, note, trace_id FROM alert_events
              WHERE alert_id = $1 ORDER BY id",
@@ -334,7 +302,7 @@ impl PgStore {
         .collect()
     }
 
-    pub(super) async fn w_insert(&self, url: &str, sev: &str, secret: &str) -> Result<Webhook> {
+    async fn insert_webhook(&self, url: &str, sev: &str, secret: &str) -> Result<Webhook> {
         let r = query(
             "INSERT INTO webhooks (url, severities, secret) VALUES ($1, $2, $3)
              RETURNING id, url, severities, created_at, deleted_at",
@@ -347,7 +315,7 @@ impl PgStore {
         webhook_from(&r)
     }
 
-    pub(super) async fn w_list(&self) -> Result<Vec<Webhook>> {
+    async fn list_webhooks(&self) -> Result<Vec<Webhook>> {
         query("SELECT id, url, severities, created_at, deleted_at FROM webhooks ORDER BY id")
             .fetch_all(self.pool())
             .await?
@@ -356,8 +324,8 @@ impl PgStore {
             .collect()
     }
 
-    pub(super) async fn w_delete(&self, id: i64) -> Result<bool> {
-        let mut tx = self.tx().await?;
+    async fn delete_webhook(&self, id: i64) -> Result<bool> {
+        let mut tx = self.begin().await?;
         let n = query(concat!(
             "UPDATE webhooks SET deleted_at = ",
             now!(),
@@ -380,22 +348,23 @@ impl PgStore {
         Ok(n > 0)
     }
 
-    pub(super) async fn w_claim(&self, limit: i64, lease: Duration) -> Result<Vec<DueDelivery>> {
+    async fn claim_deliveries(&self, limit: i64, lease: Duration) -> Result<Vec<DueDelivery>> {
         let now = Utc::now();
-        let until = now + lease_delta(lease);
-        let mut tx = self.tx().await?;
-        let rows = query(
+        let until = ts(now + lease_delta(lease));
+        let mut tx = self.begin().await?;
+        let rows = query(concat!(
             "UPDATE webhook_deliveries
              SET attempts = attempts + 1, next_attempt_at = $1, updated_at = $2
              WHERE id IN (SELECT d.id FROM webhook_deliveries d
                           JOIN webhooks w ON w.id = d.webhook_id AND w.deleted_at IS NULL
                           WHERE d.state = 'pending' AND d.next_attempt_at <= $2
-                          ORDER BY d.next_attempt_at, d.id LIMIT $3
-                          FOR UPDATE OF d SKIP LOCKED)
-             RETURNING id, webhook_id, payload::text AS payload, attempts",
-        )
+                          ORDER BY d.next_attempt_at, d.id LIMIT $3",
+            claim_lock!(),
+            ")
+             RETURNING id, webhook_id, CAST(payload AS TEXT) AS payload, attempts"
+        ))
         .bind(until)
-        .bind(now)
+        .bind(ts(now))
         .bind(limit)
         .fetch_all(&mut *tx)
         .await?;
@@ -417,7 +386,7 @@ impl PgStore {
         Ok(out)
     }
 
-    pub(super) async fn w_finish(&self, id: i64, attempts: i64, r: &AttemptResult) -> Result<bool> {
+    async fn finish_delivery(&self, id: i64, attempts: i64, r: &AttemptResult) -> Result<bool> {
         let (state, status, error, next, delivered) = match r {
             AttemptResult::Delivered { status } => ("delivered", Some(*status), None, None, true),
             AttemptResult::Retry {
@@ -428,21 +397,23 @@ impl PgStore {
                 "pending",
                 *status,
                 Some(error.as_str()),
-                Some(*next_at),
+                Some(ts(*next_at)),
                 false,
             ),
             AttemptResult::Failed { status, error } => {
                 ("failed", *status, Some(error.as_str()), None, false)
             }
         };
-        let mut tx = self.tx().await?;
+        let mut tx = self.begin().await?;
         let n = query(concat!(
             "UPDATE webhook_deliveries
              SET state = $3, last_status = $4, last_error = $5,
-                 next_attempt_at = coalesce($6::timestamptz, next_attempt_at), updated_at = ",
+                 next_attempt_at = coalesce($6",
+            ts_cast!(),
+            ", next_attempt_at), updated_at = ",
             now!(),
             ",
-                 delivered_at = CASE WHEN $7::boolean THEN ",
+                 delivered_at = CASE WHEN CAST($7 AS BOOLEAN) THEN ",
             now!(),
             " ELSE delivered_at END
              WHERE id = $1 AND attempts = $2 AND state = 'pending'"
@@ -461,7 +432,7 @@ impl PgStore {
         Ok(n > 0)
     }
 
-    pub(super) async fn w_deliveries(&self, webhook_id: i64, limit: i64) -> Result<Vec<Delivery>> {
+    async fn list_deliveries(&self, webhook_id: i64, limit: i64) -> Result<Vec<Delivery>> {
         query(concat!(
             "SELECT ",
             delivery_cols!(),
@@ -476,4 +447,6 @@ impl PgStore {
         .map(delivery_from)
         .collect()
     }
+}
+    };
 }

@@ -1,8 +1,9 @@
-//! sqlite: API keys.
+//! API keys: written once, instantiated by each backend with `keys_impl!();`
+//! (see `sql/mod.rs` for the dialect it names).
 
-use super::*;
-
-impl KeyBackend for SqliteStore {
+macro_rules! keys_impl {
+    () => {
+impl KeyBackend for Backend {
     async fn insert_api_key(
         &self,
         prefix: &str,
@@ -56,4 +57,6 @@ impl KeyBackend for SqliteStore {
             .map(api_key_from)
             .collect()
     }
+}
+    };
 }

@@ -1,8 +1,9 @@
-//! sqlite: vehicles, joint history, joint states and fleet health.
+//! Vehicles, joint history, joint states and fleet health: written once, instantiated by each
+//! backend with `health_impl!();` (see `sql/mod.rs` for the dialect it names).
 
-use super::*;
-
-impl HealthBackend for SqliteStore {
+macro_rules! health_impl {
+    () => {
+impl HealthBackend for Backend {
     async fn list_vehicles(&self) -> Result<Vec<VehicleSummary>> {
         query(concat!(
             "SELECT v.id, v.created_at,
@@ -149,6 +150,94 @@ impl HealthBackend for SqliteStore {
             .collect()
     }
     async fn serial_history(&self, serial: &str) -> Result<Vec<JointPoint>> {
-        self.a_serial_history(serial).await
+        query(
+            "WITH cur AS (
+                SELECT f.id, f.trace_id, f.model_version, f.created_at
+                FROM fits f
+                WHERE f.id = (SELECT max(f2.id) FROM fits f2 WHERE f2.trace_id = f.trace_id)
+            )
+            SELECT t.trace_id, t.vehicle_id, t.recorded_at, cur.model_version,
+                   cur.id AS fit_id, cur.created_at AS fitted_at,
+                   j.joint, j.viscous, j.viscous_lo, j.viscous_hi, j.dry, j.dry_lo, j.dry_hi,
+                   j.identifiable, j.status, j.viscous_informed, j.viscous_status,
+                   j.dry_informed, j.dry_status
+            FROM cur
+            JOIN traces t ON t.trace_id = cur.trace_id
+            JOIN fit_joints j ON j.fit_id = cur.id
+            WHERE t.serial = $1
+            ORDER BY t.recorded_at, t.trace_id, j.joint",
+        )
+        .bind(serial)
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(joint_point_from)
+        .collect()
     }
+}
+
+#[cfg(test)]
+impl Backend {
+    /// The fleet health by the window over every fit (the pre-0004 query), for the tests.
+    pub(crate) async fn fleet_health_by_window(
+        &self,
+        filter: &FleetFilter,
+        page: Page,
+    ) -> Result<FleetPage> {
+        let rank = filter.status.map(Status::rank);
+        let total: i64 = query_scalar(concat!(fleet_cte!(), "SELECT count(*) FROM fleet"))
+            .bind(rank)
+            .bind(&filter.vehicle_id)
+            .fetch_one(&self.pool)
+            .await?;
+        let rows = query(concat!(
+            fleet_cte!(),
+            "SELECT * FROM fleet ORDER BY worst DESC NULLS LAST, serial LIMIT $3 OFFSET $4"
+        ))
+        .bind(rank)
+        .bind(&filter.vehicle_id)
+        .bind(i64::from(page.limit))
+        .bind(i64::try_from(page.offset).unwrap_or(i64::MAX))
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(fleet_row_from)
+        .collect::<Result<Vec<_>>>()?;
+        Ok(FleetPage {
+            total: u64::try_from(total).unwrap_or(0),
+            rows,
+        })
+    }
+
+    /// Each joint's latest state by the window (left) and from `joint_latest` (right), sorted.
+    pub(crate) async fn latest_both_ways(&self) -> Result<(Vec<LatestRow>, Vec<LatestRow>)> {
+        let window = query(concat!(
+            "SELECT serial, joint, trace_id, fit_id, status FROM (",
+            joint_state_select!("t.serial IS NOT NULL"),
+            ") s ORDER BY serial, joint"
+        ))
+        .fetch_all(&self.pool)
+        .await?;
+        let table = query(
+            "SELECT serial, joint, trace_id, fit_id, status FROM joint_latest ORDER BY serial, joint",
+        )
+        .fetch_all(&self.pool)
+        .await?;
+        let rows = |v: Vec<DbRow>| -> Result<Vec<LatestRow>> {
+            v.iter()
+                .map(|r| {
+                    Ok((
+                        r.text("serial")?,
+                        r.text("joint")?,
+                        r.text("trace_id")?,
+                        r.int("fit_id")?,
+                        r.text("status")?,
+                    ))
+                })
+                .collect()
+        };
+        Ok((rows(window)?, rows(table)?))
+    }
+}
+    };
 }

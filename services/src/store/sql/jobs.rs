@@ -1,13 +1,14 @@
-//! sqlite: the fit queue: enqueue, claim, lease, complete, fail, release.
+//! The fit queue: enqueue, lease, complete, fail, release (the claim itself is each backend's
+//! `claim_job`: its locking differs); written once, instantiated with `jobs_impl!();`.
 
-use super::*;
-
-impl JobBackend for SqliteStore {
+macro_rules! jobs_impl {
+    () => {
+impl JobBackend for Backend {
     async fn enqueue(&self, trace_id: &str, model_version: &str) -> Result<Option<i64>> {
         let mut tx = self.begin().await?;
         let id: Option<i64> = query_scalar(
             "INSERT INTO jobs (trace_id, model_version)
-             SELECT $1, $2 WHERE NOT EXISTS
+             SELECT CAST($1 AS TEXT), CAST($2 AS TEXT) WHERE NOT EXISTS
                 (SELECT 1 FROM fits WHERE trace_id = $1 AND model_version = $2)
              ON CONFLICT DO NOTHING RETURNING id",
         )
@@ -19,45 +20,15 @@ impl JobBackend for SqliteStore {
         Ok(id)
     }
     async fn claim(&self, worker: &str, lease: Duration) -> Result<Option<Job>> {
-        let now = Utc::now();
-        let now_s = ts_text(now);
-        let until = ts_text(now + lease_delta(lease));
-        let mut tx = self.begin().await?;
-        let reaped = query(concat!(
-            "UPDATE jobs SET state = 'failed', lease_until = NULL, updated_at = ",
-            now!(),
-            ", last_error = 'lease expired ' || attempts || ' times (worker died?)'
-             WHERE state = 'running' AND lease_until < $1 AND attempts >= $2"
-        ))
-        .bind(&now_s)
-        .bind(MAX_ATTEMPTS)
-        .execute(&mut *tx)
-        .await?
-        .rows_affected();
-        let row = query(concat!(
-            "UPDATE jobs SET state = 'running', attempts = attempts + 1, worker = $1,
-                             lease_until = $2, updated_at = $3
-             WHERE id = (SELECT id FROM jobs
-                         WHERE state = 'queued' OR (state = 'running' AND lease_until < $3)
-                         ORDER BY id LIMIT 1)
-             RETURNING",
-            job_cols!()
-        ))
-        .bind(worker)
-        .bind(&until)
-        .bind(&now_s)
-        .fetch_optional(&mut *tx)
-        .await?;
-        tx.commit().await?;
-        super::count_lease_expired(reaped);
-        row.map(|r| job_from(&r)).transpose()
+        self.claim_job(worker, lease).await
     }
     async fn complete(&self, job_id: i64, worker: &str, fit: &NewFit) -> Result<CompleteOutcome> {
         let mut tx = self.begin().await?;
-        let Some(job) = query(
+        let Some(job) = query(concat!(
             "SELECT trace_id, model_version FROM jobs
              WHERE id = $1 AND state = 'running' AND worker = $2",
-        )
+            for_update!()
+        ))
         .bind(job_id)
         .bind(worker)
         .fetch_optional(&mut *tx)
@@ -92,9 +63,10 @@ impl JobBackend for SqliteStore {
         retry: bool,
     ) -> Result<FailOutcome> {
         let mut tx = self.begin().await?;
-        let Some(attempts): Option<i64> = query_scalar(
+        let Some(attempts): Option<i64> = query_scalar(concat!(
             "SELECT attempts FROM jobs WHERE id = $1 AND state = 'running' AND worker = $2",
-        )
+            for_update!()
+        ))
         .bind(job_id)
         .bind(worker)
         .fetch_optional(&mut *tx)
@@ -128,7 +100,7 @@ impl JobBackend for SqliteStore {
     async fn release(&self, job_id: i64, worker: &str) -> Result<bool> {
         // The claim counted an attempt; a release is not a failure, so it is given back.
         let n = query(concat!(
-            "UPDATE jobs SET state = 'queued', attempts = MAX(attempts - 1, 0), worker = NULL,
+            "UPDATE jobs SET state = 'queued', attempts = CASE WHEN attempts > 0 THEN attempts - 1 ELSE 0 END, worker = NULL,
                              lease_until = NULL, updated_at = ",
             now!(),
             " WHERE id = $1 AND state = 'running' AND worker = $2"
@@ -161,15 +133,16 @@ impl JobBackend for SqliteStore {
         state.map(|s| s.parse()).transpose()
     }
     async fn renew_lease(&self, job_id: i64, worker: &str, lease: Duration) -> Result<bool> {
-        let until = ts_text(Utc::now() + lease_delta(lease));
         let n = query(concat!(
-            "UPDATE jobs SET lease_until = $3, updated_at = ",
+            "UPDATE jobs SET lease_until = ",
+            lease_until!(),
+            ", updated_at = ",
             now!(),
             " WHERE id = $1 AND state = 'running' AND worker = $2"
         ))
         .bind(job_id)
         .bind(worker)
-        .bind(&until)
+        .bind(lease_param(lease))
         .execute(&self.pool)
         .await?
         .rows_affected();
@@ -180,7 +153,7 @@ impl JobBackend for SqliteStore {
         let n = query(
             "INSERT INTO jobs (trace_id, model_version)
              SELECT t.trace_id, $1 FROM traces t
-             WHERE ($2 IS NULL OR t.vehicle_id = $2)
+             WHERE (CAST($2 AS TEXT) IS NULL OR t.vehicle_id = CAST($2 AS TEXT))
                AND NOT EXISTS (SELECT 1 FROM fits f
                                WHERE f.trace_id = t.trace_id AND f.model_version = $1)
              ORDER BY t.recorded_at, t.trace_id
@@ -231,10 +204,12 @@ impl JobBackend for SqliteStore {
         Ok(c)
     }
     async fn queue_stats(&self) -> Result<QueueStats> {
-        let r = query(
-            "SELECT (SELECT (julianday('now') - julianday(min(created_at))) * 86400.0 FROM jobs WHERE state = 'queued') AS age,
-                    (SELECT count(*) FROM webhook_deliveries WHERE state = 'pending') AS backlog",
-        )
+        let r = query(concat!(
+            "SELECT (SELECT ",
+            queued_age!(),
+            " FROM jobs WHERE state = 'queued') AS age,
+                    (SELECT count(*) FROM webhook_deliveries WHERE state = 'pending') AS backlog"
+        ))
         .fetch_one(&self.pool)
         .await?;
         Ok(QueueStats {
@@ -242,4 +217,6 @@ impl JobBackend for SqliteStore {
             outbox_backlog: r.try_get::<i64, _>("backlog")?,
         })
     }
+}
+    };
 }
