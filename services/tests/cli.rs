@@ -190,6 +190,90 @@ fn an_undeclared_effect_is_found_and_reported() {
     );
 }
 
+/// Issue 17, point 5 (one verdict): a trace no vocabulary effect explains (a torsional spring in
+/// J3) reads `unexplained` in the JSON, the CLI table and the HTML report alike — nothing named,
+/// no candidate "accepted: yes" beside it. Issue 17, point 6: a band of higher friction made by
+/// `simulate --effect position_friction:gain=…,from=…,to=…` is named `position_friction`.
+#[test]
+fn one_verdict_everywhere_and_a_friction_band_is_named() {
+    let spring = tmp("spring.json");
+    let st = bin()
+        .args([
+            "simulate",
+            "--joint",
+            "J3",
+            "--effect",
+            "torsional_spring:k=4",
+            "--duration",
+            "20",
+            "--seed",
+            "9",
+        ])
+        .arg("-o")
+        .arg(&spring)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let html = tmp("spring.html");
+    let out = bin()
+        .arg("fit")
+        .arg(&spring)
+        .arg("--json")
+        .arg("--report")
+        .arg(&html)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["residual"]["verdict"], "unexplained", "{}", v["residual"]);
+    assert_eq!(v["residual"]["effects"], serde_json::json!([]));
+    let html = std::fs::read_to_string(&html).unwrap();
+    assert!(html.contains("Finding: none") && html.contains("unexplained"));
+    assert!(
+        !html.contains(r#"class="ok">yes"#),
+        "an accepted candidate beside `unexplained`"
+    );
+    let out = bin().arg("fit").arg(&spring).output().unwrap();
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(table.contains("effects [] (unexplained)"), "{table}");
+
+    let band = tmp("band.json");
+    let st = bin()
+        .args([
+            "simulate",
+            "--joint",
+            "J3",
+            "--effect",
+            "position_friction:gain=1,from=10,to=30",
+            "--duration",
+            "20",
+            "--seed",
+            "21",
+        ])
+        .arg("-o")
+        .arg(&band)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let out = bin().arg("fit").arg(&band).arg("--json").output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        v["residual"]["effects"][0]["name"], "position_friction",
+        "{}",
+        v["residual"]
+    );
+    assert!(v["residual"]["verdict"].is_null());
+}
+
 /// `refit --run`: the queue fitted in this process on its workers, the summary printed, every
 /// fit written once; a second refit by the same model version queues and fits nothing.
 #[test]
