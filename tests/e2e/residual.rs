@@ -782,8 +782,12 @@ fn profile_recovered(r: &FitResult, truth: &FrictionLaw) -> Result<(), String> {
             .unwrap()
     };
     let flat = pairs.iter().all(|p| (p.2 / pairs[0].2 - 1.0).abs() < 0.05);
+    let least = factor[1..factor.len() - 1]
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min);
     eprintln!(
-        "   μ(q) mean {:.3}/{:.3}, worst knot {:.0} %",
+        "   μ(q) mean {:.3}/{:.3}, worst knot {:.0} %, least interior factor {least:.2}",
         mean(0),
         mean(1),
         100.0 * worst
