@@ -342,6 +342,15 @@ impl lm::Problem for OutputError<'_> {
         self.last_traj = Some((x.to_vec(), rd.traj));
         Ok(())
     }
+    fn upper_bounds(&self) -> Vec<f64> {
+        self.params
+            .iter()
+            .map(|p| match p {
+                Param::Dyn(DynParam::DryAsymmetry) => 1.0,
+                _ => f64::INFINITY,
+            })
+            .collect()
+    }
     fn lower_bounds(&self) -> Vec<f64> {
         // Friction is dissipative: coefficients ≥ 0; a Stribeck ratio ≥ 0 and speed > 0.
         self.params
@@ -352,6 +361,8 @@ impl lm::Problem for OutputError<'_> {
                 Param::Dyn(DynParam::StribeckRatio) => 1.0,
                 // Position friction: the factor 1 + c at a knot is ≥ 0 (friction never drives).
                 Param::Dyn(DynParam::Position(_)) => -1.0,
+                // μ± = μ·(1 ± δ) ≥ 0 both ways.
+                Param::Dyn(DynParam::DryAsymmetry) => -1.0,
                 Param::Dyn(_) => 0.0,
                 Param::Backlash => 0.0,
                 _ => f64::NEG_INFINITY,
