@@ -679,10 +679,15 @@ mod tests {
             t_s: t.clone(),
             value: t.iter().map(|x| 12.0 * (1.3 * x).sin()).collect(),
         });
-        let law = FrictionLaw::base(0.401, 0.88);
+        // With direction-dependent friction (δ 0.2): break-away and sliding by direction.
+        let law = FrictionLaw {
+            asymmetry: 0.2,
+            ..FrictionLaw::base(0.401, 0.88)
+        };
         let sens = vec![
             SensParam::Dyn(DynParam::Viscous),
             SensParam::Dyn(DynParam::Dry),
+            SensParam::Dyn(DynParam::DryAsymmetry),
             SensParam::InputOffset,
         ];
         let opts = SimOptions {
