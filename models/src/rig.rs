@@ -45,6 +45,64 @@ pub struct BodySpec {
     pub com_distance_m: f64,
 }
 
+/// The stated standard uncertainties (1 σ, the value's units) of a pendulum's body
+/// (`test.rig.body_uncertainty`, issue 17 point 1); `None`: not stated (no uncertainty carried).
+///
+/// Assumption (stated): independent Gaussian errors of the stated body's mass, inertia about the
+/// axis and centre-of-mass distance; the attachments, pin radius and gravity are exact.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BodyUncertainty {
+    pub mass_sd_kg: Option<f64>,
+    pub inertia_sd_kgm2: Option<f64>,
+    pub com_distance_sd_m: Option<f64>,
+}
+
+/// A stated uncertainty `sd` of the value `value`: finite, ≥ 0, and below the value (an
+/// uncertainty as large as the value says the value is not known); 0 is always accepted (no
+/// uncertainty). A refusal names `field`.
+pub fn check_uncertainty(field: &str, sd: f64, value: f64) -> Result<(), RigError> {
+    if !sd.is_finite() || sd < 0.0 {
+        return Err(rig_err(
+            field,
+            format!("must be a finite number >= 0, got {sd}"),
+        ));
+    }
+    if sd > 0.0 && sd >= value {
+        return Err(rig_err(
+            field,
+            format!("{sd} is not below the value it qualifies ({value})"),
+        ));
+    }
+    Ok(())
+}
+
+impl BodyUncertainty {
+    /// Each stated uncertainty against the body's value it qualifies ([`check_uncertainty`]);
+    /// a refusal names `body_uncertainty.<field>`.
+    pub fn check(&self, body: &BodySpec) -> Result<(), RigError> {
+        for (k, sd, v) in self.entries(body) {
+            check_uncertainty(&format!("body_uncertainty.{k}"), sd, v)?;
+        }
+        Ok(())
+    }
+
+    /// (field, sd, the body's value) of each stated uncertainty, in the contract's order.
+    pub fn entries(&self, body: &BodySpec) -> Vec<(&'static str, f64, f64)> {
+        [
+            ("mass_kg", self.mass_sd_kg, body.mass_kg),
+            ("inertia_kgm2", self.inertia_sd_kgm2, body.inertia_kgm2),
+            (
+                "com_distance_m",
+                self.com_distance_sd_m,
+                body.com_distance_m,
+            ),
+        ]
+        .into_iter()
+        .filter_map(|(k, sd, v)| sd.map(|sd| (k, sd, v)))
+        .collect()
+    }
+}
+
 /// Why a rig cannot be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("rig `{field}`: {message}")]
@@ -126,6 +184,20 @@ impl PendulumRig {
                 ));
             }
         }
+        let rig = Self::lump(body, attachments, pin_radius_m, gravity_m_s2);
+        rig.validate()?;
+        Ok(rig)
+    }
+
+    /// The lumped rig without the checks of [`PendulumRig::compose`]: a body perturbed by its
+    /// stated uncertainty (`identify::body_uncertainty`) may lie a hair past the parallel-axis
+    /// bound, which the simulation does not need.
+    pub fn lump(
+        body: BodySpec,
+        attachments: &[Attachment],
+        pin_radius_m: f64,
+        gravity_m_s2: f64,
+    ) -> Self {
         let (mut m, mut j, mut md) = (
             body.mass_kg,
             body.inertia_kgm2,
@@ -148,15 +220,13 @@ impl PendulumRig {
                 }
             }
         }
-        let rig = Self {
+        Self {
             mass_kg: m,
             inertia_kgm2: j,
             com_distance_m: md / m,
             pin_radius_m,
             gravity_m_s2,
-        };
-        rig.validate()?;
-        Ok(rig)
+        }
     }
 
     /// Physical consistency: positive mass and inertia, J ≥ m·d² (parallel-axis theorem).

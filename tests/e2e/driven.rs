@@ -72,6 +72,7 @@ fn axis_test(seed: u64, b_true: f64, mass_scale: f64) -> (JointTest, Baseline, F
         unit: "mm",
         initial_rate: None,
         release_t_s: None,
+        body_sd: Vec::new(),
     };
     let b = Baseline {
         joint: "custom".into(),

@@ -5,6 +5,7 @@
 //! The Jacobian comes from forward sensitivities integrated with the trajectory (exact through
 //! stick–slip events), not finite differences.
 
+pub mod body_uncertainty;
 pub mod covariance;
 pub mod initial;
 pub mod input_noise;
@@ -40,6 +41,9 @@ pub struct JointTest {
     /// The release time the trace states (`test.release_t_s`), s; `None`: found from the data
     /// ([`release::find_release`]).
     pub release_t_s: Option<f64>,
+    /// The rig's stated body-parameter uncertainties (issue 17, point 1), propagated into the
+    /// fit's covariance ([`body_uncertainty`]); empty: none stated (the intervals as before).
+    pub body_sd: Vec<body_uncertainty::BodySd>,
 }
 
 /// A named entry of the parameter vector.
@@ -192,6 +196,9 @@ pub struct FitOutcome {
     pub model_y: Vec<f64>,
     pub residual: Vec<f64>,
     pub covariance: Covariance,
+    /// The stated body uncertainties as this fit carried them ([`body_uncertainty`]); empty
+    /// when none was stated.
+    pub body_uncertainty: Vec<body_uncertainty::BodyShift>,
     pub termination: Termination,
     pub iterations: usize,
     pub evaluations: usize,
@@ -451,6 +458,30 @@ pub fn fit_window(
             cov.cov += extra;
         }
     }
+    // The rig's stated body uncertainties (issue 17, point 1): their share, added.
+    let mut carried = Vec::new();
+    if !test.body_sd.is_empty() {
+        let (law, q0, v0, ro, body) = prob.unpack(&rep.x);
+        let sim = SimOptions {
+            tol: opts.tol,
+            sens: vec![],
+        };
+        let run = |m: &crate::dynamics::Mechanism| {
+            let d = body.apply(&Dof {
+                mech: *m,
+                ..test.dof.clone()
+            });
+            readout::read(&d, &law, q0, v0, &ro, times, &sim, test.scale, false, false)
+                .ok()
+                .map(|r| r.y)
+        };
+        let (extra, shifts) =
+            body_uncertainty::covariance(&test.body_sd, spec.inertia.is_some(), &rep.jacobian, run);
+        if let Some(extra) = extra {
+            cov.cov += extra;
+        }
+        carried = shifts;
+    }
     let lb = lm::Problem::lower_bounds(&prob);
     let std: Vec<f64> = (0..params.len()).map(|i| cov.std(i)).collect();
     let ci95: Vec<[f64; 2]> = rep
@@ -500,6 +531,7 @@ pub fn fit_window(
         model_y,
         residual,
         covariance: cov,
+        body_uncertainty: carried,
         termination: rep.termination,
         iterations: rep.iterations,
         evaluations: rep.evaluations,
