@@ -458,26 +458,40 @@ pub fn fit_window(
             cov.cov += extra;
         }
     }
-    // The rig's stated body uncertainties (issue 17, point 1): their share, added.
+    // The rig's stated body uncertainties (issue 17, point 1): their share, added — each a
+    // pair of refits from the optimum with the body stated ±1 sd (`body_uncertainty`).
     let mut carried = Vec::new();
     if !test.body_sd.is_empty() {
         let (law, q0, v0, ro, body) = prob.unpack(&rep.x);
-        let sim = SimOptions {
-            tol: opts.tol,
-            sens: vec![],
+        let mut warm = spec.clone();
+        warm.law = law;
+        warm.delay = spec.delay.map(|_| ro.delay_s);
+        warm.backlash = spec.backlash.map(|_| ro.backlash);
+        warm.inertia = spec.inertia.map(|_| body.inertia_log);
+        warm.input_offset = spec.input_offset.map(|_| body.input_offset);
+        let at = InitialEstimate {
+            viscous: law.viscous,
+            dry: law.dry,
+            offset: ro.offset,
+            q0,
+            v0,
         };
-        let run = |m: &crate::dynamics::Mechanism| {
-            let d = body.apply(&Dof {
-                mech: *m,
-                ..test.dof.clone()
-            });
-            readout::read(&d, &law, q0, v0, &ro, times, &sim, test.scale, false, false)
+        let refit = |m: &crate::dynamics::Mechanism| {
+            let moved = JointTest {
+                dof: Dof {
+                    mech: *m,
+                    ..test.dof.clone()
+                },
+                body_sd: Vec::new(),
+                ..test.clone()
+            };
+            fit_window(&moved, start, n_fit, &warm, &at, opts)
                 .ok()
-                .map(|r| r.y)
+                .map(|f| f.values)
         };
         let (extra, shifts) =
-            body_uncertainty::covariance(&test.body_sd, spec.inertia.is_some(), &rep.jacobian, run);
-        if let Some(extra) = extra {
+            body_uncertainty::covariance(&test.body_sd, spec.inertia.is_some(), refit);
+        if let Some(extra) = extra.filter(|e| e.shape() == cov.cov.shape()) {
             cov.cov += extra;
         }
         carried = shifts;

@@ -485,3 +485,42 @@ fn a_body_uncertainty_is_refused_naming_its_path_when_negative_or_not_below_its_
         }
     }
 }
+
+/// Issue 17, point 1, through the service's fit (the shared J5 example): stated uncertainties
+/// of 0 give the fit result unchanged, to the bit; a stated body-mass uncertainty is echoed in
+/// `fit.body_uncertainty` and widens the intervals about the same estimates.
+#[test]
+fn a_stated_body_uncertainty_is_echoed_and_widens_the_intervals_and_zero_changes_nothing() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/examples/J5_baseline.json"
+    );
+    let plain: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    let thresholds = pantowatch_models::drift::DriftThresholds::default();
+    let fit = |v: &Value| {
+        crate::fitting::fit_document(&TraceDoc::from_value(v).unwrap(), &thresholds).unwrap()
+    };
+    let with = |u: Value| {
+        let mut d = plain.clone();
+        d["test"]["rig"]["body_uncertainty"] = u;
+        d
+    };
+    let base = fit(&plain);
+    assert!(base.fit.body_uncertainty.is_none());
+    let zero = fit(&with(json!({"inertia_kgm2": 0.0, "mass_kg": 0.0})));
+    assert_eq!(zero, base, "a stated 0 carries nothing");
+    let stated = fit(&with(json!({"mass_kg": 0.1})));
+    let echo = serde_json::to_value(&stated.fit.body_uncertainty).unwrap();
+    assert_eq!(echo, json!({"propagated": {"mass_kg": 0.1}}));
+    let (b, s) = (&base.joints[0], &stated.joints[0]);
+    for (pb, ps) in [(&b.viscous, &s.viscous), (&b.dry, &s.dry)] {
+        assert_eq!(pb.value, ps.value, "the same estimate");
+        assert!(
+            ps.ci95[0] <= pb.ci95[0] && ps.ci95[1] >= pb.ci95[1],
+            "{:?} within {:?}",
+            pb.ci95,
+            ps.ci95
+        );
+    }
+    assert!(s.dry.ci95[1] - s.dry.ci95[0] > b.dry.ci95[1] - b.dry.ci95[0]);
+}
