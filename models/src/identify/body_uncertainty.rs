@@ -12,7 +12,8 @@
 //! period, which no friction parameter can absorb; its projection onto the Jacobian's columns
 //! asks for large moves of D and μ that the bounded, nonlinear fit does not make (measured, e2e
 //! `body_uncertainty`: a 2 % inertia sd on J1, J3 and J7 gave 15–140× the shift refitting
-//! shows; on J5, 17 %). Each refit is warm-started (a few evaluations).
+//! shows; on J5, 17 %). Each refit is warm-started (a few evaluations). Applied to the fit a
+//! test reports (`identify::carry_body_uncertainty`), not inside the residual loop.
 //! Assumptions (stated): the errors are independent and Gaussian with the stated sd; the
 //! estimate's response is linear between −σ and +σ (a secant, not a tangent); the data do not
 //! update the body (no posterior on b — conservative when the trace itself informs b). When
