@@ -524,3 +524,31 @@ fn a_stated_body_uncertainty_is_echoed_and_widens_the_intervals_and_zero_changes
     }
     assert!(s.dry.ci95[1] - s.dry.ci95[0] > b.dry.ci95[1] - b.dry.ci95[0]);
 }
+
+/// Issue 17, point 1, a slider: the head's stated moving-mass uncertainty is carried by the fit
+/// and echoed — propagated, or listed as not propagated when `inertia_error` estimates the mass.
+#[test]
+fn a_slider_s_moving_mass_uncertainty_is_carried_and_echoed() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/examples/slider_baseline.json"
+    );
+    let mut d: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    let m = d["test"]["rig"]["moving_mass_kg"].as_f64().unwrap_or(
+        pantowatch_models::data::builtin_160ec()
+            .slider
+            .moving_mass_kg,
+    );
+    d["test"]["rig"]["moving_mass_uncertainty_kg"] = json!(0.02 * m);
+    let thresholds = pantowatch_models::drift::DriftThresholds::default();
+    let r = crate::fitting::fit_document(&TraceDoc::from_value(&d).unwrap(), &thresholds).unwrap();
+    let echo = r.fit.body_uncertainty.expect("echoed");
+    let named = r.residual.effects.iter().any(|e| e.name == "inertia_error");
+    let (into, other) = if named {
+        (&echo.not_propagated, &echo.propagated)
+    } else {
+        (&echo.propagated, &echo.not_propagated)
+    };
+    assert_eq!(into.get("moving_mass_kg"), Some(&(0.02 * m)), "{echo:?}");
+    assert!(other.is_empty(), "{echo:?}");
+}
