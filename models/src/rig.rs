@@ -342,6 +342,35 @@ mod tests {
         assert!(PendulumRig::compose(ok, &[point], 0.01, 9.81).is_ok());
     }
 
+    /// Issue 17, point 7: a stated uncertainty is finite, ≥ 0 and below its value; 0 always
+    /// passes (no uncertainty), even of a value 0; a refusal names the uncertainty's field.
+    #[test]
+    fn a_stated_uncertainty_lies_in_0_up_to_its_value() {
+        let body = BodySpec {
+            mass_kg: 2.0,
+            inertia_kgm2: 0.6,
+            com_distance_m: 0.0,
+        };
+        let u = |m, j, d| BodyUncertainty {
+            mass_sd_kg: m,
+            inertia_sd_kgm2: j,
+            com_distance_sd_m: d,
+        };
+        assert!(u(Some(1.99), Some(0.0), Some(0.0)).check(&body).is_ok());
+        for (bad, field) in [
+            (u(Some(2.0), None, None), "body_uncertainty.mass_kg"),
+            (u(None, Some(-1e-9), None), "body_uncertainty.inertia_kgm2"),
+            (
+                u(None, Some(f64::NAN), None),
+                "body_uncertainty.inertia_kgm2",
+            ),
+            (u(None, None, Some(1e-3)), "body_uncertainty.com_distance_m"),
+        ] {
+            assert_eq!(bad.check(&body).unwrap_err().field, field, "{bad:?}");
+        }
+        assert!(check_uncertainty("x", f64::INFINITY, 1.0).is_err());
+    }
+
     #[test]
     fn j5_rig_lumps_rod_and_weight_as_the_examples_state() {
         // ../shared/data/examples/README.md: J5 m_tot 7.415, J_tot 4.645, d_tot 0.6685.
