@@ -289,6 +289,7 @@ impl SliderSpec {
         Ok((rig, baseline))
     }
 
+    /// [`SliderSpec::rig`] before its moving-mass uncertainty is checked.
     fn rig_unchecked_sd(
         &self,
         data: Option<&PantographType>,
