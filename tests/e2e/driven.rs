@@ -80,6 +80,7 @@ fn axis_test(
         unit: "mm",
         initial_rate: None,
         release_t_s: None,
+        body_sd: Vec::new(),
     };
     let b = Baseline {
         joint: "custom".into(),

@@ -72,6 +72,7 @@ fn pendulum_test_with_inertia(
             unit: "deg",
             initial_rate: None,
             release_t_s: None,
+            body_sd: Vec::new(),
         },
         b,
     )
@@ -116,6 +117,7 @@ fn slider_test(truth: &Truth, seed: u64) -> (JointTest, Baseline) {
             unit: "mm",
             initial_rate: None,
             release_t_s: None,
+            body_sd: Vec::new(),
         },
         b,
     )
