@@ -1179,15 +1179,17 @@ pub async fn dead_worker_job_is_reclaimed_after_its_lease(b: Backend) {
     assert_eq!(job.attempts, 2, "claimed again after the lease");
     assert_ne!(job.worker.as_deref(), Some("dead-worker"));
     // The dead worker coming back cannot write a second fit.
-    let late = app
-        .store
-        .complete(
-            claimed.id,
-            "dead-worker",
-            &pantowatch::store::NewFit::from_result(json!({"joints": []})).expect("fit"),
-        )
-        .await
-        .expect("complete");
+    let late =
+        app.store
+            .complete(
+                claimed.id,
+                "dead-worker",
+                &pantowatch::store::NewFit::from_result(
+                    pantowatch_models::report::FitResult::default(),
+                ),
+            )
+            .await
+            .expect("complete");
     assert_eq!(late, pantowatch::store::CompleteOutcome::LeaseLost);
     assert_eq!(app.counts().await.fits, 1);
     app.stop().await;
