@@ -540,6 +540,24 @@ mod unit {
         let back: FitResult = serde_json::from_str(&text).expect("reads back");
         assert!(back.joints[1].dry.value.is_nan());
         assert_eq!(NewFit::from_result(back).result_json().expect("json"), text);
+        // A stored text that is not a fit result is a clear internal error, never a panic.
+        let rec = |json: &str| FitRecord {
+            id: 7,
+            trace_id: "x".into(),
+            model_version: "v".into(),
+            created_at: t(1),
+            result_json: json.into(),
+            rmse: None,
+            status: None,
+            joints: Vec::new(),
+        };
+        assert_eq!(rec(&text).result().expect("typed").joints.len(), 2);
+        for bad in [r#"{"joints": []}"#, "not json", ""] {
+            match rec(bad).result() {
+                Err(StoreError::Corrupt(m)) => assert!(m.starts_with("fit 7 result_json"), "{m}"),
+                other => panic!("{bad:?}: {other:?}"),
+            }
+        }
     }
 
     #[test]
