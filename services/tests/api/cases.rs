@@ -61,6 +61,7 @@ pub async fn upload_fit_status_history_fleet(b: Backend) {
     assert_eq!(v["links"]["fit"], "/v1/traces/example-J3_dry_x1.8/fit");
 
     let fit = app.wait_for_fit("example-J3_dry_x1.8").await;
+    app.assert_fit_serves_the_stored_json(&fit).await;
     // The trace format's fit result, plus where it came from.
     assert_eq!(fit["trace_id"], "example-J3_dry_x1.8");
     assert_eq!(fit["joints"][0]["joint"], "J3");
