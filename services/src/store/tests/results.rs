@@ -165,6 +165,10 @@ fn every_kind_of_stored_result_reads_back_as_the_same_json() {
     full.joints[0].viscous.value = f64::NAN;
     full.joints[0].viscous.ci95 = [f64::NAN; 2];
     full.joints[0].viscous.baseline = None;
+    full.fit.body_uncertainty = Some(pantowatch_models::report::BodyUncertaintyResult {
+        propagated: [("mass_kg".to_string(), 0.02)].into_iter().collect(),
+        not_propagated: [("inertia_kgm2".to_string(), 0.001)].into_iter().collect(),
+    });
     results.push(("every field".into(), full));
 
     for (label, r) in &results {
