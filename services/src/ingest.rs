@@ -214,13 +214,26 @@ fn outcome_label(o: &InsertOutcome) -> &'static str {
     }
 }
 
-/// The stored trace as a document again (metadata + decoded samples), for fits and downloads.
+/// The stored trace as a document again (metadata + decoded samples), its test typed
+/// ([`TraceDoc::typed`]) for fits and views: a stored trace that no longer reads is an error
+/// naming the field.
 pub fn stored_doc(meta: &TraceMeta, channels: Vec<(String, Vec<f64>)>) -> Result<TraceDoc, String> {
+    stored_doc_as_sent(meta, channels)?
+        .typed()
+        .map_err(|e| format!("stored trace no longer reads: {e}"))
+}
+
+/// The stored trace as it was sent, its test not typed ([`crate::trace::TestSpec::Unchecked`]):
+/// for downloads, which serve what was stored whatever today's rules say.
+pub fn stored_doc_as_sent(
+    meta: &TraceMeta,
+    channels: Vec<(String, Vec<f64>)>,
+) -> Result<TraceDoc, String> {
     let kind = Kind::parse(&meta.kind)
         .ok_or_else(|| format!("stored trace has unknown kind `{}`", meta.kind))?;
     let test: Value = serde_json::from_str(&meta.test_json)
         .map_err(|e| format!("stored test object is not JSON: {e}"))?;
-    TraceDoc {
+    Ok(TraceDoc {
         trace_id: Some(meta.trace_id.clone()),
         vehicle_id: meta.vehicle_id.clone(),
         pantograph_model: meta.model.clone(),
@@ -231,11 +244,9 @@ pub fn stored_doc(meta: &TraceMeta, channels: Vec<(String, Vec<f64>)>) -> Result
         kind,
         joint: meta.joint.clone(),
         test,
-        spec: crate::trace::TestSpec::PENDING,
+        spec: crate::trace::TestSpec::Unchecked,
         channels,
-    }
-    .typed()
-    .map_err(|e| format!("stored trace no longer reads: {e}"))
+    })
 }
 
 #[cfg(test)]

@@ -142,11 +142,9 @@ pub enum TestSpec {
         gauge_resolution_n: f64,
         raise_len: usize,
     },
-}
-
-impl TestSpec {
-    /// Before [`TraceDoc::typed`] has run: a spec that no view accepts for any other kind.
-    pub(crate) const PENDING: TestSpec = TestSpec::Lift { protocol: None };
+    /// Not typed yet: a stored trace read back as sent (`ingest::stored_doc_as_sent`, for
+    /// downloads). No view accepts it; [`TraceDoc::typed`] types it.
+    Unchecked,
 }
 
 /// A validated trace document.
@@ -492,7 +490,7 @@ impl TraceDoc {
             kind,
             joint,
             test: test_v.clone(),
-            spec: TestSpec::PENDING,
+            spec: TestSpec::Unchecked,
             channels,
         };
         // Type the test now, so a document the model cannot use is rejected at the door.

@@ -15,7 +15,7 @@ use tokio::task::JoinSet;
 
 use crate::alerts::{self, AlertAction, AlertOptions};
 use crate::fitting::{self, FitFailure};
-use crate::ingest::stored_doc;
+use crate::ingest::stored_doc_as_sent;
 use crate::store::{CompleteOutcome, FailOutcome, JobState, NewFit, Status, Store, StoreError};
 
 /// How the pool works.
@@ -219,7 +219,7 @@ pub async fn process_next(
         store.get_trace(&trace_id).await?,
         load_samples(store, &trace_id).await?,
     ) {
-        (Some(meta), Ok(Some(channels))) => stored_doc(&meta, channels),
+        (Some(meta), Ok(Some(channels))) => stored_doc_as_sent(&meta, channels),
         (None, _) | (_, Ok(None)) => Err("trace or its samples are missing".to_owned()),
         (_, Err(e)) => Err(e),
     };
@@ -227,6 +227,17 @@ pub async fn process_next(
         Ok(d) => d,
         Err(msg) => {
             return fail_because(store, worker, job.id, trace_id, msg, "samples")
+                .await
+                .map(Some);
+        }
+    };
+    // The test typed (and checked) here, once: a stored trace today's rules refuse fails as
+    // invalid, naming the field.
+    let doc = match doc.typed() {
+        Ok(d) => d,
+        Err(e) => {
+            let msg = format!("invalid trace: {e}");
+            return fail_because(store, worker, job.id, trace_id, msg, "invalid")
                 .await
                 .map(Some);
         }

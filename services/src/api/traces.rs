@@ -304,7 +304,7 @@ pub async fn get_samples(
         return Err(not_found(&id));
     };
     if wants_csv(&headers) {
-        let doc = ingest::stored_doc(&meta, channels).map_err(AppError::Internal)?;
+        let doc = ingest::stored_doc_as_sent(&meta, channels).map_err(AppError::Internal)?;
         let text = tokio::task::spawn_blocking(move || trace_csv::write(&doc))
             .await
             .map_err(|e| AppError::Internal(e.to_string()))?;
