@@ -197,26 +197,6 @@ fn no_circle_between_the_files_of_models_services_or_tools() {
     }
 }
 
-#[test]
-fn the_web_pages_never_fit() {
-    let mods = modules(&crate_src("services"));
-    let fitters = [
-        "fitting::",
-        "fit_joint_test",
-        "fit_lift_trace",
-        "fit_map",
-        "fit_swing",
-    ];
-    for (m, code) in mods.iter().filter(|(m, _)| m.starts_with("web")) {
-        for f in fitters {
-            assert!(
-                !code.contains(f),
-                "services::{m} calls {f}: a page draws stored fits"
-            );
-        }
-    }
-}
-
 /// The benchmark suite and the load generator live in `tools/` (crate `pantowatch-tools`), not
 /// in the service library: no `bench` or `load` module in services/src, no `bench`/`load`
 /// subcommand in the `pantowatch` binary, and no dependency of the service on the tools.
@@ -257,5 +237,25 @@ fn the_service_library_holds_no_benchmark_or_load_tool() {
     let tools = modules(&crate_src("tools"));
     for m in ["bench", "bench::suite", "load"] {
         assert!(tools.contains_key(m), "tools::{m} missing");
+    }
+}
+
+#[test]
+fn the_web_pages_never_fit() {
+    let mods = modules(&crate_src("services"));
+    let fitters = [
+        "fitting::",
+        "fit_joint_test",
+        "fit_lift_trace",
+        "fit_map",
+        "fit_swing",
+    ];
+    for (m, code) in mods.iter().filter(|(m, _)| m.starts_with("web")) {
+        for f in fitters {
+            assert!(
+                !code.contains(f),
+                "services::{m} calls {f}: a page draws stored fits"
+            );
+        }
     }
 }
