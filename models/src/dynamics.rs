@@ -276,6 +276,13 @@ impl Dof {
         self.lever() * self.normal_at_rest(q) * law.static_mu(q)
     }
 
+    /// The static capacity against a load pushing in direction `s` (±1): direction-dependent
+    /// friction (`FrictionLaw::asymmetry` δ) holds μs·(1 + δ·s), the same factor as it slides
+    /// with (a kinetic friction above the static one would stick at once).
+    pub fn static_capacity_toward(&self, law: &FrictionLaw, q: f64, s: f64) -> f64 {
+        self.static_capacity(law, q) * (1.0 + law.asymmetry * s)
+    }
+
     /// A time scale of the motion for step-size limits: the small-amplitude period, or
     /// `fallback` when there is no restoring force.
     pub fn period_s(&self, fallback: f64) -> f64 {

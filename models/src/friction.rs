@@ -19,6 +19,8 @@ pub enum DynParam {
     QuadraticDrag,
     /// Position friction: c_k, the factor on μ at knot k minus 1 ([`PositionFriction`]) (1).
     Position(u8),
+    /// Direction-dependent dry friction: δ in μ± = μ·(1 ± δ) (1; |δ| < 1).
+    DryAsymmetry,
 }
 
 /// Stribeck friction: μ(v) = μ · (1 + (r − 1)·exp(−(v/vs)²)); static capacity uses μ·r.
@@ -196,6 +198,11 @@ pub struct FrictionLaw {
     pub position: Option<PositionFriction>,
     /// A simulated shape of μ along the travel, never fitted ([`PositionProfile`]).
     pub profile: Option<PositionProfile>,
+    /// Direction-dependent sliding friction (the vocabulary's `asymmetric_friction`, issue 17):
+    /// μ₊ = μ·(1 + δ) moving in the positive direction, μ₋ = μ·(1 − δ) in the negative one, 0
+    /// for none. Assumed: while sliding only — the static capacity stays μs in both directions
+    /// (a break-away threshold that differs by direction is not modelled).
+    pub asymmetry: f64,
 }
 
 /// Friction torque (or force) and its partial derivatives.
@@ -218,6 +225,7 @@ impl FrictionLaw {
             quadratic_drag: None,
             position: None,
             profile: None,
+            asymmetry: 0.0,
         }
     }
 
@@ -225,6 +233,7 @@ impl FrictionLaw {
         match p {
             DynParam::Viscous => self.viscous,
             DynParam::Dry => self.dry,
+            DynParam::DryAsymmetry => self.asymmetry,
             DynParam::StribeckRatio => self.stribeck.map_or(1.0, |s| s.ratio),
             DynParam::StribeckSpeed => self.stribeck.map_or(1.0, |s| s.speed),
             DynParam::QuadraticDrag => self.quadratic_drag.unwrap_or(0.0),
@@ -237,6 +246,7 @@ impl FrictionLaw {
         match p {
             DynParam::Viscous => self.viscous = x,
             DynParam::Dry => self.dry = x,
+            DynParam::DryAsymmetry => self.asymmetry = x,
             DynParam::StribeckRatio => {
                 self.stribeck
                     .get_or_insert(Stribeck {
@@ -328,7 +338,8 @@ impl FrictionLaw {
     pub fn eval(&self, q: f64, v: f64, s: f64, normal: f64, lever: f64) -> FrictionEval {
         let (phi, dphi_dv) = self.dry_shape(v);
         let (psi, dpsi_dq) = self.position_shape(q);
-        let dry_k = lever * self.dry * s;
+        // μ·(1 + δ·s)·s = μ·(s + δ) for s = ±1.
+        let dry_k = lever * self.dry * (s + self.asymmetry);
         let mut e = FrictionEval {
             value: self.viscous * v + dry_k * normal * phi * psi,
             d_q: dry_k * normal * phi * dpsi_dq,
@@ -347,10 +358,11 @@ impl FrictionLaw {
     pub fn d_param(&self, p: DynParam, q: f64, v: f64, s: f64, normal: f64, lever: f64) -> f64 {
         let (phi, _) = self.dry_shape(v);
         let (psi, _) = self.position_shape(q);
-        let base = lever * s * normal;
+        let base = lever * (s + self.asymmetry) * normal;
         match p {
             DynParam::Viscous => v,
             DynParam::Dry => base * phi * psi,
+            DynParam::DryAsymmetry => lever * normal * self.dry * phi * psi,
             DynParam::StribeckRatio => match self.stribeck {
                 Some(st) => base * self.dry * psi * (-(v / st.speed).powi(2)).exp(),
                 None => 0.0,
@@ -415,6 +427,7 @@ mod tests {
             speed: 0.3,
         });
         law.quadratic_drag = Some(0.02);
+        law.asymmetry = 0.15;
         let mut pf = PositionFriction::flat(-0.55, 0.7);
         pf.coeffs = [0.1, -0.2, 0.3, 0.05, 0.0, 0.4, -0.1, 0.2, 0.1];
         law.position = Some(pf);
@@ -425,6 +438,7 @@ mod tests {
             DynParam::StribeckRatio,
             DynParam::StribeckSpeed,
             DynParam::QuadraticDrag,
+            DynParam::DryAsymmetry,
             DynParam::Position(2),
             DynParam::Position(6),
             DynParam::Position(7),

@@ -81,7 +81,9 @@ pub fn fit_joint_test_with_finding(
 ) -> Result<(FitResult, FitOutcome, residual::Finding), FitError> {
     let full = identify::fit_base(test, opts)?;
     let finding = residual::analyse(test, &full, opts)?;
-    let reported = finding.augmented.clone().unwrap_or(full);
+    // The rig's stated body uncertainty (issue 17, point 1) in the reported fit's intervals.
+    let reported =
+        identify::carry_body_uncertainty(test, finding.augmented.clone().unwrap_or(full), opts);
     let units = match test.dof.mech {
         dynamics::Mechanism::Pendulum(_) => ("rad", "rad/s"),
         dynamics::Mechanism::Slider(_) => ("m", "m/s"),

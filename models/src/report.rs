@@ -136,6 +136,45 @@ pub struct FitDetails {
     pub interval_inflation: f64,
     /// Correlation of the viscous and dry estimates.
     pub viscous_dry_correlation: f64,
+    /// The rig's stated body uncertainties (issue 17, point 1) as the intervals carry them;
+    /// absent when the rig states none (single-joint fits only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub body_uncertainty: Option<BodyUncertaintyResult>,
+}
+
+/// The stated body uncertainties a single-joint fit carried (`fit.body_uncertainty`), each
+/// keyed by the quantity it qualifies as the rig names it (`mass_kg`, `inertia_kgm2`,
+/// `com_distance_m`, `moving_mass_kg`), valued by its stated sd in that quantity's unit.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct BodyUncertaintyResult {
+    /// Propagated into every parameter's interval (`identify::body_uncertainty`).
+    pub propagated: std::collections::BTreeMap<String, f64>,
+    /// Stated but not propagated: the inertia when `inertia_error` is named (the fit estimates
+    /// it, and its interval holds it), or a perturbed model that could not be simulated.
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub not_propagated: std::collections::BTreeMap<String, f64>,
+}
+
+impl BodyUncertaintyResult {
+    /// What `fit` carried; `None` when nothing was stated (or every stated sd was 0).
+    pub fn of(fit: &FitOutcome) -> Option<Self> {
+        if fit.body_uncertainty.is_empty() {
+            return None;
+        }
+        let (mut propagated, mut not_propagated) = (Default::default(), Default::default());
+        for b in &fit.body_uncertainty {
+            let to: &mut std::collections::BTreeMap<String, f64> = if b.propagated {
+                &mut propagated
+            } else {
+                &mut not_propagated
+            };
+            to.insert(b.quantity.to_owned(), b.sd);
+        }
+        Some(Self {
+            propagated,
+            not_propagated,
+        })
+    }
 }
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -324,6 +363,7 @@ pub fn details(
             (Some(a), Some(b)) => corr[(a, b)],
             _ => f64::NAN,
         },
+        body_uncertainty: BodyUncertaintyResult::of(fit),
     }
 }
 

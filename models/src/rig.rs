@@ -45,6 +45,64 @@ pub struct BodySpec {
     pub com_distance_m: f64,
 }
 
+/// The stated standard uncertainties (1 σ, the value's units) of a pendulum's body
+/// (`test.rig.body_uncertainty`, issue 17 point 1); `None`: not stated (no uncertainty carried).
+///
+/// Assumption (stated): independent Gaussian errors of the stated body's mass, inertia about the
+/// axis and centre-of-mass distance; the attachments, pin radius and gravity are exact.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BodyUncertainty {
+    pub mass_sd_kg: Option<f64>,
+    pub inertia_sd_kgm2: Option<f64>,
+    pub com_distance_sd_m: Option<f64>,
+}
+
+/// A stated uncertainty `sd` of the value `value`: finite, ≥ 0, and below the value (an
+/// uncertainty as large as the value says the value is not known); 0 is always accepted (no
+/// uncertainty). A refusal names `field`.
+pub fn check_uncertainty(field: &str, sd: f64, value: f64) -> Result<(), RigError> {
+    if !sd.is_finite() || sd < 0.0 {
+        return Err(rig_err(
+            field,
+            format!("must be a finite number >= 0, got {sd}"),
+        ));
+    }
+    if sd > 0.0 && sd >= value {
+        return Err(rig_err(
+            field,
+            format!("{sd} is not below the value it qualifies ({value})"),
+        ));
+    }
+    Ok(())
+}
+
+impl BodyUncertainty {
+    /// Each stated uncertainty against the body's value it qualifies ([`check_uncertainty`]);
+    /// a refusal names `body_uncertainty.<field>`.
+    pub fn check(&self, body: &BodySpec) -> Result<(), RigError> {
+        for (k, sd, v) in self.entries(body) {
+            check_uncertainty(&format!("body_uncertainty.{k}"), sd, v)?;
+        }
+        Ok(())
+    }
+
+    /// (field, sd, the body's value) of each stated uncertainty, in the contract's order.
+    pub fn entries(&self, body: &BodySpec) -> Vec<(&'static str, f64, f64)> {
+        [
+            ("mass_kg", self.mass_sd_kg, body.mass_kg),
+            ("inertia_kgm2", self.inertia_sd_kgm2, body.inertia_kgm2),
+            (
+                "com_distance_m",
+                self.com_distance_sd_m,
+                body.com_distance_m,
+            ),
+        ]
+        .into_iter()
+        .filter_map(|(k, sd, v)| sd.map(|sd| (k, sd, v)))
+        .collect()
+    }
+}
+
 /// Why a rig cannot be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("rig `{field}`: {message}")]
@@ -126,6 +184,20 @@ impl PendulumRig {
                 ));
             }
         }
+        let rig = Self::lump(body, attachments, pin_radius_m, gravity_m_s2);
+        rig.validate()?;
+        Ok(rig)
+    }
+
+    /// The lumped rig without the checks of [`PendulumRig::compose`]: a body perturbed by its
+    /// stated uncertainty (`identify::body_uncertainty`) may lie a hair past the parallel-axis
+    /// bound, which the simulation does not need.
+    pub fn lump(
+        body: BodySpec,
+        attachments: &[Attachment],
+        pin_radius_m: f64,
+        gravity_m_s2: f64,
+    ) -> Self {
         let (mut m, mut j, mut md) = (
             body.mass_kg,
             body.inertia_kgm2,
@@ -148,15 +220,13 @@ impl PendulumRig {
                 }
             }
         }
-        let rig = Self {
+        Self {
             mass_kg: m,
             inertia_kgm2: j,
             com_distance_m: md / m,
             pin_radius_m,
             gravity_m_s2,
-        };
-        rig.validate()?;
-        Ok(rig)
+        }
     }
 
     /// Physical consistency: positive mass and inertia, J ≥ m·d² (parallel-axis theorem).
@@ -270,6 +340,35 @@ mod tests {
         let e = PendulumRig::compose(ok, &[], -0.01, 9.81).unwrap_err();
         assert_eq!(e.field, "pin_radius_m", "{e:?}");
         assert!(PendulumRig::compose(ok, &[point], 0.01, 9.81).is_ok());
+    }
+
+    /// Issue 17, point 7: a stated uncertainty is finite, ≥ 0 and below its value; 0 always
+    /// passes (no uncertainty), even of a value 0; a refusal names the uncertainty's field.
+    #[test]
+    fn a_stated_uncertainty_lies_in_0_up_to_its_value() {
+        let body = BodySpec {
+            mass_kg: 2.0,
+            inertia_kgm2: 0.6,
+            com_distance_m: 0.0,
+        };
+        let u = |m, j, d| BodyUncertainty {
+            mass_sd_kg: m,
+            inertia_sd_kgm2: j,
+            com_distance_sd_m: d,
+        };
+        assert!(u(Some(1.99), Some(0.0), Some(0.0)).check(&body).is_ok());
+        for (bad, field) in [
+            (u(Some(2.0), None, None), "body_uncertainty.mass_kg"),
+            (u(None, Some(-1e-9), None), "body_uncertainty.inertia_kgm2"),
+            (
+                u(None, Some(f64::NAN), None),
+                "body_uncertainty.inertia_kgm2",
+            ),
+            (u(None, None, Some(1e-3)), "body_uncertainty.com_distance_m"),
+        ] {
+            assert_eq!(bad.check(&body).unwrap_err().field, field, "{bad:?}");
+        }
+        assert!(check_uncertainty("x", f64::INFINITY, 1.0).is_err());
     }
 
     #[test]

@@ -213,16 +213,18 @@ pub fn simulate(
                     }
                     break;
                 };
-                let cap = dof.static_capacity(law, y[0]);
+                // The capacity against a load toward s (direction-dependent friction).
+                let cap = |s: f64| dof.static_capacity_toward(law, y[0], s);
                 let mut t_break = None;
                 let mut ta = t;
                 while ta < t_end {
                     let tb = input.next_knot(ta).unwrap_or(t_end).min(t_end);
-                    let hb = dof.load(y[0], tb).0.abs() - cap;
+                    let g_end = dof.load(y[0], tb).0;
+                    let hb = g_end.abs() - cap(g_end.signum());
                     if hb > 0.0 {
                         // G is linear in t on [ta, tb]: the crossing of |G| = cap is exact.
                         let (ga, gb) = (dof.load(y[0], ta).0, dof.load(y[0], tb).0);
-                        let target = cap * gb.signum();
+                        let target = cap(gb.signum()) * gb.signum();
                         let frac = if (gb - ga).abs() > 0.0 {
                             ((target - ga) / (gb - ga)).clamp(0.0, 1.0)
                         } else {
@@ -242,12 +244,15 @@ pub fn simulate(
                 let (g, g_q, g_t) = dof.load(y[0], tb);
                 let s = g.signum();
                 let acc = dof.accel(law, y[0], 0.0, s, tb)?;
-                // h(t) = s·G(q,t) − lever·N_rest·μs(p); τ' = −(h_q·∂q/∂p + h_p)/h_t; ∂v/∂p⁺ = −a⁺·τ'.
+                // h(t) = s·G(q,t) − lever·N_rest·μs(p)·(1 + δ·s); τ' = −(h_q·∂q/∂p + h_p)/h_t;
+                // ∂v/∂p⁺ = −a⁺·τ'.
                 let h_t = s * g_t;
+                let ln = dof.lever() * dof.normal_at_rest(y[0]);
                 for (j, p) in opts.sens.iter().enumerate() {
                     let h_p = match p {
+                        SensParam::Dyn(DynParam::DryAsymmetry) => -ln * law.static_mu(y[0]) * s,
                         SensParam::Dyn(dp) => {
-                            -dof.lever() * dof.normal_at_rest(y[0]) * law.d_static_mu(*dp, y[0])
+                            -ln * law.d_static_mu(*dp, y[0]) * (1.0 + law.asymmetry * s)
                         }
                         SensParam::InputOffset => s,
                         _ => 0.0,
@@ -359,7 +364,7 @@ pub fn simulate(
 /// At rest at q: held by static friction, or moving off in the direction of the load.
 fn rest_mode(dof: &Dof, law: &FrictionLaw, q: f64, t: f64) -> Mode {
     let g = dof.load(q, t).0;
-    if g.abs() <= dof.static_capacity(law, q) {
+    if g.abs() <= dof.static_capacity_toward(law, q, g.signum()) {
         Mode::Stuck
     } else {
         Mode::Moving(g.signum())
@@ -674,10 +679,15 @@ mod tests {
             t_s: t.clone(),
             value: t.iter().map(|x| 12.0 * (1.3 * x).sin()).collect(),
         });
-        let law = FrictionLaw::base(0.401, 0.88);
+        // With direction-dependent friction (δ 0.2): break-away and sliding by direction.
+        let law = FrictionLaw {
+            asymmetry: 0.2,
+            ..FrictionLaw::base(0.401, 0.88)
+        };
         let sens = vec![
             SensParam::Dyn(DynParam::Viscous),
             SensParam::Dyn(DynParam::Dry),
+            SensParam::Dyn(DynParam::DryAsymmetry),
             SensParam::InputOffset,
         ];
         let opts = SimOptions {

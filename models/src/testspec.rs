@@ -6,7 +6,8 @@
 use crate::data::{Attachment, JointKind, PantographType, RigLimits, builtin_160ec};
 use crate::dynamics::{Dof, Input, Mechanism};
 use crate::identify::JointTest;
-use crate::rig::{BodySpec, PendulumRig, RigError, SliderRig};
+use crate::identify::body_uncertainty::BodySd;
+use crate::rig::{BodySpec, BodyUncertainty, PendulumRig, RigError, SliderRig, check_uncertainty};
 
 /// Pendulum test overrides (trace format `test.rig`); `None` takes the paper's value.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -19,6 +20,9 @@ pub struct PendulumSpec {
     pub pin_radius_m: Option<f64>,
     pub gravity_m_s2: Option<f64>,
     pub initial_rate_deg_s: Option<f64>,
+    /// `test.rig.body_uncertainty` (issue 17, point 1): the stated 1 σ errors of `body`, or of
+    /// the paper's default body for the joint when `body` is absent.
+    pub body_uncertainty: Option<BodyUncertainty>,
 }
 
 /// Slider test overrides.
@@ -32,6 +36,9 @@ pub struct SliderSpec {
     pub springs: Option<u32>,
     pub spring_stiffness_n_per_mm: Option<f64>,
     pub normal_force_n: Option<f64>,
+    /// `test.rig.moving_mass_uncertainty_kg` (issue 17, point 1): the stated 1 σ error of the
+    /// moving mass (stated or the type's default).
+    pub moving_mass_sd_kg: Option<f64>,
 }
 
 /// The Table 4 baseline a joint's fit is judged against.
@@ -41,6 +48,13 @@ pub struct Baseline {
     pub viscous: Option<f64>,
     pub dry: Option<f64>,
     pub viscous_unit: &'static str,
+}
+
+/// A pendulum spec resolved: the lumped rig, its baseline, the stated body errors at ±1 sd.
+struct Resolved {
+    rig: PendulumRig,
+    baseline: Baseline,
+    body_sd: Vec<BodySd>,
 }
 
 fn err(field: &str, message: impl Into<String>) -> RigError {
@@ -101,6 +115,11 @@ impl PendulumSpec {
     /// The rig: defaults from `data` (None for a `custom` joint or a non-160EC model, where
     /// `body` and `pin_radius_m` are required).
     pub fn rig(&self, data: Option<&PantographType>) -> Result<(PendulumRig, Baseline), RigError> {
+        self.resolve(data).map(|r| (r.rig, r.baseline))
+    }
+
+    /// [`PendulumSpec::rig`] with its parts and the stated body uncertainty, checked.
+    fn resolve(&self, data: Option<&PantographType>) -> Result<Resolved, RigError> {
         self.check_limits(limits(data))?;
         let known = data.and_then(|d| d.rigs.get(&self.joint).map(|r| (d, r)));
         if self.joint != "custom" && known.is_none() && data.is_some() {
@@ -151,6 +170,10 @@ impl PendulumSpec {
             .unwrap_or(builtin_160ec().gravity_m_s2);
         let rig = PendulumRig::compose(body, &attachments, r, g)
             .map_err(|e| err(&format!("test.rig.{}", e.field), e.message))?;
+        let uncertainty = self.body_uncertainty.unwrap_or_default();
+        uncertainty
+            .check(&body)
+            .map_err(|e| err(&format!("test.rig.{}", e.field), e.message))?;
         if rig.com_distance_m <= 0.0 {
             return Err(err(
                 "test.rig",
@@ -163,7 +186,36 @@ impl PendulumSpec {
             dry: joint_data.map(|j| j.dry_mu),
             viscous_unit: "N·m·s/rad",
         };
-        Ok((rig, baseline))
+        // The stated errors as mechanisms at ±1 sd (`identify::body_uncertainty`): the body's
+        // quantity moved, the rig lumped again with the same attachments; 0 carries nothing.
+        let body_sd = uncertainty
+            .entries(&body)
+            .into_iter()
+            .filter(|(_, sd, _)| *sd > 0.0)
+            .map(|(quantity, sd, _)| {
+                let moved = |k: f64| {
+                    let mut b = body;
+                    match quantity {
+                        "mass_kg" => b.mass_kg += k * sd,
+                        "inertia_kgm2" => b.inertia_kgm2 += k * sd,
+                        _ => b.com_distance_m += k * sd,
+                    }
+                    Mechanism::Pendulum(PendulumRig::lump(b, &attachments, r, g))
+                };
+                BodySd {
+                    quantity,
+                    sd,
+                    inertia: quantity == "inertia_kgm2",
+                    plus: moved(1.0),
+                    minus: moved(-1.0),
+                }
+            })
+            .collect();
+        Ok(Resolved {
+            rig,
+            baseline,
+            body_sd,
+        })
     }
 
     /// The joint test over measured angles `alpha_deg` at `t_s`.
@@ -173,7 +225,11 @@ impl PendulumSpec {
         t_s: Vec<f64>,
         alpha_deg: Vec<f64>,
     ) -> Result<(JointTest, Baseline), RigError> {
-        let (rig, baseline) = self.rig(data)?;
+        let Resolved {
+            rig,
+            baseline,
+            body_sd,
+        } = self.resolve(data)?;
         RigLimits::check_channel("alpha_deg", &alpha_deg, limits(data).alpha_deg_abs)
             .map_err(out_of_range)?;
         let test = JointTest {
@@ -188,6 +244,7 @@ impl PendulumSpec {
             unit: "deg",
             initial_rate: self.initial_rate_deg_s.map(f64::to_radians),
             release_t_s: None,
+            body_sd,
         };
         Ok((test, baseline))
     }
@@ -218,7 +275,25 @@ impl SliderSpec {
         )
     }
 
+    /// The rig with the type's defaults where not stated, and the stated moving-mass
+    /// uncertainty checked against the moving mass it qualifies.
     pub fn rig(&self, data: Option<&PantographType>) -> Result<(SliderRig, Baseline), RigError> {
+        let (rig, baseline) = self.rig_unchecked_sd(data)?;
+        if let Some(sd) = self.moving_mass_sd_kg {
+            check_uncertainty(
+                "test.rig.moving_mass_uncertainty_kg",
+                sd,
+                rig.moving_mass_kg,
+            )?;
+        }
+        Ok((rig, baseline))
+    }
+
+    /// [`SliderSpec::rig`] before its moving-mass uncertainty is checked.
+    fn rig_unchecked_sd(
+        &self,
+        data: Option<&PantographType>,
+    ) -> Result<(SliderRig, Baseline), RigError> {
         self.check_limits(limits(data))?;
         if self.custom {
             return self.custom_rig();
@@ -307,6 +382,28 @@ impl SliderSpec {
         if let Some(f) = &force_n {
             RigLimits::check_channel("F_N", f, l.force_n_abs).map_err(out_of_range)?;
         }
+        // The stated moving-mass error at ±1 sd (`identify::body_uncertainty`); 0 carries
+        // nothing.
+        let body_sd = self
+            .moving_mass_sd_kg
+            .filter(|sd| *sd > 0.0)
+            .map(|sd| {
+                let moved = |k: f64| {
+                    Mechanism::Slider(SliderRig {
+                        moving_mass_kg: rig.moving_mass_kg + k * sd,
+                        ..rig
+                    })
+                };
+                BodySd {
+                    quantity: "moving_mass_kg",
+                    sd,
+                    inertia: true,
+                    plus: moved(1.0),
+                    minus: moved(-1.0),
+                }
+            })
+            .into_iter()
+            .collect();
         let input = force_n.map(|f| Input {
             t_s: t_s.clone(),
             value: f,
@@ -323,6 +420,7 @@ impl SliderSpec {
             unit: "mm",
             initial_rate: None,
             release_t_s: None,
+            body_sd,
         };
         Ok((test, baseline))
     }
@@ -427,6 +525,7 @@ mod tests {
             springs: Some(springs),
             spring_stiffness_n_per_mm: None,
             normal_force_n: Some(10.0),
+            moving_mass_sd_kg: None,
         };
         let (rig, baseline) = custom(0)
             .rig(data)

@@ -12,7 +12,7 @@ use pantowatch_models::lift::report::LiftChannels;
 use pantowatch_models::lift::vec2::V2;
 use pantowatch_models::quadrangle::model::{PointMass, QBody};
 use pantowatch_models::quadrangle::report::{QuadChannels, QuadRig};
-use pantowatch_models::rig::BodySpec;
+use pantowatch_models::rig::{BodySpec, BodyUncertainty};
 use pantowatch_models::testspec::{Baseline, PendulumSpec, SliderSpec};
 use serde_json::{Map, Value};
 

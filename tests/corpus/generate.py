@@ -202,6 +202,24 @@ raw("csv-gauge-resolution-word", "test.gauge_resolution_n",
 raw("csv-gauge-no-lowering-branch", "channels.H_m",
     "".join(l + "\n" for l in GAUGE_CSV.splitlines()[:8 + 6]), "text/csv")
 
+# A rig's stated body uncertainty (issue 17, points 1 and 7): negative, not a number, or not
+# below the value it qualifies is refused naming its exact path.
+BODY = {"mass_kg": 2.0, "inertia_kgm2": 0.6, "com_distance_m": 0.5}
+doc("body-uncertainty-negative", "test.rig.body_uncertainty.inertia_kgm2",
+    lambda d: d["test"]["rig"].update(body_uncertainty={"inertia_kgm2": -0.01}))
+doc("body-uncertainty-as-large-as-the-mass", "test.rig.body_uncertainty.mass_kg",
+    lambda d: d["test"]["rig"].update(body=BODY, body_uncertainty={"mass_kg": 2.0}))
+doc("body-uncertainty-above-the-default-body", "test.rig.body_uncertainty.com_distance_m",
+    lambda d: d["test"]["rig"].update(body_uncertainty={"com_distance_m": 1e3}))
+doc("body-uncertainty-string", "test.rig.body_uncertainty.com_distance_m",
+    lambda d: d["test"]["rig"].update(body_uncertainty={"com_distance_m": "1 mm"}))
+doc("body-uncertainty-unknown-key", "test.rig.body_uncertainty.inertia",
+    lambda d: d["test"]["rig"].update(body_uncertainty={"inertia": 0.01}))
+doc("slider-mass-uncertainty-negative", "test.rig.moving_mass_uncertainty_kg",
+    lambda d: d["test"]["rig"].update(moving_mass_uncertainty_kg=-0.1), SLIDER)
+doc("slider-mass-uncertainty-above-the-mass", "test.rig.moving_mass_uncertainty_kg",
+    lambda d: d["test"]["rig"].update(moving_mass_kg=2.0, moving_mass_uncertainty_kg=2.5), SLIDER)
+
 manifest = []
 for i, (name, ct, body, field) in enumerate(cases, 1):
     ext = "csv" if ct == "text/csv" else "json"

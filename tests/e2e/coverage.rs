@@ -46,6 +46,7 @@ fn intervals_cover_the_truth_90_to_98_percent() {
             unit: "deg",
             initial_rate: None,
             release_t_s: None,
+            body_sd: Vec::new(),
         };
         let fit = fit_base(&test, &FitOptions::default()).unwrap();
         for (p, truth) in [(DynParam::Viscous, law.viscous), (DynParam::Dry, law.dry)] {

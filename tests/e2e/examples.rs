@@ -131,6 +131,12 @@ fn the_measured_pendulum_is_fitted_from_its_release() {
     let res = &r.residual;
     let names: Vec<&str> = res.effects.iter().map(|e| e.name.as_str()).collect();
     assert_eq!(names.first(), Some(&"inertia_error"), "{res:?}");
+    // Nothing beside it but the sensor zero: a position-friction grid fitted with it reads friction
+    // vanishing from −47° to −32° (no wear pattern; `residual::POSITION_FLOOR`) and is not named.
+    assert!(
+        names.iter().skip(1).all(|n| *n == "sensor_offset"),
+        "{names:?}"
+    );
     let ratio = res.effects[0].params["inertia_ratio"].as_f64().unwrap();
     assert!((0.97..1.0).contains(&ratio), "J/J_stated {ratio}");
     assert!(

@@ -72,6 +72,7 @@ fn pendulum_test_with_inertia(
             unit: "deg",
             initial_rate: None,
             release_t_s: None,
+            body_sd: Vec::new(),
         },
         b,
     )
@@ -116,6 +117,7 @@ fn slider_test(truth: &Truth, seed: u64) -> (JointTest, Baseline) {
             unit: "mm",
             initial_rate: None,
             release_t_s: None,
+            body_sd: Vec::new(),
         },
         b,
     )
@@ -782,8 +784,12 @@ fn profile_recovered(r: &FitResult, truth: &FrictionLaw) -> Result<(), String> {
             .unwrap()
     };
     let flat = pairs.iter().all(|p| (p.2 / pairs[0].2 - 1.0).abs() < 0.05);
+    let least = factor[1..factor.len() - 1]
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min);
     eprintln!(
-        "   μ(q) mean {:.3}/{:.3}, worst knot {:.0} %",
+        "   μ(q) mean {:.3}/{:.3}, worst knot {:.0} %, least interior factor {least:.2}",
         mean(0),
         mean(1),
         100.0 * worst
@@ -913,4 +919,64 @@ fn position_dependent_friction_is_named_and_told_from_stribeck() {
         let got = names(&fit(&test, &bl));
         assert_eq!(got, vec!["stribeck".to_string()], "Stribeck on {joint}");
     }
+}
+
+/// Issue 17, point 3 (`asymmetric_friction`): a pendulum whose pin's friction differs by
+/// direction, μ·(1 ± δ) with δ = ±0.3 (J3 and J5, Table 4, stand noise, 60° release). The
+/// reaction force N changes through the swing, so the term is not a constant torque and the free
+/// swing tells it from the sensor's zero: named, δ's interval holding the truth, the symmetric μ
+/// within 5 %, the error fitted and held out reduced.
+#[test]
+fn direction_dependent_friction_is_named_on_a_pendulum() {
+    let mut failures = Vec::new();
+    for (joint, delta, seed) in [("J3", 0.3, 31), ("J5", -0.3, 32), ("J5", 0.3, 33)] {
+        let b = base(joint);
+        let truth = Truth {
+            law: FrictionLaw {
+                asymmetry: delta,
+                ..b
+            },
+            readout: Readout::default(),
+            dry_fade: 0.0,
+        };
+        let (test, bl) = pendulum_test(joint, &truth, 60.0, 0.0, seed);
+        let r = fit(&test, &bl);
+        let res = &r.residual;
+        let got = names(&r);
+        let e = res.effects.iter().find(|e| e.name == "asymmetric_friction");
+        let d = e.and_then(|e| e.params["asymmetry"].as_f64());
+        let ci: Option<[f64; 2]> =
+            e.and_then(|e| serde_json::from_value(e.params["asymmetry_ci95"].clone()).ok());
+        eprintln!(
+            "{joint} δ {delta}: {got:?} δ {d:?} {ci:?}; error {:.4} -> {:.4}°, held out {:.4} -> {:.4}°; dry {:.4} (truth {:.4})",
+            res.rmse_before,
+            res.rmse_after,
+            res.holdout_rmse_before,
+            res.holdout_rmse_after,
+            r.joints[0].dry.value,
+            b.dry
+        );
+        if got.first().map(String::as_str) != Some("asymmetric_friction")
+            || got.iter().skip(1).any(|n| n != "sensor_offset")
+        {
+            failures.push(format!("{joint} δ {delta}: named {got:?}"));
+            continue;
+        }
+        if !ci.is_some_and(|c| c[0] <= delta && delta <= c[1]) {
+            failures.push(format!("{joint} δ {delta}: δ {d:?} {ci:?}"));
+        }
+        if (r.joints[0].dry.value / b.dry - 1.0).abs() >= 0.05 {
+            failures.push(format!("{joint}: dry {}", r.joints[0].dry.value));
+        }
+        // Most of a free swing's asymmetry hides in the sensor's zero (N varies by a few % over
+        // a 60° swing): the plain fit's error is only just above the noise, and what is left
+        // must go, fitted and held out.
+        if res.rmse_after >= res.rmse_before || res.holdout_rmse_after >= res.holdout_rmse_before {
+            failures.push(format!(
+                "{joint}: error {} -> {}, held out {} -> {}",
+                res.rmse_before, res.rmse_after, res.holdout_rmse_before, res.holdout_rmse_after
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
 }

@@ -5,6 +5,7 @@
 //! The Jacobian comes from forward sensitivities integrated with the trajectory (exact through
 //! stick–slip events), not finite differences.
 
+pub mod body_uncertainty;
 pub mod covariance;
 pub mod initial;
 pub mod input_noise;
@@ -40,6 +41,9 @@ pub struct JointTest {
     /// The release time the trace states (`test.release_t_s`), s; `None`: found from the data
     /// ([`release::find_release`]).
     pub release_t_s: Option<f64>,
+    /// The rig's stated body-parameter uncertainties (issue 17, point 1), propagated into the
+    /// fit's covariance ([`body_uncertainty`]); empty: none stated (the intervals as before).
+    pub body_sd: Vec<body_uncertainty::BodySd>,
 }
 
 /// A named entry of the parameter vector.
@@ -192,6 +196,9 @@ pub struct FitOutcome {
     pub model_y: Vec<f64>,
     pub residual: Vec<f64>,
     pub covariance: Covariance,
+    /// The stated body uncertainties as this fit carried them ([`body_uncertainty`]); empty
+    /// when none was stated.
+    pub body_uncertainty: Vec<body_uncertainty::BodyShift>,
     pub termination: Termination,
     pub iterations: usize,
     pub evaluations: usize,
@@ -342,6 +349,15 @@ impl lm::Problem for OutputError<'_> {
         self.last_traj = Some((x.to_vec(), rd.traj));
         Ok(())
     }
+    fn upper_bounds(&self) -> Vec<f64> {
+        self.params
+            .iter()
+            .map(|p| match p {
+                Param::Dyn(DynParam::DryAsymmetry) => 1.0,
+                _ => f64::INFINITY,
+            })
+            .collect()
+    }
     fn lower_bounds(&self) -> Vec<f64> {
         // Friction is dissipative: coefficients ≥ 0; a Stribeck ratio ≥ 0 and speed > 0.
         self.params
@@ -352,6 +368,8 @@ impl lm::Problem for OutputError<'_> {
                 Param::Dyn(DynParam::StribeckRatio) => 1.0,
                 // Position friction: the factor 1 + c at a knot is ≥ 0 (friction never drives).
                 Param::Dyn(DynParam::Position(_)) => -1.0,
+                // μ± = μ·(1 ± δ) ≥ 0 both ways.
+                Param::Dyn(DynParam::DryAsymmetry) => -1.0,
                 Param::Dyn(_) => 0.0,
                 Param::Backlash => 0.0,
                 _ => f64::NEG_INFINITY,
@@ -451,14 +469,7 @@ pub fn fit_window(
         }
     }
     let lb = lm::Problem::lower_bounds(&prob);
-    let std: Vec<f64> = (0..params.len()).map(|i| cov.std(i)).collect();
-    let ci95: Vec<[f64; 2]> = rep
-        .x
-        .iter()
-        .zip(&std)
-        .zip(&lb)
-        .map(|((x, s), l)| [(x - Z95 * s).max(*l), (x + Z95 * s).max(*l)])
-        .collect();
+    let (std, ci95) = intervals(&rep.x, &cov, &lb);
     let (law, q0, v0, readout, body) = prob.unpack(&rep.x);
     let offset = readout.offset;
     let residual = rep.residuals.clone();
@@ -499,11 +510,92 @@ pub fn fit_window(
         model_y,
         residual,
         covariance: cov,
+        body_uncertainty: Vec::new(),
         termination: rep.termination,
         iterations: rep.iterations,
         evaluations: rep.evaluations,
         trajectory,
     })
+}
+
+/// `fit` with the test's stated body uncertainties (issue 17, point 1) in its covariance, and its
+/// standard errors and intervals derived again ([`body_uncertainty`]: per stated quantity, two
+/// warm refits of the same model with the quantity stated ±1 sd). Unchanged when none is stated.
+///
+/// Applied to the fit a test reports, not inside the residual loop: whether an effect is named
+/// is a question the data answer (its interval from the data alone); what the stated body adds
+/// is to the reported parameters. (Inside, a stated mass error — confounded with the inertia in
+/// the period J/(m·d) — widened `inertia_error`'s interval over its null and kept it from being
+/// named, leaving the period error in the friction: measured, e2e `body_uncertainty`.)
+pub fn carry_body_uncertainty(test: &JointTest, fit: FitOutcome, opts: &FitOptions) -> FitOutcome {
+    if test.body_sd.is_empty() {
+        return fit;
+    }
+    // The fit's model again, from its own parameters (their order is `FitSpec::params`').
+    let has = |p: Param| fit.spec_params.contains(&p);
+    let spec = FitSpec {
+        law: fit.law,
+        free: fit
+            .spec_params
+            .iter()
+            .filter_map(|p| match p {
+                Param::Dyn(d) => Some(*d),
+                _ => None,
+            })
+            .collect(),
+        fit_offset: has(Param::Offset),
+        delay: has(Param::Delay).then_some(fit.readout.delay_s),
+        backlash: has(Param::Backlash).then_some(fit.readout.backlash),
+        inertia: has(Param::Inertia).then_some(fit.inertia_log),
+        input_offset: has(Param::InputOffset).then_some(fit.input_offset),
+    };
+    if spec.params() != fit.spec_params {
+        return fit;
+    }
+    let at = InitialEstimate {
+        viscous: fit.law.viscous,
+        dry: fit.law.dry,
+        offset: fit.offset,
+        q0: fit.q0,
+        v0: fit.v0,
+    };
+    let refit = |m: &crate::dynamics::Mechanism| {
+        let moved = JointTest {
+            dof: Dof {
+                mech: *m,
+                ..test.dof.clone()
+            },
+            body_sd: Vec::new(),
+            ..test.clone()
+        };
+        fit_window(&moved, fit.start, fit.n_fit, &spec, &at, opts)
+            .ok()
+            .map(|f| f.values)
+            .filter(|v| v.len() == fit.values.len())
+    };
+    let (extra, carried) =
+        body_uncertainty::covariance(&test.body_sd, spec.inertia.is_some(), refit);
+    let mut fit = fit;
+    fit.body_uncertainty = carried;
+    if let Some(extra) = extra.filter(|e| e.shape() == fit.covariance.cov.shape()) {
+        fit.covariance.cov += extra;
+        let lb =
+            lm::Problem::lower_bounds(&OutputError::new(test, fit.start, fit.n_fit, &spec, opts));
+        (fit.std, fit.ci95) = intervals(&fit.values, &fit.covariance, &lb);
+    }
+    fit
+}
+
+/// Standard errors and 95 % intervals (clipped to the lower bounds) from a covariance.
+fn intervals(x: &[f64], cov: &Covariance, lb: &[f64]) -> (Vec<f64>, Vec<[f64; 2]>) {
+    let std: Vec<f64> = (0..x.len()).map(|i| cov.std(i)).collect();
+    let ci95 = x
+        .iter()
+        .zip(&std)
+        .zip(lb)
+        .map(|((x, s), l)| [(x - Z95 * s).max(*l), (x + Z95 * s).max(*l)])
+        .collect();
+    (std, ci95)
 }
 
 /// The fitted model's output (channel units) at `test.t_s[start .. end]`, simulating from the

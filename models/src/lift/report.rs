@@ -737,6 +737,7 @@ fn build_result(
             // Not defined for a many-joint fit (null in JSON); the posterior correlations are
             // in `LiftFit::posterior_correlation`.
             viscous_dry_correlation: f64::NAN,
+            body_uncertainty: None,
         },
         pooled: None,
         combinations,

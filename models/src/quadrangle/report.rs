@@ -263,6 +263,7 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
             interval_inflation: fit.noise_rad / opts.angle_noise_rad,
             // Not defined for a many-joint fit (null in JSON).
             viscous_dry_correlation: f64::NAN,
+            body_uncertainty: None,
         },
         pooled: None,
         combinations: Vec::new(),

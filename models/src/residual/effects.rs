@@ -23,16 +23,23 @@ pub enum Effect {
     /// balance is off). Body parameters are measured with an uncertainty; a friction law cannot
     /// absorb them.
     InertiaError,
+    /// pantowatch's addition (issue 17, point 3): dry friction that differs by direction of
+    /// motion, μ± = μ·(1 ± δ) (a pin worn on one flank, a slide with a directional finish).
+    /// While sliding it is a symmetric friction plus a constant force or torque lever·N·μ·δ, so a
+    /// test that also fits its input's zero (a driven axis without a position reference) cannot
+    /// tell the two apart: there the score test finds it collinear and it is not tried.
+    AsymmetricFriction,
 }
 
 impl Effect {
-    pub const SEARCHED: [Effect; 6] = [
+    pub const SEARCHED: [Effect; 7] = [
         Effect::Stribeck,
         Effect::QuadraticDrag,
         Effect::PositionFriction,
         Effect::Backlash,
         Effect::SensorDelay,
         Effect::InertiaError,
+        Effect::AsymmetricFriction,
     ];
 
     pub fn name(self) -> &'static str {
@@ -44,6 +51,7 @@ impl Effect {
             Effect::SensorOffset => "sensor_offset",
             Effect::SensorDelay => "sensor_delay",
             Effect::InertiaError => "inertia_error",
+            Effect::AsymmetricFriction => "asymmetric_friction",
         }
     }
 
@@ -56,6 +64,7 @@ impl Effect {
             Effect::SensorOffset,
             Effect::SensorDelay,
             Effect::InertiaError,
+            Effect::AsymmetricFriction,
         ]
         .into_iter()
         .find(|e| e.name() == s)
@@ -77,6 +86,7 @@ impl Effect {
             Effect::SensorOffset => vec![Param::Offset],
             Effect::SensorDelay => vec![Param::Delay],
             Effect::InertiaError => vec![Param::Inertia],
+            Effect::AsymmetricFriction => vec![Param::Dyn(DynParam::DryAsymmetry)],
         }
     }
 
@@ -102,6 +112,7 @@ impl Effect {
             Effect::SensorOffset => vec![(Param::Offset, 0.0)],
             Effect::SensorDelay => vec![(Param::Delay, 0.0)],
             Effect::InertiaError => vec![(Param::Inertia, 0.0)],
+            Effect::AsymmetricFriction => vec![(Param::Dyn(DynParam::DryAsymmetry), 0.0)],
         }
     }
 
@@ -147,6 +158,10 @@ impl Effect {
             Effect::SensorDelay => spec.delay = Some(0.0),
             Effect::SensorOffset => spec.fit_offset = true,
             Effect::InertiaError => spec.inertia = Some(0.0),
+            Effect::AsymmetricFriction => {
+                spec.law.asymmetry = 0.0;
+                spec.free.push(DynParam::DryAsymmetry);
+            }
         }
     }
 }
@@ -217,6 +232,8 @@ pub(super) fn effect_result(e: Effect, fit: &FitOutcome, test: &JointTest) -> Ef
         Effect::Backlash => put(format!("half_width_{pos}"), Param::Backlash),
         Effect::SensorDelay => put("delay_s".into(), Param::Delay),
         Effect::SensorOffset => put(format!("offset_{}", test.unit), Param::Offset),
+        // Reported as δ with μ₊ = μ·(1 + δ), μ₋ = μ·(1 − δ).
+        Effect::AsymmetricFriction => put("asymmetry".into(), Param::Dyn(DynParam::DryAsymmetry)),
         // Reported as the ratio J/J_stated and its interval (the fit's λ = ln of it).
         Effect::InertiaError => {
             if let Some((v, _, ci)) = fit.get(Param::Inertia) {

@@ -66,7 +66,7 @@ pub struct SimulateArgs {
     /// or a band `position_friction:gain=1,from=10,to=30[,edge=0.5]` (μ·(1 + gain) between
     /// `from` and `to`, channel units), or a cosine
     /// `position_friction:amplitude=0.3,period=120[,phase=0]` (μ·(1 + A·cos(2π·q/period + φ))),
-    /// `backlash:half_width=0.3` (channel units), `sensor_offset:offset=0.5` (channel units),
+    /// `asymmetric_friction:delta=0.3` (μ·(1 ± δ) by direction), `backlash:half_width=0.3` (channel units), `sensor_offset:offset=0.5` (channel units),
     /// `sensor_delay:delay_s=0.008`; outside it: `torsional_spring:k=4` (N·m/rad or N/m),
     /// `fading_friction:fade=0.5` (share of μ lost over the trace). A lift (`--kind lift`)
     /// takes `quadratic_drag:c_a=4` (N/(m/s)² on the head), `sensor_delay:delay_s=0.02`,
@@ -603,6 +603,7 @@ fn apply_effect(
                 }
             })
         }
+        "asymmetric_friction" => truth.law.asymmetry = get("delta")?,
         "backlash" => truth.readout.backlash = get("half_width")? / scale,
         "sensor_offset" => truth.readout.offset = get("offset")?,
         "sensor_delay" => truth.readout.delay_s = get("delay_s")?,

@@ -335,9 +335,27 @@ impl TraceDoc {
                         "pin_radius_m",
                         "gravity_m_s2",
                         "initial_rate_deg_s",
+                        "body_uncertainty",
                     ],
                     "test.rig",
                 )?;
+                // Issue 17, point 1: the body's stated 1 σ errors, each optional; numbers
+                // here, their range against the value each qualifies is the models' rule
+                // (`rig::check_uncertainty`, once, with the rig).
+                let body_uncertainty = match rig.get("body_uncertainty") {
+                    None | Some(Value::Null) => None,
+                    Some(u) => {
+                        const F: &str = "test.rig.body_uncertainty";
+                        let u = obj(u, F)?;
+                        only_keys(u, &["mass_kg", "inertia_kgm2", "com_distance_m"], F)?;
+                        let get = |k: &str| number(u, k, &format!("{F}.{k}"));
+                        Some(BodyUncertainty {
+                            mass_sd_kg: get("mass_kg")?,
+                            inertia_sd_kgm2: get("inertia_kgm2")?,
+                            com_distance_sd_m: get("com_distance_m")?,
+                        })
+                    }
+                };
                 let body = match rig.get("body") {
                     None | Some(Value::Null) => None,
                     Some(b) => {
@@ -409,6 +427,7 @@ impl TraceDoc {
                         "initial_rate_deg_s",
                         "test.rig.initial_rate_deg_s",
                     )?,
+                    body_uncertainty,
                 };
                 let y = self.channel("alpha_deg").unwrap_or_default().to_vec();
                 let release_t_s = self.release_t_s(&t)?;
@@ -441,6 +460,7 @@ impl TraceDoc {
                         "springs",
                         "spring_stiffness_n_per_mm",
                         "normal_force_n",
+                        "moving_mass_uncertainty_kg",
                     ],
                     "test.rig",
                 )?;
@@ -469,6 +489,11 @@ impl TraceDoc {
                         "test.rig.spring_stiffness_n_per_mm",
                     )?,
                     normal_force_n: number(&rig, "normal_force_n", "test.rig.normal_force_n")?,
+                    moving_mass_sd_kg: number(
+                        &rig,
+                        "moving_mass_uncertainty_kg",
+                        "test.rig.moving_mass_uncertainty_kg",
+                    )?,
                 };
                 let y = self.channel("h_mm").unwrap_or_default().to_vec();
                 let f = self.channel("F_N").map(<[f64]>::to_vec);

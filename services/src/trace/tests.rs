@@ -382,3 +382,173 @@ fn rfc3339() {
     let why = rfc3339_problem("9999-12-31T23:59:59-23:59").unwrap();
     assert!(why.contains("year 10000"), "{why}");
 }
+
+/// Issue 17, points 1 and 7: a rig may state its body's 1 σ errors (`test.rig.body_uncertainty`
+/// for a pendulum, of the stated body or the paper's default one; `moving_mass_uncertainty_kg`
+/// for a slider). One that is negative, not a number, or not below the value it qualifies is
+/// refused naming its exact path; 0 is accepted and carries nothing.
+#[test]
+fn a_body_uncertainty_is_refused_naming_its_path_when_negative_or_not_below_its_value() {
+    let with = |rig: Value| {
+        let mut d = doc();
+        d["test"]["rig"] = rig;
+        d
+    };
+    let body = json!({"mass_kg": 2.0, "inertia_kgm2": 0.6, "com_distance_m": 0.5});
+    let u = "test.rig.body_uncertainty";
+    let refused = [
+        (
+            json!({"body_uncertainty": {"inertia_kgm2": -0.01}}),
+            format!("{u}.inertia_kgm2"),
+        ),
+        (
+            json!({"body_uncertainty": {"mass_kg": "0.1"}}),
+            format!("{u}.mass_kg"),
+        ),
+        (
+            json!({"body_uncertainty": {"com_distance_m": 1e3}}),
+            format!("{u}.com_distance_m"),
+        ),
+        (
+            json!({"body_uncertainty": {"mass": 0.1}}),
+            format!("{u}.mass"),
+        ),
+        (json!({"body_uncertainty": [0.1]}), u.to_owned()),
+        (
+            json!({"body": body, "body_uncertainty": {"inertia_kgm2": 0.6}}),
+            format!("{u}.inertia_kgm2"),
+        ),
+        (
+            json!({"body": body, "body_uncertainty": {"mass_kg": 2.5}}),
+            format!("{u}.mass_kg"),
+        ),
+    ];
+    for (rig, field) in refused {
+        let e = TraceDoc::from_value(&with(rig.clone())).unwrap_err();
+        assert_eq!(e.field, field, "{rig}: {e}");
+    }
+    for rig in [
+        json!({"body": body, "body_uncertainty": {"mass_kg": 0.02, "inertia_kgm2": 0.59, "com_distance_m": 0.0}}),
+        json!({"body_uncertainty": {"inertia_kgm2": 0.0}}),
+        json!({"body_uncertainty": {}}),
+    ] {
+        TraceDoc::from_value(&with(rig.clone())).unwrap_or_else(|e| panic!("{rig}: {e}"));
+    }
+    // The paper's default body's value bounds it: J1's inertia about its pin.
+    let data = pantowatch_models::data::builtin_160ec();
+    let j1 = &data.bodies[&data.rigs["J1"].body];
+    let inertia = j1.inertia_axis_kgm2.unwrap();
+    let (test, _) = TraceDoc::from_value(&with(json!({"body_uncertainty":
+        {"inertia_kgm2": 0.5 * inertia, "mass_kg": 0.0}})))
+    .unwrap()
+    .joint_test()
+    .unwrap();
+    let carried: Vec<_> = test.body_sd.iter().map(|b| (b.quantity, b.sd)).collect();
+    assert_eq!(
+        carried,
+        [("inertia_kgm2", 0.5 * inertia)],
+        "a 0 sd carries nothing"
+    );
+    let e = TraceDoc::from_value(&with(
+        json!({"body_uncertainty": {"inertia_kgm2": inertia}}),
+    ))
+    .unwrap_err();
+    assert_eq!(e.field, format!("{u}.inertia_kgm2"), "{e}");
+    // A slider's moving mass: the head's default (`[slider] moving_mass_kg`) or the stated one.
+    let slider = |rig: Value| {
+        let mut d = doc();
+        d["test"] = json!({"kind": "slider", "joint": "J8", "rig": rig});
+        d["channels"] = json!({"t_s": [0.0, 0.002, 0.004], "h_mm": [1.0, 0.9, 0.8]});
+        d
+    };
+    let m = data.slider.moving_mass_kg;
+    const S: &str = "test.rig.moving_mass_uncertainty_kg";
+    for (rig, ok) in [
+        (json!({"moving_mass_uncertainty_kg": -0.1}), false),
+        (json!({"moving_mass_uncertainty_kg": m}), false),
+        (json!({"moving_mass_uncertainty_kg": true}), false),
+        (
+            json!({"moving_mass_kg": 2.0, "moving_mass_uncertainty_kg": 2.0}),
+            false,
+        ),
+        (
+            json!({"moving_mass_kg": 2.0, "moving_mass_uncertainty_kg": 0.1}),
+            true,
+        ),
+        (json!({"moving_mass_uncertainty_kg": 0.0}), true),
+        (json!({"moving_mass_uncertainty_kg": 0.05 * m}), true),
+    ] {
+        match TraceDoc::from_value(&slider(rig.clone())) {
+            Ok(_) if ok => {}
+            Err(e) if !ok => assert_eq!(e.field, S, "{rig}: {e}"),
+            other => panic!("{rig}: {other:?}"),
+        }
+    }
+}
+
+/// Issue 17, point 1, through the service's fit (the shared J5 example): stated uncertainties
+/// of 0 give the fit result unchanged, to the bit; a stated body-mass uncertainty is echoed in
+/// `fit.body_uncertainty` and widens the intervals about the same estimates.
+#[test]
+fn a_stated_body_uncertainty_is_echoed_and_widens_the_intervals_and_zero_changes_nothing() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/examples/J5_baseline.json"
+    );
+    let plain: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    let thresholds = pantowatch_models::drift::DriftThresholds::default();
+    let fit = |v: &Value| {
+        crate::fitting::fit_document(&TraceDoc::from_value(v).unwrap(), &thresholds).unwrap()
+    };
+    let with = |u: Value| {
+        let mut d = plain.clone();
+        d["test"]["rig"]["body_uncertainty"] = u;
+        d
+    };
+    let base = fit(&plain);
+    assert!(base.fit.body_uncertainty.is_none());
+    let zero = fit(&with(json!({"inertia_kgm2": 0.0, "mass_kg": 0.0})));
+    assert_eq!(zero, base, "a stated 0 carries nothing");
+    let stated = fit(&with(json!({"mass_kg": 0.1})));
+    let echo = serde_json::to_value(&stated.fit.body_uncertainty).unwrap();
+    assert_eq!(echo, json!({"propagated": {"mass_kg": 0.1}}));
+    let (b, s) = (&base.joints[0], &stated.joints[0]);
+    for (pb, ps) in [(&b.viscous, &s.viscous), (&b.dry, &s.dry)] {
+        assert_eq!(pb.value, ps.value, "the same estimate");
+        assert!(
+            ps.ci95[0] <= pb.ci95[0] && ps.ci95[1] >= pb.ci95[1],
+            "{:?} within {:?}",
+            pb.ci95,
+            ps.ci95
+        );
+    }
+    assert!(s.dry.ci95[1] - s.dry.ci95[0] > b.dry.ci95[1] - b.dry.ci95[0]);
+}
+
+/// Issue 17, point 1, a slider: the head's stated moving-mass uncertainty is carried by the fit
+/// and echoed — propagated, or listed as not propagated when `inertia_error` estimates the mass.
+#[test]
+fn a_slider_s_moving_mass_uncertainty_is_carried_and_echoed() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/examples/slider_baseline.json"
+    );
+    let mut d: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    let m = d["test"]["rig"]["moving_mass_kg"].as_f64().unwrap_or(
+        pantowatch_models::data::builtin_160ec()
+            .slider
+            .moving_mass_kg,
+    );
+    d["test"]["rig"]["moving_mass_uncertainty_kg"] = json!(0.02 * m);
+    let thresholds = pantowatch_models::drift::DriftThresholds::default();
+    let r = crate::fitting::fit_document(&TraceDoc::from_value(&d).unwrap(), &thresholds).unwrap();
+    let echo = r.fit.body_uncertainty.expect("echoed");
+    let named = r.residual.effects.iter().any(|e| e.name == "inertia_error");
+    let (into, other) = if named {
+        (&echo.not_propagated, &echo.propagated)
+    } else {
+        (&echo.propagated, &echo.not_propagated)
+    };
+    assert_eq!(into.get("moving_mass_kg"), Some(&(0.02 * m)), "{echo:?}");
+    assert!(other.is_empty(), "{echo:?}");
+}

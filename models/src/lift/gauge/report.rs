@@ -233,6 +233,7 @@ pub fn gauge_result(
             residual_rho1: res.rho1,
             interval_inflation: fit.noise_n / fit.noise_floor_n,
             viscous_dry_correlation: f64::NAN,
+            body_uncertainty: None,
         },
         pooled: None,
         combinations,
