@@ -5,49 +5,38 @@
 //! intervals. Pure computation: no I/O, no async, no knowledge of storage or HTTP.
 //!
 //! # Layout
-//! - [`budget`] — a fit's evaluation budget and stop flag, charged by the fitters.
+//! Grouped by what a reader looks for; the crate root re-exports each module under its own name
+//! (`pantowatch_models::friction`), so callers need not know the folder.
 //! - [`data`] — the pantograph type file (Table 2, Table 4, test rigs), parsed and validated.
-//! - [`rig`] — a test rig's body and attachments lumped into the equation's totals.
-//! - [`friction`] — friction laws and their parameter derivatives.
-//! - [`dynamics`] — the one-degree-of-freedom equation of motion, implicit in the reaction force.
-//! - [`ode`] — Dormand–Prince 5(4) with dense output.
-//! - [`simulate`] — event-driven stick–slip simulation with forward sensitivities.
-//! - [`signal`] — local polynomial smoothing and differentiation of sampled signals.
-//! - [`identify`] — first estimate by inverse dynamics, bounded Levenberg–Marquardt, intervals.
-//! - [`lift`] — the complete pantograph: closed-chain multibody model, lift-test simulation.
+//! - [`numerics`] — no pantograph inside: [`ode`] (Dormand–Prince 5(4), Rosenbrock-W),
+//!   [`stats`] (a leaf: whiteness, noise from differences, t/χ²/normal quantiles), [`signal`]
+//!   (local polynomial smoothing and differentiation), [`noise`] (a deterministic random
+//!   source), [`budget`] (a fit's evaluation budget and stop flag).
+//! - [`joint`] — one joint on its rig: [`rig`], [`friction`] (laws and their derivatives),
+//!   [`dynamics`] (the one-degree-of-freedom equation, implicit in the reaction force),
+//!   [`simulate`] (event-driven stick–slip with forward sensitivities), [`synth`] (synthetic
+//!   traces), [`identify`] (inverse-dynamics start, bounded Levenberg–Marquardt, intervals),
+//!   [`residual`] (the residual loop and its effect vocabulary).
+//! - [`lift`] — the complete pantograph: closed-chain multibody model, lift tests, force gauges.
 //! - [`quadrangle`] — the lower quadrangle's free swing (Fig 12): four-bar model, stick–slip
 //!   simulation, MAP friction fit of J1, J2, J2′, J3.
-//! - [`drift`] — drift status of identified parameters against the Table 4 baseline.
-//! - [`testspec`] — a test described as data, completed with the pantograph type's defaults.
-//! - [`report`] — the contract's fit result.
-//! - [`synth`] — synthetic traces: simulate, add sensor noise and quantisation.
-//! - [`stats`] — shared statistics (a leaf): whiteness, noise from differences, t/χ²/normal
-//!   quantiles.
-//! - [`trend`] — wear trends over a joint's history, forecasts of the alarm-band crossing.
-//! - [`noise`] — a small deterministic random source for synthetic traces.
+//! - [`contract`] — what a fit means to the service: [`report`] (the contract's fit result),
+//!   [`testspec`] (a test as data, with the type's defaults), [`drift`] (status against Table 4),
+//!   [`trend`] (wear trends, forecasts of the alarm-band crossing).
 
 // Numerical kernels index several arrays with one counter; iterator chains would hide that.
 #![allow(clippy::needless_range_loop)]
 
-pub mod budget;
+pub mod contract;
 pub mod data;
-pub mod drift;
-pub mod dynamics;
-pub mod friction;
-pub mod identify;
+pub mod joint;
 pub mod lift;
-pub mod noise;
-pub mod ode;
+pub mod numerics;
 pub mod quadrangle;
-pub mod report;
-pub mod residual;
-pub mod rig;
-pub mod signal;
-pub mod simulate;
-pub mod stats;
-pub mod synth;
-pub mod testspec;
-pub mod trend;
+
+pub use contract::{drift, report, testspec, trend};
+pub use joint::{dynamics, friction, identify, residual, rig, simulate, synth};
+pub use numerics::{budget, noise, ode, signal, stats};
 
 use drift::DriftThresholds;
 use identify::{FitError, FitOptions, FitOutcome, JointTest};

@@ -259,3 +259,42 @@ fn the_web_pages_never_fit() {
         }
     }
 }
+
+/// Issue 19, point 4: `models/src` shows its architecture — the pantograph type's data, then one
+/// folder per thing a reader looks for (numerics, one joint, the complete pantograph, the
+/// quadrangle, the contract) and nothing loose beside them.
+#[test]
+fn models_src_is_grouped_by_what_a_reader_looks_for() {
+    let src = crate_src("models");
+    let mut found: Vec<String> = std::fs::read_dir(&src)
+        .expect("models/src")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    found.sort();
+    assert_eq!(
+        found,
+        [
+            "contract",
+            "data.rs",
+            "joint",
+            "lib.rs",
+            "lift",
+            "numerics",
+            "quadrangle"
+        ],
+        "models/src holds a file outside its groups"
+    );
+}
+
+/// Issue 19, point 4: no source file over ~800 lines (820) in the crates' `src`.
+#[test]
+fn no_source_file_is_over_820_lines() {
+    for name in ["models", "services"] {
+        let mut files = Vec::new();
+        rust_files(&crate_src(name), &mut files);
+        for f in files {
+            let n = std::fs::read_to_string(&f).expect("source").lines().count();
+            assert!(n <= 820, "{}: {n} lines", f.display());
+        }
+    }
+}

@@ -31,8 +31,8 @@ use super::dynamics::LiftModel;
 pub use super::fit::{AttributionOptions, Combination};
 use super::fit::{LiftFit, ParamEstimate};
 use super::sensitivity::LiftParam;
-use crate::drift::{DriftThresholds, Status};
-use crate::stats::Z95;
+use crate::contract::drift::{DriftThresholds, Status};
+use crate::numerics::stats::Z95;
 
 /// The outcome: per parameter whether it is separately identified, and the combinations.
 #[derive(Debug, Clone, PartialEq)]

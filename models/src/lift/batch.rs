@@ -46,11 +46,11 @@ where
     let done = AtomicUsize::new(0);
     let slots: Mutex<Vec<Option<R>>> = Mutex::new((0..n).map(|_| None).collect());
     // The caller's fit budget (if any) holds in every worker thread.
-    let budget = crate::budget::current();
+    let budget = crate::numerics::budget::current();
     std::thread::scope(|scope| {
         for _ in 0..workers(threads, n) {
             scope.spawn(|| {
-                crate::budget::enter(&budget, || {
+                crate::numerics::budget::enter(&budget, || {
                     loop {
                         let i = next.fetch_add(1, Ordering::Relaxed);
                         if i >= n {
@@ -122,7 +122,7 @@ mod tests {
     fn fit_many_equals_lone_fits_in_order() {
         use crate::lift::protocol::{LiftProtocol, record};
         use crate::lift::simulate::SimOptions;
-        use crate::noise::Noise;
+        use crate::numerics::noise::Noise;
         let g = crate::lift::geometry::builtin_160ec();
         let m = LiftModel::new(g);
         let p = LiftProtocol {

@@ -41,7 +41,7 @@ use super::fit::{LiftFit, LiftFitError, LiftFitOptions, LiftTrace, effect_prior}
 use super::identify::fit_map;
 use super::sensitivity::LiftParam;
 use super::topology::RevJoint;
-use crate::stats::Z95;
+use crate::numerics::stats::Z95;
 
 pub use super::fit::MAX_DELAY_S;
 /// Shortest delay named, s: one sample at the stand's 500 Hz.

@@ -8,8 +8,8 @@ use nalgebra::DMatrix;
 use super::inputs::{InputOptions, InputReconstruction};
 use super::sensitivity::LiftParam;
 use super::simulate::{LiftInputs, SimError, SimOptions};
-use crate::drift::{DriftThresholds, Status};
-use crate::identify::lm::{LmOptions, Termination};
+use crate::contract::drift::{DriftThresholds, Status};
+use crate::joint::identify::lm::{LmOptions, Termination};
 
 /// One recorded lift test: its inputs and the measured strip height.
 #[derive(Debug, Clone, Copy)]
@@ -397,14 +397,14 @@ pub struct Combination {
 
 impl Combination {
     /// The contract's view of it: label, members with their weights, level and verdict.
-    pub fn to_result(&self) -> crate::report::CombinationResult {
-        crate::report::CombinationResult {
+    pub fn to_result(&self) -> crate::contract::report::CombinationResult {
+        crate::contract::report::CombinationResult {
             label: self.label(),
             members: self
                 .params
                 .iter()
                 .zip(&self.weights)
-                .map(|(p, w)| crate::report::CombinationMember {
+                .map(|(p, w)| crate::contract::report::CombinationMember {
                     joint: p.joint().into(),
                     kind: p.kind().into(),
                     weight: *w,

@@ -24,7 +24,7 @@
 
 use super::dynamics::LiftModel;
 use super::identify::{LiftFit, LiftFitError, LiftFitOptions, LiftTrace, fit_map};
-use crate::identify::lm::LmOptions;
+use crate::joint::identify::lm::LmOptions;
 
 /// Length of a block, s: several head-bounce periods (≈ 0.2 s on J9), short beside a lift.
 pub const BLOCK_S: f64 = 0.5;

@@ -24,9 +24,11 @@ use super::sensitivity::{
 };
 use super::simulate::{LiftInputs, SimOptions};
 use super::topology::RevJoint;
-use crate::drift::Status;
-use crate::identify::lm::{LmOptions, Problem, Termination, minimize, minimize_evaluated, project};
-use crate::stats::Z95;
+use crate::contract::drift::Status;
+use crate::joint::identify::lm::{
+    LmOptions, Problem, Termination, minimize, minimize_evaluated, project,
+};
+use crate::numerics::stats::Z95;
 
 /// Most integrator steps per second of trace an evaluation may take (`fit_map_in`).
 const MAX_STEPS_PER_S: f64 = 1000.0;
@@ -469,7 +471,10 @@ pub fn fit_map_in(
     // information the data actually hold, to which the prior's is added. White residuals give
     // back JᵀJ/s² (up to sampling noise).
     let mut post = if opts.robust_covariance {
-        let c = crate::identify::covariance::sandwich(&jd.into_owned(), &rep.residuals[..n_data]);
+        let c = crate::joint::identify::covariance::sandwich(
+            &jd.into_owned(),
+            &rep.residuals[..n_data],
+        );
         pinv(&c.cov)
     } else {
         jd.tr_mul(&jd) / kappa2

@@ -64,7 +64,7 @@ pub fn covariance(
             Ok(simulate_sensitivities(model, u, &[], offsets_nm[ti], &sim)?.strip_height_m)
         };
         let h0 = run_h(inputs)?;
-        let mut rng = crate::noise::Noise::new(0x1f_2a_3b_4c + ti as u64);
+        let mut rng = crate::numerics::noise::Noise::new(0x1f_2a_3b_4c + ti as u64);
         let fm: Vec<f64> = if inputs.fm_n.is_empty() {
             vec![0.0; n]
         } else {
@@ -175,7 +175,7 @@ pub const COVERAGE_DRIFTS: [Option<(&str, &str, f64)>; 12] = [
 
 #[cfg(test)]
 mod coverage_tests {
-    use crate::drift::Status;
+    use crate::contract::drift::Status;
     use crate::lift::dynamics::LiftModel;
     use crate::lift::geometry::builtin_160ec;
     use crate::lift::identify::{LiftFitOptions, LiftTrace, Shown, fit_map};

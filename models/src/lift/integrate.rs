@@ -4,7 +4,7 @@
 //!
 //! Allocation-free per step: the caller owns the stepper, the state and one sample buffer.
 
-use crate::ode::{Dopri5, OdeError, OdeSystem, Rosw, Step, WSystem};
+use crate::numerics::ode::{Dopri5, OdeError, OdeSystem, Rosw, Step, WSystem};
 
 /// A system whose inputs change definition at breakpoints (a held input steps there).
 pub(super) trait Segmented {
@@ -64,7 +64,7 @@ impl<S: WSystem<B>, const B: usize> Stepper<S> for Rosw<B> {
 pub(super) enum IntegrateError<E> {
     Ode(OdeError),
     TooManySteps(usize),
-    /// The fit's budget was spent or the fit stopped ([`crate::budget::cancelled`]).
+    /// The fit's budget was spent or the fit stopped ([`crate::numerics::budget::cancelled`]).
     Cancelled,
     /// The sample callback refused.
     Sample(E),
@@ -135,7 +135,7 @@ pub(super) fn integrate<S: Segmented, O: Stepper<S>, E>(
                         return Err(IntegrateError::TooManySteps(max_steps));
                     }
                     // An atomic load every 256 steps: a stopped fit ends within ~1 ms.
-                    if work.steps.is_multiple_of(256) && crate::budget::cancelled() {
+                    if work.steps.is_multiple_of(256) && crate::numerics::budget::cancelled() {
                         return Err(IntegrateError::Cancelled);
                     }
                 }

@@ -33,12 +33,12 @@ use super::dynamics::LiftModel;
 use super::identify::{JointEstimate, LiftFit, LiftFitError, LiftFitOptions, LiftTrace, fit_map};
 use super::simulate::LiftInputs;
 use super::topology::RevJoint;
-use crate::drift::{DriftThresholds, Status};
-use crate::report::{
+use crate::contract::drift::{DriftThresholds, Status};
+use crate::contract::report::{
     CombinationResult, FitDetails, FitResult, JointResult, MODEL_VERSION, ParamResult, Quantity,
     ResidualResult,
 };
-use crate::stats::Z95;
+use crate::numerics::stats::Z95;
 
 /// The recorded channels of a lift trace (contract `lift` kind).
 #[derive(Debug, Clone, Copy)]
@@ -399,7 +399,7 @@ fn named_result(
     let refitted = fit.fitted_height_m.first().cloned().unwrap_or_default();
     let mut named = fit_result(model, fit, trace, &refitted, opts, trace_id);
     let after = named.rmse.value;
-    named.residual.effects = vec![crate::report::EffectResult {
+    named.residual.effects = vec![crate::contract::report::EffectResult {
         name: name.into(),
         params: params
             .into_iter()
@@ -501,7 +501,7 @@ pub fn fit_pooled_lift_and_gauge_traces(
         &trace_ids[0],
         false,
     );
-    result.pooled = Some(crate::report::PooledTests {
+    result.pooled = Some(crate::contract::report::PooledTests {
         trace_ids: trace_ids.iter().chain(gauge_ids).cloned().collect(),
         window_days,
     });
@@ -711,7 +711,7 @@ fn build_result(
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),
             release_t_s: trace.inputs.t_s.first().copied().unwrap_or(0.0),
-            release_rule: crate::identify::release::ReleaseRule::FirstSample.as_str(),
+            release_rule: crate::joint::identify::release::ReleaseRule::FirstSample.as_str(),
             release_warning: None,
             release_position: Quantity {
                 value: trace.strip_height_m.first().copied().unwrap_or(f64::NAN),

@@ -20,7 +20,7 @@
 //!   as the gate: the inputs' smoothed noise makes it fail on every correct lift (Q 34–3,800
 //!   against χ²₂₀(0.001) = 45.3).
 
-use crate::stats::{corr, ljung_box, noise_sigma};
+use crate::numerics::stats::{corr, ljung_box, noise_sigma};
 
 /// Residual RMS over the noise above which the model is missing something a friction refit has
 /// absorbed: 3 — about 2× the largest seen on correct lifts (1.60 against σ̂), under a third of

@@ -5,7 +5,7 @@
 //! f_θ exactly from the model's linear response to the friction inputs (normal-force feedback
 //! included); the initial state's dependence on the offset by a central difference.
 //!
-//! Integrated by the Rosenbrock-W method ([`crate::ode::Rosw`]) with W = I ⊗ f_y: the
+//! Integrated by the Rosenbrock-W method ([`crate::numerics::ode::Rosw`]) with W = I ⊗ f_y: the
 //! smoothed friction at rest is stiff, which held the explicit DOPRI5 to ~3 ms steps through
 //! every rest phase; f_y is computed for the sensitivities anyway, so W costs nothing.
 
@@ -16,7 +16,7 @@ use super::integrate::{Segmented, integrate};
 use super::kinematics::HeadKin;
 use super::simulate::{LiftInputs, SimError, SimOptions, initial_state};
 use super::topology::{N_REV, RevJoint};
-use crate::ode::{OdeError, Rosw, Tolerances, WSystem};
+use crate::numerics::ode::{OdeError, Rosw, Tolerances, WSystem};
 
 /// A parameter of a lift fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -10,7 +10,7 @@
 //!   Quantisation is applied after the noise, as a logger does.
 
 use super::protocol::LiftRecord;
-use crate::noise::Noise;
+use crate::numerics::noise::Noise;
 
 /// Sensor noise (standard deviations) and logger steps of a lift record's four channels.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -9,7 +9,7 @@ use super::dynamics::{DynamicsError, LiftModel, Loads, State};
 use super::integrate::{IntegrateError, Segmented, integrate};
 use super::statics::{StaticFriction, StaticsError, root_in_range, static_h_m, static_point};
 use super::topology::{N_REV, RevJoint};
-use crate::ode::{Dopri5, OdeError, OdeSystem, Tolerances};
+use crate::numerics::ode::{Dopri5, OdeError, OdeSystem, Tolerances};
 
 /// The lift test's input channels, sampled at `t_s` (contract `lift` kind).
 #[derive(Debug, Clone, Copy)]
@@ -35,7 +35,7 @@ pub enum SimError {
     #[error("more than {0} integrator steps")]
     TooManySteps(usize),
     #[error(transparent)]
-    Budget(#[from] crate::budget::Exhausted),
+    Budget(#[from] crate::numerics::budget::Exhausted),
 }
 
 impl SimError {
@@ -43,7 +43,9 @@ impl SimError {
         match e {
             IntegrateError::Ode(e) => SimError::Ode(e),
             IntegrateError::TooManySteps(n) => SimError::TooManySteps(n),
-            IntegrateError::Cancelled => SimError::Budget(crate::budget::Exhausted::Cancelled),
+            IntegrateError::Cancelled => {
+                SimError::Budget(crate::numerics::budget::Exhausted::Cancelled)
+            }
             IntegrateError::Sample(e) => SimError::Statics(StaticsError::Dynamics(e)),
         }
     }

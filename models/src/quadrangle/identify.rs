@@ -22,10 +22,10 @@ use nalgebra::DMatrix;
 
 use super::model::{QJoint, Quadrangle};
 use super::simulate::{SwingError, SwingOptions, simulate_swing};
-use crate::drift::{DriftThresholds, Status};
-use crate::identify::lm::{LmOptions, Problem, Termination, minimize};
+use crate::contract::drift::{DriftThresholds, Status};
+use crate::joint::identify::lm::{LmOptions, Problem, Termination, minimize};
 use crate::lift::identify::inverse_spd;
-use crate::stats::Z95;
+use crate::numerics::stats::Z95;
 
 /// A friction parameter of the quadrangle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -500,7 +500,7 @@ fn fitted_window(alpha_rad: &[f64], sigma_rad: f64) -> usize {
 mod tests {
     use super::*;
     use crate::lift::geometry::builtin_160ec;
-    use crate::noise::Noise;
+    use crate::numerics::noise::Noise;
 
     /// The paper's Fig 12 swing (γ = 70°, released at rest 10.1° below the rest angle) on a model whose
     /// friction in `joint` has drifted by `factor`, 500 Hz, both channels with 0.05° noise and

@@ -14,14 +14,14 @@
 use super::identify::{QuadEstimate, QuadFit, QuadFitError, QuadFitOptions, SwingTrace, fit_swing};
 use super::model::{PointMass, QJoint, Quadrangle, RigError};
 use super::simulate::{SwingError, SwingOptions, simulate_swing};
-use crate::data::RigLimits;
-use crate::drift::DriftThresholds;
-use crate::lift::geometry::builtin_160ec;
-use crate::noise::Noise;
-use crate::report::{
+use crate::contract::drift::DriftThresholds;
+use crate::contract::report::{
     FitDetails, FitResult, JointResult, MODEL_VERSION, ParamResult, Quantity, ResidualResult,
 };
-use crate::stats::Z95;
+use crate::data::RigLimits;
+use crate::lift::geometry::builtin_160ec;
+use crate::numerics::noise::Noise;
+use crate::numerics::stats::Z95;
 
 /// The paper's incline of the frame plane in the Fig 12 test, deg (`[paper_tests]` of
 /// models/data/160ec.toml).
@@ -239,7 +239,7 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),
             release_t_s: t_s.first().copied().unwrap_or(0.0),
-            release_rule: crate::identify::release::ReleaseRule::FirstSample.as_str(),
+            release_rule: crate::joint::identify::release::ReleaseRule::FirstSample.as_str(),
             release_warning: None,
             release_position: Quantity {
                 value: deg(fit.release_alpha_rad.value),
@@ -332,7 +332,7 @@ pub fn record_swing(r: &SwingRecipe) -> Result<SwingRecord, QuadReportError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::drift::Status;
+    use crate::contract::drift::Status;
 
     /// The Table 4 swing maps to J1, J2, J2′, J3 with every status `ok` or `unknown`, each
     /// uninformed parameter at baseline; nothing flagged; units as the contract's.

@@ -7,7 +7,7 @@
 
 use super::model::{QState, Quadrangle};
 use crate::lift::dynamics::DynamicsError;
-use crate::ode::{Dopri5, OdeError, OdeSystem, Step, Tolerances};
+use crate::numerics::ode::{Dopri5, OdeError, OdeSystem, Step, Tolerances};
 
 /// Integration settings.
 #[derive(Debug, Clone, Copy)]
@@ -40,7 +40,7 @@ pub enum SwingError {
     #[error("more than {0} integration steps")]
     TooManySteps(usize),
     #[error(transparent)]
-    Budget(#[from] crate::budget::Exhausted),
+    Budget(#[from] crate::numerics::budget::Exhausted),
 }
 
 /// A simulated swing at the record's sample times.
@@ -171,8 +171,10 @@ pub fn simulate_swing(
                     return Err(SwingError::TooManySteps(opts.max_steps));
                 }
                 // An atomic load every 256 steps: a stopped fit ends within ~1 ms.
-                if run.steps.is_multiple_of(256) && crate::budget::cancelled() {
-                    return Err(SwingError::Budget(crate::budget::Exhausted::Cancelled));
+                if run.steps.is_multiple_of(256) && crate::numerics::budget::cancelled() {
+                    return Err(SwingError::Budget(
+                        crate::numerics::budget::Exhausted::Cancelled,
+                    ));
                 }
                 let t_new = if landing { t_end } else { t + h_done };
                 // A reversal inside the step: the rate's zero on the dense output.

@@ -6,7 +6,7 @@
 //!   a misfit is slow over the heights, the gauge's noise is not. Floored at the fit's σ₀ =
 //!   max(`gauge_noise_n`, resolution/√12), the noise its intervals assume.
 //! - Excess: RMS(residual)/max(σ̂_d, σ₀). Whiteness: the pooled within-branch lag-1
-//!   autocorrelation ρ₁ against its one-sided p = [`crate::stats::WHITENESS_P`] bound for white
+//!   autocorrelation ρ₁ against its one-sided p = [`crate::numerics::stats::WHITENESS_P`] bound for white
 //!   noise, z₀.₉₉₉/√m (m the pairs): a slow misfit makes neighbours alike.
 //! - The base fit carries the gauge's zero b as a nuisance (`fit::GaugeFitOptions::fit_offset`:
 //!   an unseen tare error of 0.5 N bent the friction by 15–20 % without it). Both effects are
@@ -29,7 +29,7 @@ use super::super::dynamics::LiftModel;
 use super::super::static_force::DriveLine;
 use super::GaugeRecord;
 use super::fit::{GaugeEffect, GaugeFit, GaugeFitOptions, fit_gauge_from};
-use crate::stats::{WHITENESS_P, normal_quantile};
+use crate::numerics::stats::{WHITENESS_P, normal_quantile};
 
 pub use super::super::residual::{EFFECT_TRY_RATIO, MODEL_ERROR_RATIO};
 

@@ -31,9 +31,9 @@ use super::super::topology::RevJoint;
 use super::simulate::spring_rate_drive;
 use super::solve::{Warm, forces_near, warm_starts};
 use super::{GaugeError, GaugeRecord, gauge_data};
-use crate::drift::{DriftThresholds, Status};
-use crate::identify::lm::{LmOptions, Problem, Termination, minimize};
-use crate::stats::{Z95, student_t_quantile};
+use crate::contract::drift::{DriftThresholds, Status};
+use crate::joint::identify::lm::{LmOptions, Problem, Termination, minimize};
+use crate::numerics::stats::{Z95, student_t_quantile};
 
 /// The revolute joints a gauge record's friction enters: all but J6 (locked in the plane).
 pub const FITTED_JOINTS: [RevJoint; 7] = [

@@ -32,12 +32,12 @@ use super::super::topology::RevJoint;
 use super::effects::{GaugeLoop, GaugeResidual, GaugeVerdict, fit_with_effects};
 use super::fit::{GaugeEffect, GaugeFit, GaugeFitOptions};
 use super::{GaugeError, GaugeRecord};
-use crate::drift::{DriftThresholds, Status};
-use crate::report::{
+use crate::contract::drift::{DriftThresholds, Status};
+use crate::contract::report::{
     CombinationResult, EffectResult, FitDetails, FitResult, JointResult, MODEL_VERSION,
     ParamResult, Quantity, ResidualResult,
 };
-use crate::stats::Z95;
+use crate::numerics::stats::Z95;
 
 /// The channels of a `static_force` trace: strip heights and gauge readings in reading order,
 /// and the gauge's stated resolution (contract `test.gauge_resolution_n`).
@@ -210,7 +210,7 @@ pub fn gauge_result(
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),
             release_t_s: 0.0,
-            release_rule: crate::identify::release::ReleaseRule::FirstSample.as_str(),
+            release_rule: crate::joint::identify::release::ReleaseRule::FirstSample.as_str(),
             release_warning: None,
             release_position: Quantity {
                 value: record.heights_m.first().copied().unwrap_or(f64::NAN),

@@ -4,13 +4,13 @@
 //! Assumed gauge (`models/data/160ec.toml`, `[static_force]`): noise `gauge_noise_n` (0.2 N,
 //! one sd, white reading to reading), resolution `gauge_sim_resolution_n` (0.1 N); the noise is
 //! added before the quantisation, as a gauge's display rounds what its cell reads. The random
-//! source is the project's ([`crate::noise::Noise`]): a seed gives the same record everywhere.
+//! source is the project's ([`crate::numerics::noise::Noise`]): a seed gives the same record everywhere.
 
 use super::super::dynamics::LiftModel;
 use super::super::static_force::DriveLine;
 use super::solve::predicted_forces_n;
 use super::{GaugeError, GaugeRecord, gauge_data};
-use crate::noise::Noise;
+use crate::numerics::noise::Noise;
 
 /// How a gauge record is simulated.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -5,7 +5,7 @@ use super::effects::fit_with_effects;
 use super::fit::FITTED_JOINTS;
 use super::solve::{forces_near, warm_starts};
 use super::*;
-use crate::drift::{DriftThresholds, Status};
+use crate::contract::drift::{DriftThresholds, Status};
 use crate::lift::attribution::Combination;
 use crate::lift::dynamics::LiftModel;
 use crate::lift::geometry::builtin_160ec;

@@ -1,7 +1,7 @@
 use super::*;
 use crate::lift::geometry::builtin_160ec;
 use crate::lift::protocol::{LiftProtocol, LiftRecord, record};
-use crate::noise::Noise;
+use crate::numerics::noise::Noise;
 
 fn noisy(rec: &LiftRecord, seed: u64) -> Vec<f64> {
     let mut rng = Noise::new(seed);

@@ -1,7 +1,7 @@
 use super::*;
 use crate::lift::geometry::builtin_160ec;
 use crate::lift::protocol::{LiftProtocol, LiftRecord, record};
-use crate::noise::Noise;
+use crate::numerics::noise::Noise;
 
 /// The `sensor_delay` column of the fit's Jacobian is the derivative of the delayed read-out
 /// (central differences of whole evaluations, τ between samples), and τ = 0 reads the model

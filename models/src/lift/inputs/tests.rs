@@ -2,7 +2,7 @@
 //! records unchanged, bad input named, and noisy-input lift fits that still flag a J3 drift.
 
 use super::*;
-use crate::drift::Status;
+use crate::contract::drift::Status;
 use crate::lift::dynamics::LiftModel;
 use crate::lift::geometry::builtin_160ec;
 use crate::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
@@ -11,7 +11,7 @@ use crate::lift::sensitivity::LiftParam;
 use crate::lift::sensors::LiftSensorNoise;
 use crate::lift::simulate::SimOptions;
 use crate::lift::topology::RevJoint;
-use crate::noise::Noise;
+use crate::numerics::noise::Noise;
 
 /// 8 s at 500 Hz from t = −0.5 s, as the lift protocol samples.
 fn times() -> Vec<f64> {

@@ -1,5 +1,5 @@
 use super::*;
-use crate::drift::Status;
+use crate::contract::drift::Status;
 use crate::lift::dynamics::LiftModel;
 use crate::lift::geometry::builtin_160ec;
 use crate::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
@@ -11,7 +11,10 @@ use crate::lift::simulate::SimOptions;
 
 /// The service's entry (`report::fit_lift_trace`, default drift bands) on `rec`'s inputs with
 /// `h` as the H channel.
-fn fit_with_h(rec: &crate::lift::protocol::LiftRecord, h: &[f64]) -> crate::report::FitResult {
+fn fit_with_h(
+    rec: &crate::lift::protocol::LiftRecord,
+    h: &[f64],
+) -> crate::contract::report::FitResult {
     use crate::lift::report::{LiftChannels, fit_lift_trace};
     let u = rec.inputs();
     fit_lift_trace(
@@ -22,7 +25,7 @@ fn fit_with_h(rec: &crate::lift::protocol::LiftRecord, h: &[f64]) -> crate::repo
             fs_n: u.fs_n,
             fm_n: u.fm_n,
         },
-        &crate::drift::DriftThresholds::default(),
+        &crate::contract::drift::DriftThresholds::default(),
         "t",
     )
     .unwrap()
@@ -31,7 +34,7 @@ fn fit_with_h(rec: &crate::lift::protocol::LiftRecord, h: &[f64]) -> crate::repo
 
 /// A J3 dry drift of `j3_factor` (> 1: drifted) shows in the combination holding J3 (its own
 /// entry is reported as not separately identified), and no other entry is flagged.
-fn only_a_j3_drift_is_flagged(r: &crate::report::FitResult, j3_factor: f64) {
+fn only_a_j3_drift_is_flagged(r: &crate::contract::report::FitResult, j3_factor: f64) {
     for j in &r.joints {
         let flagged = matches!(j.status, Status::Watch | Status::Alarm);
         if j3_factor > 1.0 && j.joint.contains("J3") && j.joint.contains('+') {
@@ -46,7 +49,7 @@ fn only_a_j3_drift_is_flagged(r: &crate::report::FitResult, j3_factor: f64) {
 fn white_noise_is_trusted_and_a_slow_error_is_not() {
     let n = 4000;
     let t: Vec<f64> = (0..n).map(|k| k as f64 / 500.0).collect();
-    let mut rng = crate::noise::Noise::new(5);
+    let mut rng = crate::numerics::noise::Noise::new(5);
     let white: Vec<f64> = (0..n).map(|_| 0.5e-3 * rng.normal()).collect();
     let h: Vec<f64> = t.iter().map(|t| 1.0 + 0.1 * t).collect();
     let d = diagnose(&t, &white, &h, &h, 0.0);
@@ -172,7 +175,7 @@ fn a_delay_is_named_and_other_errors_stay_unexplained() {
                     fs_n: u.fs_n,
                     fm_n: u.fm_n,
                 },
-                &crate::drift::DriftThresholds::default(),
+                &crate::contract::drift::DriftThresholds::default(),
                 "t",
             )
             .unwrap()
@@ -486,7 +489,7 @@ fn a_record_too_short_for_the_held_out_test_says_so() {
             fs_n: &rec.fs_n,
             fm_n: &rec.fm_n,
         },
-        &crate::drift::DriftThresholds::default(),
+        &crate::contract::drift::DriftThresholds::default(),
         "t",
     )
     .unwrap()

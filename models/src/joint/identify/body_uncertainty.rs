@@ -22,7 +22,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::dynamics::Mechanism;
+use crate::joint::dynamics::Mechanism;
 
 /// One stated body-parameter uncertainty of a test, ready to propagate.
 #[derive(Debug, Clone, PartialEq)]
@@ -104,7 +104,7 @@ pub fn covariance(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rig::SliderRig;
+    use crate::joint::rig::SliderRig;
 
     /// A model whose estimate a = 2 − 0.5·m moves with the stated mass m: the shift for a true
     /// mass 1 sd high is +0.5·σ; an inertia term is left out when the inertia is fitted.

@@ -24,7 +24,7 @@
 mod diagnose;
 mod effects;
 
-pub use crate::stats::{corr, is_white, ljung_box, noise_sigma};
+pub use crate::numerics::stats::{corr, is_white, ljung_box, noise_sigma};
 pub use diagnose::{Diagnosis, diagnose};
 pub use effects::{Effect, sensor_offset_effect};
 use effects::{Scales, effect_result};
@@ -32,12 +32,12 @@ use effects::{Scales, effect_result};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use crate::friction::{DynParam, FrictionLaw, PositionFriction};
-use crate::identify::{
+use crate::contract::report::{EffectResult, ResidualResult};
+use crate::joint::friction::{DynParam, FrictionLaw, PositionFriction};
+use crate::joint::identify::{
     FitError, FitOptions, FitOutcome, FitSpec, InitialEstimate, JointTest, Param, fit_window,
     predict,
 };
-use crate::report::{EffectResult, ResidualResult};
 
 pub const HOLDOUT_FRACTION: f64 = 0.25;
 pub const MAX_CANDIDATES: usize = 3;
@@ -175,7 +175,7 @@ fn split_fit_from(
 
 /// One effect added to the base model, refitted on the split from the plain fit's solution —
 /// and, for position friction, also from its inverse-dynamics start
-/// ([`crate::identify::initial::position_friction_start`]); the better of the two.
+/// ([`crate::joint::identify::initial::position_friction_start`]); the better of the two.
 fn single_fit(
     test: &JointTest,
     warm: &FitOutcome,
@@ -191,7 +191,7 @@ fn single_fit(
     else {
         return from_plain;
     };
-    let Some((viscous, dry, coeffs)) = crate::identify::initial::position_friction_start(
+    let Some((viscous, dry, coeffs)) = crate::joint::identify::initial::position_friction_start(
         &test.dof,
         &test.t_s,
         &test.y,
@@ -277,7 +277,7 @@ fn score_tests(
     // One evaluation of the Jacobian with every effect at its null value.
     let mut init = init_from(fit);
     init.offset = fit.offset;
-    let jac = crate::identify::jacobian_at(test, fit.start, fit.n_fit, &spec, &init, opts)?;
+    let jac = crate::joint::identify::jacobian_at(test, fit.start, fit.n_fit, &spec, &init, opts)?;
     let params = spec.params();
     let base_cols: Vec<usize> = params
         .iter()
@@ -351,7 +351,7 @@ pub fn analyse(
         let z = |e: &Effect, s: Option<f64>| {
             s.map_or(f64::NEG_INFINITY, |s| {
                 let k = e.score_dof();
-                crate::stats::chi2_to_z(s * k as f64, k)
+                crate::numerics::stats::chi2_to_z(s * k as f64, k)
             })
         };
         ranked.sort_by(|a, b| z(&b.0, b.1).total_cmp(&z(&a.0, a.1)));
@@ -377,7 +377,10 @@ pub fn analyse(
             };
             if i >= MAX_CANDIDATES
                 || score * (k as f64)
-                    < crate::stats::chi2_upper_quantile(k, crate::stats::WHITENESS_P)
+                    < crate::numerics::stats::chi2_upper_quantile(
+                        k,
+                        crate::numerics::stats::WHITENESS_P,
+                    )
             {
                 candidates.push(Candidate {
                     effects: vec![*e],
@@ -532,8 +535,11 @@ pub fn analyse(
     // A sensor zero is a finding only when the model explains the trace: under an unexplained
     // misfit the fitted zero absorbs part of it.
     if verdict.is_none()
-        && let Some(e) =
-            sensor_offset_effect(reported, test.unit, crate::signal::resolution(&test.y))
+        && let Some(e) = sensor_offset_effect(
+            reported,
+            test.unit,
+            crate::numerics::signal::resolution(&test.y),
+        )
     {
         report_effects.push(e);
     }
@@ -627,7 +633,7 @@ fn judge(sp: &Split, reference: &Split, bic_ref: f64, effects: &[Effect]) -> (bo
 /// Returns the knot's position.
 fn vanishing_knot(fit: &FitOutcome) -> Option<f64> {
     let pf = fit.law.position?;
-    (1..crate::friction::POSITION_KNOTS - 1)
+    (1..crate::joint::friction::POSITION_KNOTS - 1)
         .find(|&k| 1.0 + pf.coeffs[k] < POSITION_FLOOR)
         .map(|k| pf.knot(k))
 }

@@ -17,7 +17,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::dynamics::Dof;
+use crate::joint::dynamics::Dof;
 
 /// Noise draws per fit: one plain simulation each (a single-joint run: ~1 ms).
 pub const DRAWS: usize = 16;
@@ -58,7 +58,7 @@ pub fn covariance(
     let svd = jtj.svd(true, true);
     let smax = svd.singular_values.max();
     let ainv = svd.pseudo_inverse(smax * 1e-13).ok()?;
-    let mut rng = crate::noise::Noise::new(0x5eed_1a7e);
+    let mut rng = crate::numerics::noise::Noise::new(0x5eed_1a7e);
     let mut sum = DMatrix::zeros(p, p);
     let mut used = 0usize;
     for _ in 0..DRAWS {
@@ -86,7 +86,7 @@ mod tests {
 
     #[test]
     fn the_input_noise_is_read_off_second_differences_not_the_drive() {
-        let mut rng = crate::noise::Noise::new(3);
+        let mut rng = crate::numerics::noise::Noise::new(3);
         let t: Vec<f64> = (0..3000).map(|k| k as f64 / 500.0).collect();
         let clean: Vec<f64> = t.iter().map(|x| 150.0 * (2.5 * x).sin()).collect();
         assert!(

@@ -119,7 +119,7 @@ mod tests {
 
     #[test]
     fn a_logger_step_is_read_off_the_data_and_continuous_readings_have_none() {
-        let mut rng = crate::noise::Noise::new(3);
+        let mut rng = crate::numerics::noise::Noise::new(3);
         let raw: Vec<f64> = (0..2000)
             .map(|k| 40.0 * (k as f64 * 0.01).cos() + 0.05 * rng.normal())
             .collect();

@@ -5,7 +5,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::signal::{half_window, local_cubic_at};
+use crate::numerics::signal::{half_window, local_cubic_at};
 
 /// How the release was decided ([`Release::rule`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

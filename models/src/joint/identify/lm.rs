@@ -40,7 +40,7 @@ pub enum Termination {
     MaxIterations,
     /// The model could not be evaluated at the starting point.
     EvaluationFailed(String),
-    /// The fit's budget ([`crate::budget`]) is spent or the fit was stopped.
+    /// The fit's budget ([`crate::numerics::budget`]) is spent or the fit was stopped.
     Budget,
 }
 
@@ -113,7 +113,7 @@ pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport
     let x = project(p, x0);
     let mut r = vec![0.0; m];
     let mut jac = DMatrix::zeros(m, n);
-    if let Err(e) = crate::budget::charge() {
+    if let Err(e) = crate::numerics::budget::charge() {
         return LmReport {
             x,
             cost: f64::INFINITY,
@@ -231,7 +231,7 @@ pub fn minimize_evaluated<P: Problem>(
                 termination = Termination::DecrementConverged;
                 break 'outer;
             }
-            if crate::budget::charge().is_err() {
+            if crate::numerics::budget::charge().is_err() {
                 termination = Termination::Budget;
                 break 'outer;
             }

@@ -7,9 +7,9 @@
 //! stuck until the load exceeds that capacity (only an input force can make it so). Sensitivities
 //! jump at events by the standard rule s⁺ = s⁻ + (f⁻ − f⁺)·∂τ/∂p.
 
-use crate::dynamics::{Dof, Indeterminate};
-use crate::friction::{DynParam, FrictionLaw};
-use crate::ode::{Dopri5, OdeError, OdeSystem, Step, Tolerances};
+use crate::joint::dynamics::{Dof, Indeterminate};
+use crate::joint::friction::{DynParam, FrictionLaw};
+use crate::numerics::ode::{Dopri5, OdeError, OdeSystem, Step, Tolerances};
 
 /// A parameter the trajectory's sensitivity is computed for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -452,8 +452,8 @@ fn locate_zero(st: &Dopri5, s: f64, t0: f64, t1: f64, starts_at_rest: bool) -> O
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dynamics::{Input, Mechanism};
-    use crate::rig::{PendulumRig, SliderRig};
+    use crate::joint::dynamics::{Input, Mechanism};
+    use crate::joint::rig::{PendulumRig, SliderRig};
 
     fn pendulum(m: f64, j: f64, d: f64, r: f64) -> Dof {
         Dof {

@@ -109,7 +109,7 @@ pub fn noise_sigma(r: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::noise::Noise;
+    use crate::numerics::noise::Noise;
 
     /// Golden values from SciPy 1.17 (`scipy.stats.t.ppf`, `chi2.ppf`, `norm.ppf`).
     #[test]

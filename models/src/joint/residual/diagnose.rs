@@ -3,8 +3,8 @@
 
 use serde::Serialize;
 
-use crate::identify::{FitOutcome, JointTest};
-use crate::stats::{LB_LAGS, corr, ljung_box, noise_sigma, whiteness_critical};
+use crate::joint::identify::{FitOutcome, JointTest};
+use crate::numerics::stats::{LB_LAGS, corr, ljung_box, noise_sigma, whiteness_critical};
 
 /// The residual's diagnosis.
 #[derive(Debug, Clone, Serialize)]

@@ -1,10 +1,10 @@
 use super::*;
 use crate::data::builtin_160ec;
-use crate::dynamics::{Dof, Mechanism};
-use crate::identify::Readout;
-use crate::noise::Noise;
-use crate::rig::PendulumRig;
-use crate::synth::{Sensor, Truth, grid, measure_truth};
+use crate::joint::dynamics::{Dof, Mechanism};
+use crate::joint::identify::Readout;
+use crate::joint::rig::PendulumRig;
+use crate::joint::synth::{Sensor, Truth, grid, measure_truth};
+use crate::numerics::noise::Noise;
 
 const DEG: f64 = 180.0 / std::f64::consts::PI;
 
@@ -61,7 +61,7 @@ fn by_hand(release_deg: f64, hand: Hand, seed: u64) -> (Vec<f64>, Vec<f64>, f64,
         torsion: 0.0,
     };
     let truth = Truth {
-        law: crate::friction::FrictionLaw::base(jd.viscous_baseline(), jd.dry_mu),
+        law: crate::joint::friction::FrictionLaw::base(jd.viscous_baseline(), jd.dry_mu),
         readout: Readout::default(),
         dry_fade: 0.0,
     };

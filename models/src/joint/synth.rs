@@ -1,10 +1,10 @@
 //! Synthetic measurements: simulate a test with chosen parameters, add white Gaussian noise and
 //! quantise like a real sensor. Deterministic for a given seed.
 
-use crate::dynamics::Dof;
-use crate::friction::FrictionLaw;
-use crate::noise::Noise;
-use crate::simulate::{SimError, SimOptions, Trajectory, simulate};
+use crate::joint::dynamics::Dof;
+use crate::joint::friction::FrictionLaw;
+use crate::joint::simulate::{SimError, SimOptions, Trajectory, simulate};
+use crate::numerics::noise::Noise;
 
 /// How the sensor reads the motion.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -56,7 +56,7 @@ pub fn grid(duration_s: f64, fs_hz: f64) -> Vec<f64> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Truth {
     pub law: FrictionLaw,
-    pub readout: crate::identify::Readout,
+    pub readout: crate::joint::identify::Readout,
     /// Share of μ lost linearly over the trace (0: none).
     pub dry_fade: f64,
 }
@@ -72,7 +72,7 @@ pub fn measure_truth(
     sensor: &Sensor,
 ) -> Result<Vec<f64>, SimError> {
     let clean: Vec<f64> = if truth.dry_fade == 0.0 {
-        crate::identify::readout::read(
+        crate::joint::identify::readout::read(
             dof,
             &truth.law,
             q0,

@@ -2,9 +2,9 @@
 //! `y(t) = scale·B_b(q(t − τ)) + o` with a sensor delay τ, a backlash (play) of half-width b
 //! between the body and the sensor, and a sensor zero o — with the readings' sensitivities.
 
-use crate::dynamics::Dof;
-use crate::friction::FrictionLaw;
-use crate::simulate::{SimError, SimOptions, Trajectory, simulate};
+use crate::joint::dynamics::Dof;
+use crate::joint::friction::FrictionLaw;
+use crate::joint::simulate::{SimError, SimOptions, Trajectory, simulate};
 
 /// Sensor-side effects. Defaults: none.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

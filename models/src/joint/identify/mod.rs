@@ -15,11 +15,11 @@ pub mod release;
 
 use nalgebra::DMatrix;
 
-use crate::dynamics::Dof;
-use crate::friction::{DynParam, FrictionLaw};
-use crate::ode::Tolerances;
-use crate::simulate::{SensParam, SimError, SimOptions, Trajectory, simulate};
-use crate::stats::Z95;
+use crate::joint::dynamics::Dof;
+use crate::joint::friction::{DynParam, FrictionLaw};
+use crate::joint::simulate::{SensParam, SimError, SimOptions, Trajectory, simulate};
+use crate::numerics::ode::Tolerances;
+use crate::numerics::stats::Z95;
 pub use covariance::Covariance;
 pub use initial::InitialEstimate;
 pub use lm::{LmOptions, Termination};
@@ -559,7 +559,7 @@ pub fn carry_body_uncertainty(test: &JointTest, fit: FitOutcome, opts: &FitOptio
         q0: fit.q0,
         v0: fit.v0,
     };
-    let refit = |m: &crate::dynamics::Mechanism| {
+    let refit = |m: &crate::joint::dynamics::Mechanism| {
         let moved = JointTest {
             dof: Dof {
                 mech: *m,
@@ -698,7 +698,9 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
     // Trigger: the residual is structured (Ljung–Box) or its RMS exceeds the sensor noise
     // (from first differences) by more than 8 %.
     let r = &first.residual;
-    if crate::stats::is_white(r) && first.rmse <= 1.08 * crate::stats::noise_sigma(r) {
+    if crate::numerics::stats::is_white(r)
+        && first.rmse <= 1.08 * crate::numerics::stats::noise_sigma(r)
+    {
         return Ok(first);
     }
     // A small grid around the first estimate (its viscous part is the less certain one).

@@ -111,7 +111,7 @@ pub fn sandwich(jac: &DMatrix<f64>, r: &[f64]) -> Covariance {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::noise::Noise;
+    use crate::numerics::noise::Noise;
 
     /// Straight-line regression: with white noise the sandwich agrees with s²(XᵀX)⁻¹; with AR(1)
     /// noise (ρ = 0.9) it widens the slope's interval by about √((1+ρ)/(1−ρ)) ≈ 4.4.

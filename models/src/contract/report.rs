@@ -3,10 +3,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::drift::{DriftThresholds, Status};
-use crate::friction::DynParam;
-use crate::identify::{FitOutcome, Param};
-use crate::testspec::Baseline;
+use crate::contract::drift::{DriftThresholds, Status};
+use crate::contract::testspec::Baseline;
+use crate::joint::friction::DynParam;
+use crate::joint::identify::{FitOutcome, Param};
 
 /// Version of the model and identification method; a fit is stored per trace and version.
 /// 0.2: lift fits integrate their sensitivities with the Rosenbrock-W method (estimates move
@@ -317,7 +317,7 @@ pub fn joint_result(fit: &FitOutcome, b: &Baseline, th: &DriftThresholds) -> Joi
 pub fn details(
     fit: &FitOutcome,
     t_release: f64,
-    release: &crate::identify::release::Release,
+    release: &crate::joint::identify::release::Release,
     model_unit: (&str, &str),
     channel_unit: &str,
 ) -> FitDetails {

@@ -3,9 +3,9 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::dynamics::Dof;
-use crate::friction::{POSITION_KNOTS, PositionFriction};
-use crate::signal::{half_window, local_cubic, local_cubic_at};
+use crate::joint::dynamics::Dof;
+use crate::joint::friction::{POSITION_KNOTS, PositionFriction};
+use crate::numerics::signal::{half_window, local_cubic, local_cubic_at};
 
 /// Starting values for the output-error fit.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -4,8 +4,8 @@
 //! Pendulum: `J·α̈ = −m·g·d·sin α − T_f(ω, N)`, N = |m·a_cm − m·g| depends on α̈ (implicit).
 //! Slider:   `m·ẍ = −k·x + F_N(t) − F_f(v)`, Fn constant.
 
-use crate::friction::{DynParam, FrictionLaw};
-use crate::rig::{PendulumRig, SliderRig};
+use crate::joint::friction::{DynParam, FrictionLaw};
+use crate::joint::rig::{PendulumRig, SliderRig};
 
 /// The mechanism of a single-joint test.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,10 +1,10 @@
 //! The contract's effect vocabulary as physical laws added to the base model: their
 //! parameters, null values, starting values, and how a found effect is reported.
 
-use crate::dynamics::Mechanism;
-use crate::friction::{DynParam, POSITION_KNOTS, PositionFriction, Stribeck};
-use crate::identify::{FitOutcome, FitSpec, JointTest, Param};
-use crate::report::EffectResult;
+use crate::contract::report::EffectResult;
+use crate::joint::dynamics::Mechanism;
+use crate::joint::friction::{DynParam, POSITION_KNOTS, PositionFriction, Stribeck};
+use crate::joint::identify::{FitOutcome, FitSpec, JointTest, Param};
 use serde::Serialize;
 
 /// The contract's effect vocabulary.

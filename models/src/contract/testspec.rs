@@ -4,10 +4,12 @@
 //! The service parses documents into these structs; the mechanics of filling defaults lives here.
 
 use crate::data::{Attachment, JointKind, PantographType, RigLimits, builtin_160ec};
-use crate::dynamics::{Dof, Input, Mechanism};
-use crate::identify::JointTest;
-use crate::identify::body_uncertainty::BodySd;
-use crate::rig::{BodySpec, BodyUncertainty, PendulumRig, RigError, SliderRig, check_uncertainty};
+use crate::joint::dynamics::{Dof, Input, Mechanism};
+use crate::joint::identify::JointTest;
+use crate::joint::identify::body_uncertainty::BodySd;
+use crate::joint::rig::{
+    BodySpec, BodyUncertainty, PendulumRig, RigError, SliderRig, check_uncertainty,
+};
 
 /// Pendulum test overrides (trace format `test.rig`); `None` takes the paper's value.
 #[derive(Debug, Clone, Default, PartialEq)]

@@ -10,7 +10,7 @@
 //! the band edge, with the interval from the slope's interval (the line pivoting on the weighted
 //! centroid).
 
-use crate::stats::Z95;
+use crate::numerics::stats::Z95;
 use serde::Serialize;
 
 /// One identified value of a parameter at a time.
@@ -49,7 +49,7 @@ pub struct Forecast {
 
 /// Student-t 0.975 quantile for `dof` degrees of freedom (`statrs`; +∞ for none).
 fn t975(dof: usize) -> f64 {
-    crate::stats::student_t_quantile(0.975, dof)
+    crate::numerics::stats::student_t_quantile(0.975, dof)
 }
 
 /// Fit the trend; `None` with fewer than 3 usable points.
@@ -166,7 +166,7 @@ impl Trend {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::noise::Noise;
+    use crate::numerics::noise::Noise;
 
     /// Monthly tests over a year, each with σ = 0.004 and an interval that says so.
     fn series(rng: &mut Noise, slope_per_day: f64, start: f64) -> Vec<Point> {
