@@ -9,6 +9,7 @@
 //! in one transaction.
 
 use chrono::{DateTime, Utc};
+use pantowatch_models::report::{EffectResult, FitResult};
 use serde_json::json;
 
 use crate::health::{self, Param, ParamTrend};
@@ -57,7 +58,7 @@ pub async fn after_fit(
     store: &Store,
     trace_id: &str,
     fit_id: i64,
-    result: &serde_json::Value,
+    result: &FitResult,
     opts: &AlertOptions,
 ) -> Result<Vec<AlertAction>, StoreError> {
     let Some(meta) = store.get_trace(trace_id).await? else {
@@ -66,19 +67,12 @@ pub async fn after_fit(
     let Some(serial) = meta.serial.as_deref() else {
         return Ok(Vec::new());
     };
-    let joints = result
-        .get("joints")
-        .and_then(serde_json::Value::as_array)
-        .cloned()
-        .unwrap_or_default();
     // The joints' health as fleet health shows it (`joint_latest`, written in the fit's
     // transaction): the rules act on the same state, so alerts and fleet health agree.
     let states = store.joint_states(serial).await?;
     let mut actions = Vec::new();
-    for j in &joints {
-        let Some(joint) = j.get("joint").and_then(serde_json::Value::as_str) else {
-            continue;
-        };
+    for j in &result.joints {
+        let joint = j.joint.as_str();
         let Some(state) = states.iter().find(|s| s.joint == joint) else {
             continue;
         };
@@ -131,10 +125,10 @@ pub async fn after_fit(
                 "trace_id": trace_id,
                 "recorded_at": last.recorded_at,
                 "status": status,
-                "viscous": j.get("viscous"),
-                "dry": j.get("dry"),
-                "residual": result.get("residual"),
-                "rmse": result.get("rmse"),
+                "viscous": j.viscous,
+                "dry": j.dry,
+                "residual": result.residual,
+                "rmse": result.rmse,
                 "trends": trends,
                 "horizon_days": opts.horizon_days,
                 "tests": history.len(),
@@ -275,38 +269,19 @@ async fn gauge_findings(
     serial: &str,
     trace_id: &str,
     fit_id: i64,
-    result: &serde_json::Value,
+    result: &FitResult,
 ) -> Result<Vec<AlertAction>, StoreError> {
-    let residual = result.get("residual");
-    let effects: Vec<&serde_json::Value> = residual
-        .and_then(|r| r.get("effects"))
-        .and_then(serde_json::Value::as_array)
-        .map(|a| a.iter().collect())
-        .unwrap_or_default();
-    let explained = residual
-        .and_then(|r| r.get("verdict"))
-        .is_none_or(serde_json::Value::is_null);
+    let residual = &result.residual;
+    let explained = residual.verdict.is_none();
     let mut actions = Vec::new();
     for (finding, effect, key, unit) in [
         (GAUGE_ZERO, "sensor_offset", "offset_n", "N"),
         (SPRING_RATE, "spring_rate", "rate_factor", "× the type's"),
     ] {
-        let named = effects
-            .iter()
-            .find(|e| e.get("name").and_then(serde_json::Value::as_str) == Some(effect));
-        match named {
+        match residual.effects.iter().find(|e| e.name == effect) {
             Some(e) => {
-                let p = e.get("params");
-                let v = p
-                    .and_then(|p| p.get(key))
-                    .and_then(serde_json::Value::as_f64);
-                let ci = p
-                    .and_then(|p| p.get(format!("{key}_ci95")))
-                    .and_then(serde_json::Value::as_array)
-                    .map(|a| a.iter().filter_map(serde_json::Value::as_f64).collect())
-                    .unwrap_or_else(Vec::new);
-                let value = match (v, ci.as_slice()) {
-                    (Some(v), [lo, hi]) => format!(" {v:.3} {unit} [{lo:.3}, {hi:.3}]"),
+                let value = match (e.param(key), e.ci95(key)) {
+                    (Some(v), Some([lo, hi])) => format!(" {v:.3} {unit} [{lo:.3}, {hi:.3}]"),
                     (Some(v), _) => format!(" {v:.3} {unit}"),
                     _ => String::new(),
                 };
@@ -318,7 +293,7 @@ async fn gauge_findings(
                 };
                 let reason = format!("{effect}{value}: {what}");
                 let evidence = json!({
-                    "model_version": result.pointer("/fit/model_version"),
+                    "model_version": result.fit.model_version,
                     "fit_id": fit_id,
                     "trace_id": trace_id,
                     "recorded_at": meta.recorded_at,
@@ -361,48 +336,18 @@ async fn lift_sensor_finding(
     serial: &str,
     trace_id: &str,
     fit_id: i64,
-    result: &serde_json::Value,
+    result: &FitResult,
 ) -> Result<Vec<AlertAction>, StoreError> {
-    let residual = result.get("residual");
-    let named: Vec<&serde_json::Value> = residual
-        .and_then(|r| r.get("effects"))
-        .and_then(serde_json::Value::as_array)
-        .map(|a| {
-            a.iter()
-                .filter(|e| {
-                    matches!(
-                        e.get("name").and_then(serde_json::Value::as_str),
-                        Some("sensor_delay" | "sensor_offset")
-                    )
-                })
-                .collect()
-        })
-        .unwrap_or_default();
-    if let Some(e) = named.first() {
-        let params = e.get("params");
-        let num = |k: &str| {
-            params
-                .and_then(|p| p.get(k))
-                .and_then(serde_json::Value::as_f64)
-        };
-        let is_offset = e.get("name").and_then(serde_json::Value::as_str) == Some("sensor_offset");
-        let ci = params
-            .and_then(|p| {
-                p.get(if is_offset {
-                    "offset_m_ci95"
-                } else {
-                    "delay_s_ci95"
-                })
-            })
-            .and_then(serde_json::Value::as_array)
-            .map(|a| {
-                a.iter()
-                    .filter_map(serde_json::Value::as_f64)
-                    .collect::<Vec<_>>()
-            })
-            .unwrap_or_default();
-        let reason = match (num("delay_s"), num("offset_m"), ci.as_slice()) {
-            (_, Some(b), [lo, hi]) if is_offset => format!(
+    let residual = &result.residual;
+    let named: Option<&EffectResult> = residual
+        .effects
+        .iter()
+        .find(|e| matches!(e.name.as_str(), "sensor_delay" | "sensor_offset"));
+    if let Some(e) = named {
+        let is_offset = e.name == "sensor_offset";
+        let ci = e.ci95(if is_offset { "offset_m" } else { "delay_s" });
+        let reason = match (e.param("delay_s"), e.param("offset_m"), ci) {
+            (_, Some(b), Some([lo, hi])) if is_offset => format!(
                 "sensor_offset: H reads {:+.1} mm [{:+.1}, {:+.1}] from the static start — check the \
                  height sensor's zero; not a joint finding",
                 b * 1e3,
@@ -412,7 +357,7 @@ async fn lift_sensor_finding(
             _ if is_offset => "sensor_offset: H's zero is off — check the height sensor's zero; \
                                not a joint finding"
                 .to_owned(),
-            (Some(d), _, [lo, hi]) => format!(
+            (Some(d), _, Some([lo, hi])) => format!(
                 "sensor_delay: H lags the drive inputs by {:.1} ms [{:.1}, {:.1}] — check the height \
                  sensor and logger; not a joint finding",
                 d * 1e3,
@@ -424,7 +369,7 @@ async fn lift_sensor_finding(
                 .to_owned(),
         };
         let evidence = json!({
-            "model_version": result.pointer("/fit/model_version"),
+            "model_version": result.fit.model_version,
             "fit_id": fit_id,
             "trace_id": trace_id,
             "recorded_at": meta.recorded_at,
@@ -434,10 +379,7 @@ async fn lift_sensor_finding(
         let new = finding_alert(serial, LIFT_H_SENSOR, meta, trace_id, reason, evidence);
         return Ok(vec![raise_logged(store, &new).await?]);
     }
-    let explained = residual
-        .and_then(|r| r.get("verdict"))
-        .is_none_or(serde_json::Value::is_null);
-    if explained {
+    if residual.verdict.is_none() {
         let note = format!("no sensor fault in lift {trace_id}");
         if let Some(a) = store
             .resolve_joint_alert(serial, LIFT_H_SENSOR, trace_id, &note)

@@ -5,6 +5,7 @@
 //! days since the joint's first test.
 
 use chrono::{DateTime, TimeDelta, Utc};
+use pantowatch_models::report::{FitResult, JointResult, ParamResult};
 use pantowatch_models::trend::{self, Point};
 use serde::Serialize;
 use utoipa::ToSchema;
@@ -177,20 +178,13 @@ pub fn param_trend(
     }
 }
 
-/// Table 4 baselines (viscous, dry) of `joint` in a contract fit result.
-pub fn baselines(result: &serde_json::Value, joint: &str) -> (Option<f64>, Option<f64>) {
-    let j = result
-        .get("joints")
-        .and_then(serde_json::Value::as_array)
-        .and_then(|js| {
-            js.iter()
-                .find(|j| j.get("joint").and_then(serde_json::Value::as_str) == Some(joint))
-        });
-    let b = |p: &str| {
-        j.and_then(|j| j.pointer(&format!("/{p}/baseline")))
-            .and_then(serde_json::Value::as_f64)
+/// Table 4 baselines (viscous, dry) of `joint` in a fit result.
+pub fn baselines(result: &FitResult, joint: &str) -> (Option<f64>, Option<f64>) {
+    let j = result.joints.iter().find(|j| j.joint == joint);
+    let b = |p: fn(&JointResult) -> &ParamResult| {
+        j.and_then(|j| p(j).baseline).filter(|v| v.is_finite())
     };
-    (b("viscous"), b("dry"))
+    (b(|j| &j.viscous), b(|j| &j.dry))
 }
 
 /// The line's value at `t` (for charts).
@@ -252,9 +246,31 @@ mod tests {
 
     #[test]
     fn baselines_from_the_fit_result() {
-        let r = serde_json::json!({"joints": [{"joint": "J3", "viscous": {"baseline": 0.017},
-            "dry": {"baseline": 0.2}}]});
+        use pantowatch_models::drift::Status;
+        let p = |baseline: Option<f64>| ParamResult {
+            value: 0.02,
+            ci95: [0.01, 0.03],
+            baseline,
+            unit: "1".into(),
+            identifiable: true,
+            status: Status::Ok,
+            combination: None,
+        };
+        let j3 = |v, d| JointResult {
+            joint: "J3".into(),
+            viscous: p(v),
+            dry: p(d),
+            identifiable: true,
+            status: Status::Ok,
+        };
+        let mut r = FitResult {
+            joints: vec![j3(Some(0.017), Some(0.2))],
+            ..FitResult::default()
+        };
         assert_eq!(baselines(&r, "J3"), (Some(0.017), Some(0.2)));
         assert_eq!(baselines(&r, "J1"), (None, None));
+        // A baseline written `null` (none, or not finite) is none.
+        r.joints = vec![j3(None, Some(f64::NAN))];
+        assert_eq!(baselines(&r, "J3"), (None, None));
     }
 }

@@ -72,16 +72,12 @@ pub async fn after_lift(
     // the pooled fit is the plain model, so the effect would land in the shared friction —
     // measured, an H delay lift and an H offset lift pooled with a clean one raised a J1+J3
     // watch alert (`api a_sensor_delay_is_a_sensor_finding_not_a_joint_alarm`).
-    let withheld = |f: &crate::store::FitRecord| {
-        f.result
-            .pointer("/residual/joints_withheld")
-            .is_some_and(|w| !w.is_null())
-            || f.result
-                .pointer("/residual/effects")
-                .and_then(|e| e.as_array())
-                .is_some_and(|e| !e.is_empty())
+    let withheld = |f: Option<crate::store::FitRecord>| -> Result<bool, StoreError> {
+        let Some(f) = f else { return Ok(false) };
+        let r = f.result()?.residual;
+        Ok(r.joints_withheld.is_some() || !r.effects.is_empty())
     };
-    if store.get_fit(trace_id).await?.is_some_and(|f| withheld(&f)) {
+    if withheld(store.get_fit(trace_id).await?)? {
         return Ok(None);
     }
     let mut lifts: Vec<(crate::store::TraceMeta, _)> = Vec::new();
@@ -105,7 +101,7 @@ pub async fn after_lift(
         {
             continue;
         }
-        if store.get_fit(id).await?.is_some_and(|f| withheld(&f)) {
+        if withheld(store.get_fit(id).await?)? {
             continue;
         }
         let Some(channels) = store.get_samples(id).await? else {
@@ -201,9 +197,7 @@ pub async fn after_lift(
             return Ok(None);
         }
     };
-    let json = serde_json::to_value(&result)
-        .map_err(|e| StoreError::Invalid(format!("pooled fit result: {e}")))?;
-    let fit = NewFit::from_result(json)?;
+    let fit = NewFit::from_result(result);
     let w = store.insert_fit(trace_id, &version, &fit).await?;
     if w.created {
         tracing::info!(trace = %trace_id, fit_id = w.fit_id, tests = n, "pooled lift fit written");

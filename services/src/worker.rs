@@ -311,16 +311,8 @@ pub async fn process_next(
                 .map(Some);
         }
     };
-    let json = serde_json::to_value(&fitted.result)
-        .map_err(|e| StoreError::Invalid(format!("fit result: {e}")))?;
-    let fit = match NewFit::from_result(json) {
-        Ok(f) => f.with_curve(fitted.curve),
-        Err(e) => {
-            return fail_because(store, worker, job.id, trace_id, e.to_string(), "result")
-                .await
-                .map(Some);
-        }
-    };
+    // The result stays typed: the store serialises it, the alert rules read it.
+    let fit = NewFit::from_result(fitted.result).with_curve(fitted.curve);
     let status = fit.status();
     match store.complete(job.id, worker, &fit).await? {
         CompleteOutcome::Completed(w) => {

@@ -298,3 +298,81 @@ fn no_source_file_is_over_820_lines() {
         }
     }
 }
+
+/// Ways of picking a field out of a fit result held as JSON: a key of the result (or of its
+/// parts) looked up by `.get("…")`, `["…"]` or a `.pointer("/…")` path.
+const RESULT_KEYS: [&str; 17] = [
+    "joints",
+    "joint",
+    "viscous",
+    "dry",
+    "baseline",
+    "rmse",
+    "residual",
+    "effects",
+    "verdict",
+    "correlates_with",
+    "excess_ratio",
+    "joints_withheld",
+    "holdout_note",
+    "autocorrelation",
+    "pooled",
+    "combinations",
+    "model_version",
+];
+
+/// Where `code` picks a fit-result field out of JSON: `(line, text)`.
+fn json_field_picks(code: &str) -> Vec<(usize, String)> {
+    let mut found = Vec::new();
+    for (n, line) in code.lines().enumerate() {
+        let picks = RESULT_KEYS.iter().any(|k| {
+            line.contains(&format!(".get(\"{k}\")"))
+                || line.contains(&format!("[\"{k}\"]"))
+                || line.contains(&format!(".pointer(\"/{k}"))
+        }) || line.contains(".pointer(&format!(\"/{");
+        if picks {
+            found.push((n + 1, line.trim().to_owned()));
+        }
+    }
+    found
+}
+
+#[test]
+fn the_finder_sees_json_field_picking() {
+    assert_eq!(
+        json_field_picks("let a = 1;\nlet j = result.get(\"joints\");\nr[\"verdict\"]").len(),
+        2
+    );
+    assert_eq!(
+        json_field_picks("x.pointer(\"/residual/effects\")").len(),
+        1
+    );
+    assert_eq!(
+        json_field_picks("j.pointer(&format!(\"/{p}/baseline\"))").len(),
+        1
+    );
+    assert!(json_field_picks("result.residual.verdict.is_none()").is_empty());
+}
+
+/// Issue 19, point 1: the fit result is a Rust type (`models::report::FitResult`) from the fit
+/// to the store, which serialises it; the alert rules, health, the pooled fit, the API and the
+/// web pages read that type (`FitRecord::result`), never fields out of its JSON.
+#[test]
+fn fit_results_are_read_typed_not_picked_out_of_json() {
+    let mods = modules(&crate_src("services"));
+    let readers = |m: &str| {
+        ["alerts", "health", "pooled", "worker", "store::records"].contains(&m)
+            || m.starts_with("web")
+            || m.starts_with("api")
+    };
+    let mut seen = 0;
+    for (m, code) in mods.iter().filter(|(m, _)| readers(m)) {
+        seen += 1;
+        let picks = json_field_picks(code);
+        assert!(
+            picks.is_empty(),
+            "services::{m} picks fit-result fields out of JSON: {picks:?}"
+        );
+    }
+    assert!(seen > 10, "{seen} files scanned");
+}

@@ -14,9 +14,11 @@ use crate::joint::identify::{FitOutcome, Param};
 pub const MODEL_VERSION: &str =
     "pantowatch-models/0.2 single-joint output-error LM; lift MAP (Rosenbrock-W); quadrangle MAP";
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct ParamResult {
+    #[serde(deserialize_with = "nullable::f64")]
     pub value: f64,
+    #[serde(deserialize_with = "nullable::pair")]
     pub ci95: [f64; 2],
     pub baseline: Option<f64>,
     pub unit: String,
@@ -24,7 +26,7 @@ pub struct ParamResult {
     pub status: Status,
     /// Set when the test informs this parameter only together with others: the label of the
     /// combination it is reported in (issue 15; a lift's `J1+J3 dry`).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub combination: Option<String>,
 }
 
@@ -32,26 +34,29 @@ pub struct ParamResult {
 /// each member over its Table 4 baseline weighted by its share (1 = every member at baseline).
 /// It is also listed in `joints` under its label's joints (e.g. `J1+J3`), so health and alerts
 /// judge it like a joint.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct CombinationResult {
     pub label: String,
     pub members: Vec<CombinationMember>,
+    #[serde(deserialize_with = "nullable::f64")]
     pub value: f64,
+    #[serde(deserialize_with = "nullable::pair")]
     pub ci95: [f64; 2],
     pub identifiable: bool,
     pub status: Status,
 }
 
 /// One member of a [`CombinationResult`].
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct CombinationMember {
     pub joint: String,
     /// `viscous` or `dry`.
     pub kind: String,
+    #[serde(deserialize_with = "nullable::f64")]
     pub weight: f64,
 }
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct JointResult {
     pub joint: String,
     pub viscous: ParamResult,
@@ -60,98 +65,149 @@ pub struct JointResult {
     pub status: Status,
 }
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct Quantity {
+    #[serde(deserialize_with = "nullable::f64")]
     pub value: f64,
     pub unit: String,
 }
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct EffectResult {
     pub name: String,
     pub params: serde_json::Map<String, serde_json::Value>,
 }
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+impl EffectResult {
+    /// The finite number `params[key]`, if any.
+    pub fn param(&self, key: &str) -> Option<f64> {
+        self.params
+            .get(key)
+            .and_then(serde_json::Value::as_f64)
+            .filter(|v| v.is_finite())
+    }
+
+    /// The 95 % interval `params["{key}_ci95"]`, when it holds two finite numbers.
+    pub fn ci95(&self, key: &str) -> Option<[f64; 2]> {
+        let ci = self.params.get(&format!("{key}_ci95"))?.as_array()?;
+        match ci.as_slice() {
+            [lo, hi] => {
+                Some([lo.as_f64()?, hi.as_f64()?]).filter(|c| c.iter().all(|v| v.is_finite()))
+            }
+            _ => None,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct ResidualResult {
     pub effects: Vec<EffectResult>,
+    #[serde(deserialize_with = "nullable::f64")]
     pub rmse_before: f64,
+    #[serde(deserialize_with = "nullable::f64")]
     pub rmse_after: f64,
+    #[serde(deserialize_with = "nullable::f64")]
     pub holdout_rmse_before: f64,
+    #[serde(deserialize_with = "nullable::f64")]
     pub holdout_rmse_after: f64,
     /// `unexplained` when structure remains that no candidate explains; otherwise absent.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub verdict: Option<String>,
     /// With `unexplained`: the signals the residual correlates with most (name, correlation).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(
+        default,
+        skip_serializing_if = "Vec::is_empty",
+        deserialize_with = "nullable::named"
+    )]
     pub correlates_with: Vec<(String, f64)>,
     /// Residual RMS over the sensor noise estimated from its first differences (lift fits,
     /// issue 16); absent where not computed.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "nullable::some_f64"
+    )]
     pub excess_ratio: Option<f64>,
     /// Set when the fit's joint statuses are withheld (reported `unknown`, not identified, no
     /// alert) because the residual shows a model error: the reason, in words.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub joints_withheld: Option<String>,
     /// Set when no held-out test was run (lift fits: a segment too short, `lift::holdout`): the
     /// reason, in words; the `holdout_` pair then repeats the fitted RMSE.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub holdout_note: Option<String>,
     /// Lift fits (issue 16, point 5): the final residual's autocorrelation, (lag s, ρ) at
     /// `lift::residual::ACF_LAGS_S`; white noise reads ≈ 0 at every lag.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(
+        default,
+        skip_serializing_if = "Vec::is_empty",
+        deserialize_with = "nullable::lags"
+    )]
     pub autocorrelation: Vec<(f64, f64)>,
     /// With a named lift effect: the plain model's residual autocorrelation, the same lags.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(
+        default,
+        skip_serializing_if = "Vec::is_empty",
+        deserialize_with = "nullable::lags"
+    )]
     pub autocorrelation_before: Vec<(f64, f64)>,
 }
 
 /// How the fit was made: the release, the fitted start and sensor zero, the optimiser's end.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct FitDetails {
     pub model_version: String,
     /// Time of the first sample of free motion used in the fit.
+    #[serde(deserialize_with = "nullable::f64")]
     pub release_t_s: f64,
     /// How the release was decided: `stated` (`test.release_t_s`), `first_sample`,
     /// `after_hold` or `turning_point` (`identify::release`).
-    pub release_rule: &'static str,
+    pub release_rule: String,
     /// Why the release may be wrong, when the data do not decide it clearly.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub release_warning: Option<String>,
     pub release_position: Quantity,
     pub release_rate: Quantity,
     pub sensor_offset: Quantity,
+    #[serde(deserialize_with = "nullable::opt_pair")]
     pub sensor_offset_ci95: Option<[f64; 2]>,
     /// Input-driven tests whose position has no reference (issue 17, point 3): the measured
     /// input's zero b — the force or torque acting is the recorded one + b — with its interval.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub input_offset: Option<Quantity>,
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "nullable::opt_pair"
+    )]
     pub input_offset_ci95: Option<[f64; 2]>,
     pub samples_fitted: usize,
     pub termination: String,
     pub iterations: usize,
     /// Residual lag-1 autocorrelation and the interval inflation applied for it.
+    #[serde(deserialize_with = "nullable::f64")]
     pub residual_rho1: f64,
+    #[serde(deserialize_with = "nullable::f64")]
     pub interval_inflation: f64,
     /// Correlation of the viscous and dry estimates.
+    #[serde(deserialize_with = "nullable::f64")]
     pub viscous_dry_correlation: f64,
     /// The rig's stated body uncertainties (issue 17, point 1) as the intervals carry them;
     /// absent when the rig states none (single-joint fits only).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub body_uncertainty: Option<BodyUncertaintyResult>,
 }
 
 /// The stated body uncertainties a single-joint fit carried (`fit.body_uncertainty`), each
 /// keyed by the quantity it qualifies as the rig names it (`mass_kg`, `inertia_kgm2`,
 /// `com_distance_m`, `moving_mass_kg`), valued by its stated sd in that quantity's unit.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct BodyUncertaintyResult {
     /// Propagated into every parameter's interval (`identify::body_uncertainty`).
     pub propagated: std::collections::BTreeMap<String, f64>,
     /// Stated but not propagated: the inertia when `inertia_error` is named (the fit estimates
     /// it, and its interval holds it), or a perturbed model that could not be simulated.
-    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub not_propagated: std::collections::BTreeMap<String, f64>,
 }
 
@@ -177,7 +233,7 @@ impl BodyUncertaintyResult {
     }
 }
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct FitResult {
     pub trace_id: String,
     pub joints: Vec<JointResult>,
@@ -185,10 +241,10 @@ pub struct FitResult {
     pub residual: ResidualResult,
     pub fit: FitDetails,
     /// Set on a pooled fit: the tests it fitted together (issue 15).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pooled: Option<PooledTests>,
     /// Parameters the test informs only together (lift fits; issue 15).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub combinations: Vec<CombinationResult>,
 }
 
@@ -262,12 +318,53 @@ impl FitCurve {
 }
 
 /// The tests a pooled fit combined: the friction shared, one torque offset per test.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct PooledTests {
     /// Trace ids, newest first (the fit's `trace_id` is the first).
     pub trace_ids: Vec<String>,
     /// The window the tests were taken from, days before the newest.
+    #[serde(deserialize_with = "nullable::f64")]
     pub window_days: f64,
+}
+
+/// Reading back what serde_json writes: a non-finite `f64` is written as `null`, so a stored
+/// `null` reads back as NaN (and `[null, null]` as `[NaN, NaN]`) — the value that writes the
+/// same JSON again. A field read with these must be present (or be given `default`).
+mod nullable {
+    use serde::{Deserialize, Deserializer};
+
+    fn or_nan(v: Option<f64>) -> f64 {
+        v.unwrap_or(f64::NAN)
+    }
+
+    pub fn f64<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Option::<f64>::deserialize(d).map(or_nan)
+    }
+
+    pub fn pair<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+        let [a, b] = <[Option<f64>; 2]>::deserialize(d)?;
+        Ok([or_nan(a), or_nan(b)])
+    }
+
+    /// `null` is `None`; `[a, b]` with either `null` is `Some` with NaN there.
+    pub fn opt_pair<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 2]>, D::Error> {
+        Ok(Option::<[Option<f64>; 2]>::deserialize(d)?.map(|[a, b]| [or_nan(a), or_nan(b)]))
+    }
+
+    /// For a field skipped when `None`: present as `null`, it was a non-finite `Some`.
+    pub fn some_f64<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+        f64(d).map(Some)
+    }
+
+    pub fn named<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(String, f64)>, D::Error> {
+        let v = Vec::<(String, Option<f64>)>::deserialize(d)?;
+        Ok(v.into_iter().map(|(n, x)| (n, or_nan(x))).collect())
+    }
+
+    pub fn lags<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f64, f64)>, D::Error> {
+        let v = Vec::<(Option<f64>, Option<f64>)>::deserialize(d)?;
+        Ok(v.into_iter().map(|(a, b)| (or_nan(a), or_nan(b))).collect())
+    }
 }
 
 fn param(
@@ -334,7 +431,7 @@ pub fn details(
     FitDetails {
         model_version: MODEL_VERSION.to_string(),
         release_t_s: t_release,
-        release_rule: release.rule.as_str(),
+        release_rule: release.rule.as_str().to_owned(),
         release_warning: release.warning.clone(),
         release_position: Quantity {
             value: fit.q0,

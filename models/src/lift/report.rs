@@ -711,7 +711,7 @@ fn build_result(
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),
             release_t_s: trace.inputs.t_s.first().copied().unwrap_or(0.0),
-            release_rule: crate::joint::identify::release::ReleaseRule::FirstSample.as_str(),
+            release_rule: crate::joint::identify::release::ReleaseRule::FirstSample.as_str().to_owned(),
             release_warning: None,
             release_position: Quantity {
                 value: trace.strip_height_m.first().copied().unwrap_or(f64::NAN),

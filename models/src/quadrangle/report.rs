@@ -239,7 +239,9 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),
             release_t_s: t_s.first().copied().unwrap_or(0.0),
-            release_rule: crate::joint::identify::release::ReleaseRule::FirstSample.as_str(),
+            release_rule: crate::joint::identify::release::ReleaseRule::FirstSample
+                .as_str()
+                .to_owned(),
             release_warning: None,
             release_position: Quantity {
                 value: deg(fit.release_alpha_rad.value),

@@ -124,7 +124,7 @@ pub async fn joint_trends(
 ) -> Result<JointTrends, AppError> {
     let (bv, bd) = match points.last() {
         Some(p) => match st.store.get_fit(&p.trace_id).await? {
-            Some(f) => health::baselines(&f.result, joint),
+            Some(f) => health::baselines(&f.result()?, joint),
             None => (None, None),
         },
         None => (None, None),

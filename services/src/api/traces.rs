@@ -334,14 +334,26 @@ pub async fn get_fit(
 ) -> Result<Json<FitView>, AppError> {
     let id = trace_id(&raw)?;
     if let Some(f) = st.store.get_fit(id.as_str()).await? {
-        let part = |k: &str| f.result.get(k).cloned().unwrap_or(Value::Null);
+        // The stored result, typed, written back part by part: the JSON the store holds
+        // (every object's keys in sorted order, a non-finite number `null`).
+        let r = f.result()?;
+        let fit_id = f.id;
+        let json = |v: serde_json::Result<Value>| {
+            v.map_err(|e| AppError::Internal(format!("fit {fit_id}: {e}")))
+        };
         return Ok(Json(FitView {
-            joints: part("joints"),
-            rmse: part("rmse"),
-            residual: part("residual"),
-            fit: part("fit"),
-            pooled: f.result.get("pooled").cloned(),
-            combinations: f.result.get("combinations").cloned(),
+            joints: json(serde_json::to_value(&r.joints))?,
+            rmse: json(serde_json::to_value(&r.rmse))?,
+            residual: json(serde_json::to_value(&r.residual))?,
+            fit: json(serde_json::to_value(&r.fit))?,
+            pooled: r
+                .pooled
+                .as_ref()
+                .map(|p| json(serde_json::to_value(p)))
+                .transpose()?,
+            combinations: (!r.combinations.is_empty())
+                .then(|| json(serde_json::to_value(&r.combinations)))
+                .transpose()?,
             trace_id: f.trace_id,
             fit_id: f.id,
             model_version: f.model_version,

@@ -92,24 +92,20 @@ pub fn run(a: StaticForceArgs, thresholds: &DriftThresholds) -> anyhow::Result<(
                 .clone()
                 .or(doc.trace_id.clone())
                 .unwrap_or_else(|| path.display().to_string());
-            (
-                serde_json::to_value(&r)?,
-                doc.pantograph_model.clone(),
-                name,
-            )
+            (r, doc.pantograph_model.clone(), name)
         }
         (None, Some(path)) => {
             let text =
                 std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-            let v: serde_json::Value = serde_json::from_slice(&text)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-            (v, a.model.clone(), path.display().to_string())
+            let r: pantowatch_models::report::FitResult = serde_json::from_slice(&text)
+                .map_err(|e| anyhow::anyhow!("{}: not a fit result: {e}", path.display()))?;
+            (r, a.model.clone(), path.display().to_string())
         }
         (None, None) => anyhow::bail!("give --trace or --fit"),
     };
     let (_, g) = type_models(&model)
         .ok_or_else(|| anyhow::anyhow!("pantograph type `{model}` has no static-force model"))?;
-    let fit = NewFit::from_result(result).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let fit = NewFit::from_result(result);
     let now = Utc::now();
     let points: Vec<JointPoint> = fit
         .joints

@@ -89,7 +89,7 @@ use std::str::FromStr;
 use std::time::Duration;
 
 use chrono::{DateTime, Datelike, SubsecRound, Utc};
-use pantowatch_models::report::FitCurve;
+use pantowatch_models::report::{FitCurve, FitResult, JointResult};
 use serde::{Deserialize, Serialize};
 
 pub use fault::DbFault;
@@ -481,26 +481,83 @@ mod unit {
     }
 
     #[test]
-    fn fit_from_contract_json() {
-        let v = serde_json::json!({
-            "trace_id": "x",
-            "joints": [
-                { "joint": "J1",
-                  "viscous": { "value": 0.036, "ci95": [0.031, 0.041] },
-                  "dry": { "value": 0.024, "ci95": [0.021, 0.027] },
-                  "identifiable": true, "status": "watch" },
-                { "joint": "J2", "identifiable": false, "status": "ok" }
+    fn fit_columns_from_the_typed_result() {
+        use pantowatch_models::report::{ParamResult, Quantity};
+        let param = |value: f64, ci95: [f64; 2], status: Status| ParamResult {
+            value,
+            ci95,
+            baseline: None,
+            unit: "1".into(),
+            identifiable: status != Status::Unknown,
+            status,
+            combination: None,
+        };
+        let joint = |name: &str, v: ParamResult, d: ParamResult, status: Status| JointResult {
+            joint: name.into(),
+            viscous: v,
+            dry: d,
+            identifiable: status != Status::Unknown,
+            status,
+        };
+        let nan = f64::NAN;
+        let r = FitResult {
+            trace_id: "x".into(),
+            joints: vec![
+                joint(
+                    "J1",
+                    param(0.036, [0.031, 0.041], Status::Watch),
+                    param(0.024, [0.021, 0.027], Status::Ok),
+                    Status::Watch,
+                ),
+                // Not estimable: no values stored, only its status.
+                joint(
+                    "J2",
+                    param(nan, [nan; 2], Status::Unknown),
+                    param(nan, [nan; 2], Status::Unknown),
+                    Status::Unknown,
+                ),
             ],
-            "rmse": { "value": 0.42, "unit": "deg" }
-        });
-        let f = NewFit::from_result(v).expect("fit");
+            rmse: Quantity {
+                value: 0.42,
+                unit: "deg".into(),
+            },
+            ..FitResult::default()
+        };
+        let f = NewFit::from_result(r);
         assert_eq!(f.rmse, Some(0.42));
         assert_eq!(f.status(), Some(Status::Watch));
         assert_eq!(f.joints[0].viscous_hi, Some(0.041));
+        assert_eq!(f.joints[0].dry_status, Some(Status::Ok));
         assert_eq!(f.joints[1].dry, None);
-        assert!(NewFit::from_result(serde_json::json!({})).is_err());
-        let bad = serde_json::json!({"joints": [{"joint": "J1", "status": "bad"}]});
-        assert!(NewFit::from_result(bad).is_err());
+        assert_eq!(f.joints[1].viscous_lo, None);
+        assert!(!f.joints[1].informs("viscous"));
+        // Stored as it always was: sorted keys, non-finite numbers `null`; read back typed.
+        let text = f.result_json().expect("json");
+        assert!(text.starts_with(r#"{"fit":{"#), "{text}");
+        assert!(
+            text.contains(r#""dry":{"baseline":null,"ci95":[null,null],"identifiable":false,"#)
+        );
+        let back: FitResult = serde_json::from_str(&text).expect("reads back");
+        assert!(back.joints[1].dry.value.is_nan());
+        assert_eq!(NewFit::from_result(back).result_json().expect("json"), text);
+        // A stored text that is not a fit result is a clear internal error, never a panic.
+        let rec = |json: &str| FitRecord {
+            id: 7,
+            trace_id: "x".into(),
+            model_version: "v".into(),
+            created_at: t(1),
+            result_json: json.into(),
+            rmse: None,
+            status: None,
+            joints: Vec::new(),
+        };
+        assert_eq!(rec(&text).result().expect("typed").joints.len(), 2);
+        for bad in [r#"{"joints": []}"#, "not json", ""] {
+            match rec(bad).result() {
+                Err(StoreError::Corrupt(m)) => assert!(m.starts_with("fit 7 result_json"), "{m}"),
+                other => panic!("{bad:?}: {other:?}"),
+            }
+        }
     }
 
     #[test]

@@ -120,11 +120,12 @@ impl JointFit {
     }
 }
 
-/// A fit result to store: the contract JSON plus the columns extracted from it.
+/// A fit result to store: the typed contract result plus the columns extracted from it. The
+/// store serialises the result, here and nowhere else ([`NewFit::result_json`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct NewFit {
-    /// The contract fit result, stored as is.
-    pub result: serde_json::Value,
+    /// The contract fit result.
+    pub result: FitResult,
     pub rmse: Option<f64>,
     pub joints: Vec<JointFit>,
     /// Measured vs model, stored beside the fit (table `fit_curves`) for pages to draw.
@@ -138,68 +139,53 @@ impl NewFit {
         self
     }
 
-    /// Extracts `rmse.value` and every `joints[]` entry from a contract fit result.
-    pub fn from_result(result: serde_json::Value) -> Result<Self> {
-        let bad = |m: String| StoreError::Invalid(format!("fit result: {m}"));
-        let rmse = result
-            .pointer("/rmse/value")
-            .and_then(serde_json::Value::as_f64);
-        let mut joints = Vec::new();
-        let list = result
-            .get("joints")
-            .and_then(serde_json::Value::as_array)
-            .ok_or_else(|| bad("no `joints` array".into()))?;
-        for (i, j) in list.iter().enumerate() {
-            let name = j
-                .get("joint")
-                .and_then(serde_json::Value::as_str)
-                .ok_or_else(|| bad(format!("joints[{i}].joint missing")))?;
-            let status = j
-                .get("status")
-                .and_then(serde_json::Value::as_str)
-                .ok_or_else(|| bad(format!("joints[{i}].status missing")))?
-                .parse::<Status>()?;
-            let num = |p: &str| j.pointer(p).and_then(serde_json::Value::as_f64);
-            joints.push(JointFit {
-                joint: name.to_owned(),
-                viscous: num("/viscous/value"),
-                viscous_lo: num("/viscous/ci95/0"),
-                viscous_hi: num("/viscous/ci95/1"),
-                dry: num("/dry/value"),
-                dry_lo: num("/dry/ci95/0"),
-                dry_hi: num("/dry/ci95/1"),
-                identifiable: j
-                    .get("identifiable")
-                    .and_then(serde_json::Value::as_bool)
-                    .unwrap_or(true),
-                status,
-                viscous_informed: j
-                    .pointer("/viscous/identifiable")
-                    .and_then(serde_json::Value::as_bool),
-                viscous_status: j
-                    .pointer("/viscous/status")
-                    .and_then(serde_json::Value::as_str)
-                    .and_then(|s| s.parse().ok()),
-                dry_informed: j
-                    .pointer("/dry/identifiable")
-                    .and_then(serde_json::Value::as_bool),
-                dry_status: j
-                    .pointer("/dry/status")
-                    .and_then(serde_json::Value::as_str)
-                    .and_then(|s| s.parse().ok()),
-            });
-        }
-        Ok(NewFit {
+    /// The fit of `result`, with `rmse.value` and every joint's columns taken from it (a
+    /// non-finite number is stored as no value).
+    pub fn from_result(result: FitResult) -> Self {
+        let joints = result.joints.iter().map(joint_fit).collect();
+        NewFit {
+            rmse: finite(result.rmse.value),
             result,
-            rmse,
             joints,
             curve: None,
-        })
+        }
     }
 
     /// Worst joint status (`None` without joints).
     pub fn status(&self) -> Option<Status> {
         self.joints.iter().map(|j| j.status).max()
+    }
+
+    /// The result as the store keeps it (`fits.result_json`): the contract JSON with each
+    /// object's keys in sorted order (serde_json's map order), as it has always been stored;
+    /// a non-finite number is written `null` and reads back as NaN ([`FitRecord::result`]).
+    pub(crate) fn result_json(&self) -> Result<String> {
+        serde_json::to_value(&self.result)
+            .and_then(|v| serde_json::to_string(&v))
+            .map_err(|e| StoreError::Invalid(format!("fit result: {e}")))
+    }
+}
+
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+/// One joint of a result as its `fit_joints` row.
+fn joint_fit(j: &JointResult) -> JointFit {
+    JointFit {
+        joint: j.joint.clone(),
+        viscous: finite(j.viscous.value),
+        viscous_lo: finite(j.viscous.ci95[0]),
+        viscous_hi: finite(j.viscous.ci95[1]),
+        dry: finite(j.dry.value),
+        dry_lo: finite(j.dry.ci95[0]),
+        dry_hi: finite(j.dry.ci95[1]),
+        identifiable: j.identifiable,
+        status: j.status,
+        viscous_informed: Some(j.viscous.identifiable),
+        viscous_status: Some(j.viscous.status),
+        dry_informed: Some(j.dry.identifiable),
+        dry_status: Some(j.dry.status),
     }
 }
 
@@ -211,17 +197,28 @@ pub struct FitWrite {
     pub created: bool,
 }
 
-/// A stored fit.
+/// A stored fit. Its result is read typed, once, by [`FitRecord::result`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FitRecord {
     pub id: i64,
     pub trace_id: String,
     pub model_version: String,
     pub created_at: DateTime<Utc>,
-    pub result: serde_json::Value,
+    /// The stored result text ([`NewFit::result_json`]; PostgreSQL hands back its `jsonb`
+    /// rendering of it).
+    pub result_json: String,
     pub rmse: Option<f64>,
     pub status: Option<Status>,
     pub joints: Vec<JointFit>,
+}
+
+impl FitRecord {
+    /// The stored result as the typed contract result. A text that does not read as one is
+    /// [`StoreError::Corrupt`] (an internal error to a client), never a panic.
+    pub fn result(&self) -> Result<FitResult> {
+        serde_json::from_str(&self.result_json)
+            .map_err(|e| StoreError::Corrupt(format!("fit {} result_json: {e}", self.id)))
+    }
 }
 
 /// A fit job.

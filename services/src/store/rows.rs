@@ -96,14 +96,12 @@ pub(crate) fn joint_point_from<R: RowExt>(r: &R) -> Result<JointPoint> {
 }
 
 pub(crate) fn fit_from<R: RowExt>(r: &R, joints: Vec<JointFit>) -> Result<FitRecord> {
-    let text = r.text("result_json")?;
     Ok(FitRecord {
         id: r.int("id")?,
         trace_id: r.text("trace_id")?,
         model_version: r.text("model_version")?,
         created_at: r.ts("created_at")?,
-        result: serde_json::from_str(&text)
-            .map_err(|e| StoreError::Corrupt(format!("result_json: {e}")))?,
+        result_json: r.text("result_json")?,
         rmse: r.opt_real("rmse")?,
         status: r.opt_text("status")?.map(|s| parse_enum(&s)).transpose()?,
         joints,

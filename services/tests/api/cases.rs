@@ -61,6 +61,7 @@ pub async fn upload_fit_status_history_fleet(b: Backend) {
     assert_eq!(v["links"]["fit"], "/v1/traces/example-J3_dry_x1.8/fit");
 
     let fit = app.wait_for_fit("example-J3_dry_x1.8").await;
+    app.assert_fit_serves_the_stored_json(&fit).await;
     // The trace format's fit result, plus where it came from.
     assert_eq!(fit["trace_id"], "example-J3_dry_x1.8");
     assert_eq!(fit["joints"][0]["joint"], "J3");
@@ -1179,15 +1180,17 @@ pub async fn dead_worker_job_is_reclaimed_after_its_lease(b: Backend) {
     assert_eq!(job.attempts, 2, "claimed again after the lease");
     assert_ne!(job.worker.as_deref(), Some("dead-worker"));
     // The dead worker coming back cannot write a second fit.
-    let late = app
-        .store
-        .complete(
-            claimed.id,
-            "dead-worker",
-            &pantowatch::store::NewFit::from_result(json!({"joints": []})).expect("fit"),
-        )
-        .await
-        .expect("complete");
+    let late =
+        app.store
+            .complete(
+                claimed.id,
+                "dead-worker",
+                &pantowatch::store::NewFit::from_result(
+                    pantowatch_models::report::FitResult::default(),
+                ),
+            )
+            .await
+            .expect("complete");
     assert_eq!(late, pantowatch::store::CompleteOutcome::LeaseLost);
     assert_eq!(app.counts().await.fits, 1);
     app.stop().await;

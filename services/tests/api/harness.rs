@@ -275,6 +275,26 @@ impl TestApp {
         }
     }
 
+    /// `GET /v1/traces/{id}/fit` (`fit`) serves the stored result's JSON unchanged (issue 19,
+    /// point 1: the API re-serialises the typed result it reads back): every part of it equals
+    /// the stored text's, absent parts absent.
+    pub async fn assert_fit_serves_the_stored_json(&self, fit: &Value) {
+        let id = fit["trace_id"].as_str().expect("trace_id");
+        let rec = self.store.get_fit(id).await.expect("get").expect("fit");
+        assert_eq!(fit["fit_id"], rec.id, "{fit}");
+        let stored: Value = serde_json::from_str(&rec.result_json).expect("stored json");
+        for k in [
+            "joints",
+            "rmse",
+            "residual",
+            "fit",
+            "pooled",
+            "combinations",
+        ] {
+            assert_eq!(fit.get(k), stored.get(k), "{id}: `{k}`");
+        }
+    }
+
     /// A web page's HTML as a reader signed in through `/login` sees it.
     pub async fn web_page(&self, path: &str) -> String {
         let client = reqwest::Client::builder()

@@ -315,7 +315,9 @@ pub async fn recent_lifts_are_pooled(b: Backend) {
         "{pooled}"
     );
     assert_eq!(pooled["trace_id"], "pool-mar");
+    app.assert_fit_serves_the_stored_json(&pooled).await;
     let (_, single) = app.get_json("/v1/traces/pool-jan/fit").await;
+    app.assert_fit_serves_the_stored_json(&single).await;
     assert!(
         single["pooled"].is_null(),
         "the first lift had nothing to pool: {single}"

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use chrono::{TimeZone, Utc};
+use pantowatch_models::report::{FitResult, JointResult, ParamResult, Quantity};
 use serde_json::json;
 use tokio::sync::Semaphore;
 use tokio::task::JoinSet;
@@ -113,8 +114,17 @@ impl Measured {
 
 /// A fit result of `joints` with statuses drawn from `r` (mostly ok; ~1 in 12 watch, 1 in 40
 /// alarm, J6/J9 unknown: what a lift cannot identify).
-fn fit_json(trace_id: &str, r: u64) -> serde_json::Value {
-    let joints: Vec<_> = JOINTS
+fn fit_result(trace_id: &str, r: u64) -> FitResult {
+    let param = |value: f64, ci95: [f64; 2], status: Status| ParamResult {
+        value,
+        ci95,
+        baseline: Some(value),
+        unit: String::new(),
+        identifiable: status != Status::Unknown,
+        status,
+        combination: None,
+    };
+    let joints = JOINTS
         .iter()
         .enumerate()
         .map(|(k, j)| {
@@ -128,13 +138,24 @@ fn fit_json(trace_id: &str, r: u64) -> serde_json::Value {
             } else {
                 Status::Ok
             };
-            json!({"joint": j,
-                   "viscous": {"value": 0.03, "ci95": [0.02, 0.04], "baseline": 0.03},
-                   "dry": {"value": 0.2, "ci95": [0.18, 0.22], "baseline": 0.2},
-                   "identifiable": status != Status::Unknown, "status": status.as_str()})
+            JointResult {
+                joint: (*j).to_owned(),
+                viscous: param(0.03, [0.02, 0.04], status),
+                dry: param(0.2, [0.18, 0.22], status),
+                identifiable: status != Status::Unknown,
+                status,
+            }
         })
         .collect();
-    json!({"trace_id": trace_id, "joints": joints, "rmse": {"value": 0.5, "unit": "mm"}})
+    FitResult {
+        trace_id: trace_id.to_owned(),
+        joints,
+        rmse: Quantity {
+            value: 0.5,
+            unit: "mm".into(),
+        },
+        ..FitResult::default()
+    }
 }
 
 /// A splitmix64 step: the deterministic statuses of the fill.
@@ -175,7 +196,7 @@ async fn fill_one(store: Store, p: usize) -> anyhow::Result<()> {
                 model_version: "bench".into(),
             })
             .await?;
-        let fit = NewFit::from_result(fit_json(&id, mix((p * 100 + m) as u64 + 7)))?;
+        let fit = NewFit::from_result(fit_result(&id, mix((p * 100 + m) as u64 + 7)));
         store.insert_fit(&id, "bench", &fit).await?;
     }
     Ok(())

@@ -210,7 +210,9 @@ pub fn gauge_result(
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),
             release_t_s: 0.0,
-            release_rule: crate::joint::identify::release::ReleaseRule::FirstSample.as_str(),
+            release_rule: crate::joint::identify::release::ReleaseRule::FirstSample
+                .as_str()
+                .to_owned(),
             release_warning: None,
             release_position: Quantity {
                 value: record.heights_m.first().copied().unwrap_or(f64::NAN),

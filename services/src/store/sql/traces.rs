@@ -50,8 +50,7 @@ async fn insert_fit_tx(
     model_version: &str,
     fit: &NewFit,
 ) -> Result<FitWrite> {
-    let result = serde_json::to_string(&fit.result)
-        .map_err(|e| StoreError::Invalid(format!("fit result: {e}")))?;
+    let result = fit.result_json()?;
     let id: Option<i64> = query_scalar(concat!(
         "INSERT INTO fits (trace_id, model_version, result_json, rmse, status)
          VALUES ($1, $2, $3",

@@ -71,7 +71,11 @@ pub(super) async fn claim_lease_expiry_and_reclaim(store: &Store) {
     let stored = store.get_fit(&id).await.expect("fit").expect("exists");
     assert_eq!(stored.id, w.fit_id);
     assert_eq!(stored.status, Some(Status::Ok), "first write wins");
-    assert_eq!(stored.result, f.result, "result JSON round-trips");
+    assert_eq!(
+        stored.result().expect("typed"),
+        f.result,
+        "result round-trips"
+    );
     assert_eq!(stored.joints, f.joints);
     assert_eq!(stored.rmse, Some(0.42));
     assert_eq!(count(store, "fits").await, 1);

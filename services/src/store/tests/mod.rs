@@ -6,6 +6,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use chrono::{DateTime, Utc};
+use pantowatch_models::report::{FitResult, JointResult, ParamResult, Quantity, ResidualResult};
 use serde_json::json;
 use sqlx::{AssertSqlSafe, Connection, Executor};
 
@@ -15,6 +16,7 @@ mod alerts;
 mod api_keys;
 mod health;
 mod jobs;
+mod results;
 mod traces;
 use alerts::*;
 use api_keys::*;
@@ -203,28 +205,52 @@ fn trace(id: &str, vehicle: &str, serial: Option<&str>, recorded: &str) -> NewTr
     }
 }
 
-fn fit(trace_id: &str, joints: &[(&str, Status)]) -> NewFit {
-    let js: Vec<_> = joints
+/// A fit result with `joints` at their statuses (each parameter judged as its joint).
+fn fit_result(trace_id: &str, joints: &[(&str, Status)]) -> FitResult {
+    let param = |value: f64, ci95: [f64; 2], baseline: f64, unit: &str, s: Status| ParamResult {
+        value,
+        ci95,
+        baseline: Some(baseline),
+        unit: unit.into(),
+        identifiable: s != Status::Unknown,
+        status: s,
+        combination: None,
+    };
+    let joints = joints
         .iter()
         .enumerate()
-        .map(|(i, (j, s))| {
-            json!({
-                "joint": j,
-                "viscous": { "value": 0.036 + i as f64 * 1e-3, "ci95": [0.031, 0.041],
-                             "baseline": 0.034, "unit": "N·m·s/rad" },
-                "dry": { "value": 0.024, "ci95": [0.021, 0.027], "baseline": 0.023, "unit": "1" },
-                "identifiable": *s != Status::Unknown,
-                "status": s.as_str(),
-            })
+        .map(|(i, (j, s))| JointResult {
+            joint: (*j).to_owned(),
+            viscous: param(
+                0.036 + i as f64 * 1e-3,
+                [0.031, 0.041],
+                0.034,
+                "N·m·s/rad",
+                *s,
+            ),
+            dry: param(0.024, [0.021, 0.027], 0.023, "1", *s),
+            identifiable: *s != Status::Unknown,
+            status: *s,
         })
         .collect();
-    NewFit::from_result(json!({
-        "trace_id": trace_id,
-        "joints": js,
-        "rmse": { "value": 0.42, "unit": "deg" },
-        "residual": { "effects": [], "rmse_before": 0.42, "rmse_after": 0.42 },
-    }))
-    .expect("fit")
+    FitResult {
+        trace_id: trace_id.to_owned(),
+        joints,
+        rmse: Quantity {
+            value: 0.42,
+            unit: "deg".into(),
+        },
+        residual: ResidualResult {
+            rmse_before: 0.42,
+            rmse_after: 0.42,
+            ..ResidualResult::default()
+        },
+        ..FitResult::default()
+    }
+}
+
+fn fit(trace_id: &str, joints: &[(&str, Status)]) -> NewFit {
+    NewFit::from_result(fit_result(trace_id, joints))
 }
 
 async fn count(store: &Store, table: &str) -> i64 {

@@ -403,7 +403,7 @@ async fn pantograph(st: &AppState, raw: &str) -> Result<Markup, AppError> {
         let last = history.last();
         let (bv, bd) = match last {
             Some(p) => match st.store.get_fit(&p.trace_id).await? {
-                Some(f) => health::baselines(&f.result, joint),
+                Some(f) => health::baselines(&f.result()?, joint),
                 None => (None, None),
             },
             None => (None, None),

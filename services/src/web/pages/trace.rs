@@ -4,6 +4,7 @@
 
 use axum::extract::State;
 use maud::{Markup, html};
+use pantowatch_models::report::{EffectResult, FitResult, ParamResult, ResidualResult};
 
 use crate::api::auth::WebUser;
 use crate::api::error::AppError;
@@ -62,12 +63,7 @@ async fn trace(st: &AppState, id: &str) -> Result<Markup, AppError> {
             p { "Not fitted yet." }
         });
     };
-    let joints = fit
-        .result
-        .get("joints")
-        .and_then(|v| v.as_array())
-        .cloned()
-        .unwrap_or_default();
+    let result = fit.result()?;
     let charts = trace_charts(st, &meta, fit.id).await;
     Ok(html! {
         h1 { "Trace " (meta.trace_id) }
@@ -81,38 +77,47 @@ async fn trace(st: &AppState, id: &str) -> Result<Markup, AppError> {
                 }
             }
             tbody {
-                @for j in &joints {
-                    @for p in ["viscous", "dry"] {
-                        @let g = |k: &str| j.pointer(&format!("/{p}/{k}")).and_then(|v| v.as_f64());
-                        @let num = |k: &str| g(k).map_or("—".to_owned(), fmt_num);
-                        tr {
-                            td { (j.get("joint").and_then(|v| v.as_str()).unwrap_or("")) }
-                            td { (p) }
-                            td { (num("value")) }
-                            td { "[" (num("ci95/0")) ", " (num("ci95/1")) "]" }
-                            td { (num("baseline")) }
-                            td { (j.pointer(&format!("/{p}/status")).and_then(|v| v.as_str()).unwrap_or("")) }
-                        }
+                @for j in &result.joints {
+                    @for (p, r) in [("viscous", &j.viscous), ("dry", &j.dry)] {
+                        (param_row(&j.joint, p, r))
                     }
                 }
             }
         }
-        (residual_finding(&fit.result))
+        (residual_finding(&result))
         (charts)
     })
 }
 
+/// A number for people: `—` where the fit has none (not finite; `null` in the result).
+fn num(v: Option<f64>) -> String {
+    v.filter(|v| v.is_finite()).map_or("—".to_owned(), fmt_num)
+}
+
+/// One parameter of one joint: value, interval, baseline, status.
+fn param_row(joint: &str, param: &str, r: &ParamResult) -> Markup {
+    html! {
+        tr {
+            td { (joint) }
+            td { (param) }
+            td { (num(Some(r.value))) }
+            td { "[" (num(Some(r.ci95[0]))) ", " (num(Some(r.ci95[1]))) "]" }
+            td { (num(r.baseline)) }
+            td { (r.status.as_str()) }
+        }
+    }
+}
+
 /// A residual effect in words: its name and each parameter as "v [lo, hi]".
-fn effect_text(e: &serde_json::Value) -> Option<String> {
-    let name = e.get("name")?.as_str()?;
-    let params = e.get("params").and_then(|p| p.as_object());
-    let shown: Vec<String> = params
-        .into_iter()
-        .flatten()
+fn effect_text(e: &EffectResult) -> String {
+    let name = &e.name;
+    let shown: Vec<String> = e
+        .params
+        .iter()
         .filter(|(k, _)| !k.ends_with("_ci95"))
         .map(|(k, v)| {
-            let ci = params
-                .and_then(|p| p.get(&format!("{k}_ci95")))
+            let ci = e.params.get(&format!("{k}_ci95"));
+            let ci = ci
                 .and_then(|c| Some((c.get(0)?.as_f64()?, c.get(1)?.as_f64()?)))
                 .map_or(String::new(), |(lo, hi)| {
                     format!(" [{}, {}]", fmt_num(lo), fmt_num(hi))
@@ -123,69 +128,47 @@ fn effect_text(e: &serde_json::Value) -> Option<String> {
             format!("{k} {v}{ci}")
         })
         .collect();
-    Some(if shown.is_empty() {
+    if shown.is_empty() {
         name.to_owned()
     } else {
         format!("{name} ({})", shown.join(", "))
-    })
+    }
 }
 
 /// The residual block in words.
-fn residual_finding(result: &serde_json::Value) -> Markup {
-    let Some(r) = result.get("residual") else {
-        return html! {};
-    };
-    let num = |k: &str| {
-        r.get(k)
-            .and_then(|v| v.as_f64())
-            .map_or("—".into(), fmt_num)
-    };
-    let effects: Vec<String> = r
-        .get("effects")
-        .and_then(|v| v.as_array())
-        .into_iter()
-        .flatten()
-        .filter_map(effect_text)
-        .collect();
+fn residual_finding(result: &FitResult) -> Markup {
+    let r: &ResidualResult = &result.residual;
+    let effects: Vec<String> = r.effects.iter().map(effect_text).collect();
     let finding = if !effects.is_empty() {
         format!("effects found: {}", effects.join(", "))
-    } else if let Some(v) = r.get("verdict").and_then(|v| v.as_str()) {
+    } else if let Some(v) = &r.verdict {
         format!("verdict: {v}")
     } else {
         "no structure left that an effect would explain".to_owned()
     };
     let correlates: Vec<String> = r
-        .get("correlates_with")
-        .and_then(|v| v.as_array())
-        .into_iter()
-        .flatten()
-        .filter_map(|p| {
-            Some(format!(
-                "{} ({:+.2})",
-                p.get(0)?.as_str()?,
-                p.get(1)?.as_f64()?
-            ))
-        })
+        .correlates_with
+        .iter()
+        .filter(|(_, c)| c.is_finite())
+        .map(|(name, c)| format!("{name} ({c:+.2})"))
         .collect();
-    let excess = r.get("excess_ratio").and_then(|v| v.as_f64());
+    let excess = r.excess_ratio.filter(|x| x.is_finite());
     // A lift whose residual shows a model error (issue 16): the joints above are withheld.
-    let withheld = r.get("joints_withheld").and_then(|v| v.as_str());
-    let holdout_note = r.get("holdout_note").and_then(|v| v.as_str());
+    let withheld = r.joints_withheld.as_deref();
+    let holdout_note = r.holdout_note.as_deref();
     // The residual's autocorrelation (lift fits): after, and before where an effect was named.
-    let acf = |k: &str| -> Vec<(f64, f64)> {
-        r.get(k)
-            .and_then(|v| v.as_array())
-            .into_iter()
-            .flatten()
-            .filter_map(|p| Some((p.get(0)?.as_f64()?, p.get(1)?.as_f64()?)))
+    let acf = |v: &[(f64, f64)]| -> Vec<(f64, f64)> {
+        v.iter()
+            .copied()
+            .filter(|(lag, a)| lag.is_finite() && a.is_finite())
             .collect()
     };
-    let (after, before) = (acf("autocorrelation"), acf("autocorrelation_before"));
+    let (after, before) = (acf(&r.autocorrelation), acf(&r.autocorrelation_before));
     html! {
         h2 { "Residual finding" }
         p #finding {
-            (finding) ". RMSE before " (num("rmse_before")) " / after " (num("rmse_after"))
-            "; held-out " (num("holdout_rmse_before")) " / " (num("holdout_rmse_after")) "."
+            (finding) ". RMSE before " (num(Some(r.rmse_before))) " / after " (num(Some(r.rmse_after)))
+            "; held-out " (num(Some(r.holdout_rmse_before))) " / " (num(Some(r.holdout_rmse_after))) "."
             @if let Some(x) = excess { " Residual RMS " (fmt_num(x)) " × the sensor noise." }
             @if !correlates.is_empty() { " The residual follows " (correlates.join(", ")) "." }
         }
