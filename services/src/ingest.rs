@@ -220,7 +220,7 @@ pub fn stored_doc(meta: &TraceMeta, channels: Vec<(String, Vec<f64>)>) -> Result
         .ok_or_else(|| format!("stored trace has unknown kind `{}`", meta.kind))?;
     let test: Value = serde_json::from_str(&meta.test_json)
         .map_err(|e| format!("stored test object is not JSON: {e}"))?;
-    Ok(TraceDoc {
+    TraceDoc {
         trace_id: Some(meta.trace_id.clone()),
         vehicle_id: meta.vehicle_id.clone(),
         pantograph_model: meta.model.clone(),
@@ -231,8 +231,11 @@ pub fn stored_doc(meta: &TraceMeta, channels: Vec<(String, Vec<f64>)>) -> Result
         kind,
         joint: meta.joint.clone(),
         test,
+        spec: crate::trace::TestSpec::PENDING,
         channels,
-    })
+    }
+    .typed()
+    .map_err(|e| format!("stored trace no longer reads: {e}"))
 }
 
 #[cfg(test)]

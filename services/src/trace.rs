@@ -118,6 +118,37 @@ impl GaugeChannels<'_> {
     }
 }
 
+/// A document's test as the models crate takes it, per kind (issue 19, point 1): built once
+/// where the document is parsed ([`TraceDoc::from_value`], and for a stored trace
+/// `ingest::stored_doc`), with every check of the test and its channels; fitting, reports and
+/// the CLI read it and check nothing again.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TestSpec {
+    /// A pendulum or slider: the models' single-joint test and its Table 4 baseline.
+    Joint(
+        Box<(
+            pantowatch_models::identify::JointTest,
+            pantowatch_models::testspec::Baseline,
+        )>,
+    ),
+    /// A lift: the drive protocol it states it ran, checked against the stand's limits.
+    Lift {
+        protocol: Option<pantowatch_models::lift::protocol::LiftProtocol>,
+    },
+    /// A quadrangle swing: its stand.
+    Quadrangle(Box<QuadRig>),
+    /// A force-gauge record: the gauge's resolution (N) and how many readings raise the strip.
+    StaticForce {
+        gauge_resolution_n: f64,
+        raise_len: usize,
+    },
+}
+
+impl TestSpec {
+    /// Before [`TraceDoc::typed`] has run: a spec that no view accepts for any other kind.
+    pub(crate) const PENDING: TestSpec = TestSpec::Lift { protocol: None };
+}
+
 /// A validated trace document.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TraceDoc {
@@ -128,8 +159,11 @@ pub struct TraceDoc {
     pub recorded_at: String,
     pub kind: Kind,
     pub joint: Option<String>,
-    /// The document's `test` object, verbatim.
+    /// The document's `test` object, verbatim: what is stored and served (the contract is
+    /// lossless). Code reads [`TraceDoc::spec`].
     pub test: Value,
+    /// The test, typed: built and checked once, where the document is parsed.
+    pub spec: TestSpec,
     /// `t_s` first, then the others in name order.
     pub channels: Vec<(String, Vec<f64>)>,
 }
@@ -458,24 +492,17 @@ impl TraceDoc {
             kind,
             joint,
             test: test_v.clone(),
+            spec: TestSpec::PENDING,
             channels,
         };
-        // Check the rig now, so a document the model cannot use is rejected at the door.
-        match doc.kind {
-            Kind::Lift => {
-                doc.lift_channels()?;
-            }
-            Kind::QuadrangleSwing => {
-                doc.quadrangle_channels()?;
-            }
-            Kind::StaticForce => {
-                doc.static_force_channels()?;
-            }
-            Kind::Pendulum | Kind::Slider => {
-                doc.joint_test()?;
-            }
-        }
-        Ok(doc)
+        // Type the test now, so a document the model cannot use is rejected at the door.
+        doc.typed()
+    }
+
+    /// The document with its test typed ([`TestSpec`]): the one place the test is checked.
+    pub fn typed(mut self) -> Result<Self, TraceError> {
+        self.spec = self.typed_spec()?;
+        Ok(self)
     }
 
     pub fn channel(&self, name: &str) -> Option<&[f64]> {

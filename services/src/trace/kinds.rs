@@ -2,6 +2,7 @@
 //! swing's, a force gauge's readings, a single joint's test and baseline.
 
 use super::*;
+use pantowatch_models::lift::protocol::LiftProtocol;
 
 impl TraceDoc {
     /// The channels of a `lift` test for the complete-pantograph model (built-in 160EC
@@ -9,7 +10,7 @@ impl TraceDoc {
     ///
     /// The contract allows `test.rig` overrides of that geometry; none is supported yet, so a
     /// non-empty `test.rig` is refused rather than silently ignored.
-    pub fn lift_channels(&self) -> Result<LiftChannels<'_>, TraceError> {
+    fn check_lift(&self) -> Result<Option<LiftProtocol>, TraceError> {
         if self.kind != Kind::Lift {
             return Err(bad("test.kind", "not a lift test"));
         }
@@ -41,30 +42,39 @@ impl TraceDoc {
         }
         let get = |name: &str| self.channel(name).unwrap_or_default();
         lift_gaps(get("t_s"))?;
-        self.lift_protocol(get("t_s"))?;
-        let channels = LiftChannels {
+        let protocol = self.lift_protocol(get("t_s"))?;
+        // T within the drive's range, H within the working heights, Fs and Fm within the
+        // strip loads the drive can hold (models' data files).
+        self.lift_view()
+            .check_limits()
+            .map_err(|(field, message)| bad(field, message))?;
+        Ok(protocol)
+    }
+
+    fn lift_view(&self) -> LiftChannels<'_> {
+        let get = |name: &str| self.channel(name).unwrap_or_default();
+        LiftChannels {
             t_s: get("t_s"),
             strip_height_m: get("H_m"),
             torque_nm: get("T_Nm"),
             fs_n: get("Fs_N"),
             fm_n: get("Fm_N"),
-        };
-        // T within the drive's range, H within the working heights, Fs and Fm within the
-        // strip loads the drive can hold (models' data files).
-        channels
-            .check_limits()
-            .map_err(|(field, message)| bad(field, message))?;
-        Ok(channels)
+        }
+    }
+
+    /// The channels of a `lift` test, checked when the document was parsed ([`TestSpec::Lift`]).
+    pub fn lift_channels(&self) -> Result<LiftChannels<'_>, TraceError> {
+        match self.spec {
+            TestSpec::Lift { .. } => Ok(self.lift_view()),
+            _ => Err(bad("test.kind", "not a lift test")),
+        }
     }
 
     /// The drive protocol a lift states it ran (`test.protocol`, optional: as `pantowatch
     /// design-test` writes it), checked against the stand's limits
     /// (`lift::design::ProtocolLimits::stand`, issue 15 point 7): a field outside them, or a
     /// record longer than the limit's duration, is refused naming it. `None`: not stated.
-    pub fn lift_protocol(
-        &self,
-        t_s: &[f64],
-    ) -> Result<Option<pantowatch_models::lift::protocol::LiftProtocol>, TraceError> {
+    fn lift_protocol(&self, t_s: &[f64]) -> Result<Option<LiftProtocol>, TraceError> {
         use pantowatch_models::lift::design::ProtocolLimits;
         let Some(v) = self.test.get("protocol") else {
             return Ok(None);
@@ -92,7 +102,7 @@ impl TraceDoc {
     /// The channels and stand of a `quadrangle_swing` test for the lower-quadrangle model
     /// (built-in 160EC geometry). `test.rig`: `incline_deg` (default 70), `gravity_m_s2`
     /// (default 9.81), `attachments` (point masses fixed to a body, at body coordinates).
-    pub fn quadrangle_channels(&self) -> Result<(QuadChannels<'_>, QuadRig), TraceError> {
+    fn check_quadrangle(&self) -> Result<QuadRig, TraceError> {
         if self.kind != Kind::QuadrangleSwing {
             return Err(bad("test.kind", "not a quadrangle_swing test"));
         }
@@ -176,16 +186,28 @@ impl TraceDoc {
             }
         }
         q.model().map_err(|e| bad(e.field, e.message))?;
+        self.quadrangle_view()
+            .check_limits()
+            .map_err(|e| bad(e.field, e.message))?;
+        Ok(q)
+    }
+
+    fn quadrangle_view(&self) -> QuadChannels<'_> {
         let get = |name: &str| self.channel(name).unwrap_or_default();
-        let channels = QuadChannels {
+        QuadChannels {
             t_s: get("t_s"),
             alpha_deg: get("alpha_deg"),
             beta_deg: get("beta_deg"),
-        };
-        channels
-            .check_limits()
-            .map_err(|e| bad(e.field, e.message))?;
-        Ok((channels, q))
+        }
+    }
+
+    /// The channels and stand of a `quadrangle_swing` test, checked when the document was
+    /// parsed ([`TestSpec::Quadrangle`]).
+    pub fn quadrangle_channels(&self) -> Result<(QuadChannels<'_>, QuadRig), TraceError> {
+        match &self.spec {
+            TestSpec::Quadrangle(rig) => Ok((self.quadrangle_view(), (**rig).clone())),
+            _ => Err(bad("test.kind", "not a quadrangle_swing test")),
+        }
     }
 
     /// The readings of a `static_force` test (a force gauge on the strip, issue 20), checked
@@ -194,7 +216,7 @@ impl TraceDoc {
     /// within `working_height_m`, every `F_N` within `[rig_limits] lift_strip_force_n`, a raising
     /// branch (H never decreasing up to the first highest reading) then a lowering branch (H
     /// never increasing after it), each of at least `min_points_per_branch` readings.
-    pub fn static_force_channels(&self) -> Result<GaugeChannels<'_>, TraceError> {
+    fn check_static_force(&self) -> Result<(f64, usize), TraceError> {
         if self.kind != Kind::StaticForce {
             return Err(bad("test.kind", "not a static_force test"));
         }
@@ -263,12 +285,27 @@ impl TraceDoc {
                     .to_owned();
                 bad(field, message)
             })?;
-        Ok(GaugeChannels {
-            t_s,
-            strip_height_m: h,
-            force_n: f,
+        let _ = t_s;
+        Ok((gauge_resolution_n, record.turn + 1))
+    }
+
+    /// The readings of a `static_force` test, checked when the document was parsed
+    /// ([`TestSpec::StaticForce`]).
+    pub fn static_force_channels(&self) -> Result<GaugeChannels<'_>, TraceError> {
+        let TestSpec::StaticForce {
             gauge_resolution_n,
-            raise_len: record.turn + 1,
+            raise_len,
+        } = self.spec
+        else {
+            return Err(bad("test.kind", "not a static_force test"));
+        };
+        let get = |name: &str| self.channel(name).unwrap_or_default();
+        Ok(GaugeChannels {
+            t_s: get("t_s"),
+            strip_height_m: get("H_m"),
+            force_n: get("F_N"),
+            gauge_resolution_n,
+            raise_len,
         })
     }
 
@@ -302,8 +339,35 @@ impl TraceDoc {
         }
     }
 
-    /// The models' single-joint test (pendulum or slider) with its Table 4 baseline.
+    /// The models' single-joint test (pendulum or slider) with its Table 4 baseline, built once
+    /// when the document was parsed ([`TestSpec::Joint`]).
     pub fn joint_test(&self) -> Result<(JointTest, Baseline), TraceError> {
+        match &self.spec {
+            TestSpec::Joint(j) => Ok((j.0.clone(), j.1.clone())),
+            _ => Err(bad("test.kind", "not a pendulum or slider test")),
+        }
+    }
+
+    /// The typed test of the document's kind: every check of the test and its channels that
+    /// the models' inputs need, run once, where the document is parsed.
+    pub(super) fn typed_spec(&self) -> Result<TestSpec, TraceError> {
+        Ok(match self.kind {
+            Kind::Lift => TestSpec::Lift {
+                protocol: self.check_lift()?,
+            },
+            Kind::QuadrangleSwing => TestSpec::Quadrangle(Box::new(self.check_quadrangle()?)),
+            Kind::StaticForce => {
+                let (gauge_resolution_n, raise_len) = self.check_static_force()?;
+                TestSpec::StaticForce {
+                    gauge_resolution_n,
+                    raise_len,
+                }
+            }
+            Kind::Pendulum | Kind::Slider => TestSpec::Joint(Box::new(self.build_joint_test()?)),
+        })
+    }
+
+    fn build_joint_test(&self) -> Result<(JointTest, Baseline), TraceError> {
         let rig = self
             .test
             .get("rig")

@@ -552,3 +552,36 @@ fn a_slider_s_moving_mass_uncertainty_is_carried_and_echoed() {
     assert_eq!(into.get("moving_mass_kg"), Some(&(0.02 * m)), "{echo:?}");
     assert!(other.is_empty(), "{echo:?}");
 }
+
+/// Issue 19, point 1: the test is typed once, where the document is parsed — the views read
+/// the typed [`TestSpec`], not the JSON again. A parsed pendulum document whose `test` JSON is
+/// afterwards replaced by one the parser refuses (a negative pin radius) still gives the parsed
+/// joint's test; a stored
+/// trace (`ingest::stored_doc`) is typed the same way, and one that no longer reads is an error,
+/// not a later surprise in the fit.
+#[test]
+fn the_test_is_typed_once_where_the_document_is_parsed() {
+    let mut d = TraceDoc::from_value(&doc()).unwrap();
+    let TestSpec::Joint(j) = &d.spec else {
+        panic!("a pendulum types as a joint test: {:?}", d.spec)
+    };
+    assert_eq!(j.1.joint, "J1");
+    let typed = d.joint_test().unwrap();
+    let bad = json!({"kind": "pendulum", "joint": "J1", "rig": {"pin_radius_m": -1.0}});
+    let mut v = doc();
+    v["test"] = bad.clone();
+    assert_eq!(
+        field_of(v),
+        "test.rig.pin_radius_m",
+        "the parser refuses it"
+    );
+    d.test = bad;
+    assert_eq!(
+        d.joint_test().unwrap(),
+        typed,
+        "the view reads the typed test"
+    );
+    assert!(d.lift_channels().is_err() && d.static_force_channels().is_err());
+    // Typing again from the (now bad) JSON is where it would be checked.
+    assert_eq!(d.typed().unwrap_err().field, "test.rig.pin_radius_m");
+}

@@ -26,7 +26,7 @@ pub use lm::{LmOptions, Termination};
 pub use readout::Readout;
 
 /// The measured signal of a single-joint test.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct JointTest {
     pub dof: Dof,
     pub t_s: Vec<f64>,
