@@ -26,6 +26,7 @@ RUN cargo_version=$(sed -n '/^\[workspace.package\]/,/^\[/s/^version = "\(.*\)"/
        esac
 COPY models ./models
 COPY services ./services
+COPY tools ./tools
 COPY tests ./tests
 COPY migrations ./migrations
 # --locked: the image builds exactly the committed dependency graph.

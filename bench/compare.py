@@ -4,7 +4,7 @@
   python3 bench/compare.py --truth EX/truth.json --peer peer.jsonl [--rust rust.jsonl]
 
 peer.jsonl: lines of bench/scipy_peer.py ({"file", "viscous", "dry", "seconds", ...}).
-rust.jsonl: lines of `pantowatch bench --json` ({"file", "viscous", "dry",
+rust.jsonl: lines of `pantowatch-tools bench --json` ({"file", "viscous", "dry",
 "seconds_per_fit", "fits", ...}). Without --rust the Rust columns stay empty.
 Files are matched by base name; truth.json is keyed by base name without .json.
 """
@@ -87,11 +87,11 @@ def main():
     with open(a.truth) as f:
         truth = json.load(f)
     peer = read_jsonl(a.peer, "peer")
-    rust = read_jsonl(a.rust, "pantowatch bench") if a.rust else {}
+    rust = read_jsonl(a.rust, "pantowatch-tools bench") if a.rust else {}
 
     missing = [f for f in peer if a.rust and f not in rust]
     if missing:
-        die(f"pantowatch bench gave no line for: {', '.join(missing)}")
+        die(f"pantowatch-tools bench gave no line for: {', '.join(missing)}")
 
     print("| file | peer s | rust ms | speed-up × | peer viscous err % | rust viscous err % "
           "| peer dry err % | rust dry err % |")

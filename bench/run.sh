@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Time the SciPy peer and `pantowatch bench` on the same example traces and
+# Time the SciPy peer and `pantowatch-tools bench` on the same example traces and
 # print a markdown table (bench/compare.py) against truth.json.
 #
 #   bench/run.sh [--no-build] [--repeat N]
@@ -40,13 +40,13 @@ python3 -c 'import numpy, scipy' 2>/dev/null || {
     echo "run.sh: numpy/scipy missing: pip install -r bench/requirements.txt" >&2; exit 1; }
 
 if [ "$BUILD" = 1 ]; then
-    cargo build --release -p pantowatch
+    cargo build --release -p pantowatch-tools
 fi
-BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release/pantowatch"
+BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release/pantowatch-tools"
 [ -x "$BIN" ] || { echo "run.sh: $BIN not found (build it, or drop --no-build)" >&2; exit 1; }
 if ! "$BIN" bench --help >/dev/null 2>&1; then
     echo "run.sh: $BIN has no working 'bench' subcommand" >&2
-    echo "        (expected: pantowatch bench --json FILE... -> one JSON line per file)" >&2
+    echo "        (expected: pantowatch-tools bench --json FILE... -> one JSON line per file)" >&2
     exit 1
 fi
 
@@ -58,7 +58,7 @@ echo "== SciPy peer (${#FILES[@]} files, repeat $REPEAT)" >&2
 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
     python3 bench/scipy_peer.py "${FILES[@]}" --repeat "$REPEAT" > "$OUT/peer.jsonl"
 
-echo "== pantowatch bench" >&2
+echo "== pantowatch-tools bench" >&2
 if ! "$BIN" bench --json "${FILES[@]}" > "$OUT/rust.jsonl"; then
     echo "run.sh: '$BIN bench --json' failed" >&2
     exit 1

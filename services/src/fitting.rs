@@ -277,9 +277,9 @@ mod tests {
     }
 
     /// A raise-and-lower lift with J3 dry friction ×1.8 and the stand's sensor noise on every
-    /// channel (`bench::docs::noisy_lift_doc`): a fit of ~20 evaluations.
+    /// channel (`cli::simulate::docs::noisy_lift_doc`): a fit of ~20 evaluations.
     fn noisy_lift() -> TraceDoc {
-        crate::cli::bench::docs::noisy_lift_doc(3, &["J3:dry=1.8"], 1.0, "160EC-T", "budget")
+        crate::cli::simulate::docs::noisy_lift_doc(3, &["J3:dry=1.8"], 1.0, "160EC-T", "budget")
             .expect("simulated lift")
     }
 

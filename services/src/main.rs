@@ -1,4 +1,5 @@
-//! `pantowatch`: the command line of the pantograph joint-wear service.
+//! `pantowatch`: the command line of the pantograph joint-wear service. The benchmark suite and
+//! the load generator are not the service: they are `pantowatch-tools` (tools/).
 
 use clap::{Parser, Subcommand};
 use pantowatch::cli;
@@ -40,12 +41,8 @@ enum Command {
     StaticForce(cli::static_force::StaticForceArgs),
     /// Write a synthetic trace document.
     Simulate(Box<cli::simulate::SimulateArgs>),
-    /// Time the identification of trace files.
-    Bench(cli::bench::BenchArgs),
     /// Fit the shared example traces and show the results against their truth.
     Examples,
-    /// Concurrent uploaders against a running service, then a read-back check (counts, SHA-256).
-    Load(Box<cli::load::LoadArgs>),
 }
 
 fn main() {
@@ -73,8 +70,6 @@ fn main() {
             init_logging(&LogSettings::default());
             cli::simulate::run(*a)
         }
-        // The suite's in-process service would log every timed request: bench sets its own.
-        Command::Bench(a) => cli::bench::run(a),
         Command::DesignTest(a) => cli::design::run(&a),
         Command::StaticForce(a) => {
             init_logging(&LogSettings::default());
@@ -84,7 +79,6 @@ fn main() {
             init_logging(&LogSettings::default());
             cli::examples::run(&thresholds)
         }
-        Command::Load(a) => cli::load::run(*a),
     };
     if let Err(e) = res {
         eprintln!("error: {e:#}");

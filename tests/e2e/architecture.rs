@@ -1,5 +1,6 @@
 //! The layout's invariants (issue 19, points 3 and 4; ARCHITECTURE.md "Invariants"): no circle
-//! between the source files of `models` or of `services`, and the web pages never fit.
+//! between the source files of `models`, of `services` or of `tools`, the web pages never fit,
+//! and the service library holds no benchmark or load tool (those are `tools/`).
 //!
 //! The graph: file A depends on file B when A's code (outside `#[cfg(test)]`, `//` comments
 //! left out) names B's module by a `crate::…` or `super::…` path. A circle is a strongly
@@ -187,12 +188,55 @@ fn the_finder_sees_a_circle_it_is_shown() {
 }
 
 #[test]
-fn no_circle_between_the_files_of_models_or_services() {
-    for name in ["models", "services"] {
+fn no_circle_between_the_files_of_models_services_or_tools() {
+    for (name, at_least) in [("models", 20), ("services", 20), ("tools", 10)] {
         let mods = modules(&crate_src(name));
-        assert!(mods.len() > 20, "{name}: {} files", mods.len());
+        assert!(mods.len() > at_least, "{name}: {} files", mods.len());
         let found = circles(&graph(&mods));
         assert!(found.is_empty(), "{name}: circles {found:?}");
+    }
+}
+
+/// The benchmark suite and the load generator live in `tools/` (crate `pantowatch-tools`), not
+/// in the service library: no `bench` or `load` module in services/src, no `bench`/`load`
+/// subcommand in the `pantowatch` binary, and no dependency of the service on the tools.
+#[test]
+fn the_service_library_holds_no_benchmark_or_load_tool() {
+    let services = crate_src("services");
+    for gone in ["cli/bench", "cli/bench.rs", "cli/load", "cli/load.rs"] {
+        assert!(
+            !services.join(gone).exists(),
+            "services/src/{gone}: the tools belong in tools/"
+        );
+    }
+    let mods = modules(&services);
+    for (m, code) in &mods {
+        assert!(
+            !m.split("::").any(|seg| seg == "bench" || seg == "load"),
+            "services::{m}: a benchmark or load module in the service library"
+        );
+        assert!(
+            !code.contains("pantowatch_tools"),
+            "services::{m} uses the tools crate"
+        );
+    }
+    let main_rs = std::fs::read_to_string(services.join("main.rs")).expect("main.rs");
+    for sub in ["Bench(", "Load("] {
+        assert!(
+            !main_rs.contains(sub),
+            "the pantowatch binary has a {sub}…) subcommand"
+        );
+    }
+    let manifest =
+        std::fs::read_to_string(services.join("../Cargo.toml")).expect("services/Cargo.toml");
+    assert!(
+        !manifest.contains("pantowatch-tools"),
+        "services/Cargo.toml depends on the tools crate"
+    );
+    // Where they are instead (so this test cannot pass on an empty tree).
+    let tools = modules(&crate_src("tools"));
+    for m in ["bench", "bench::suite", "load"] {
+        assert!(tools.contains_key(m), "tools::{m} missing");
     }
 }
 
@@ -245,7 +289,7 @@ fn models_src_is_grouped_by_what_a_reader_looks_for() {
 /// Issue 19, point 4: no source file over ~800 lines (820) in the crates' `src`.
 #[test]
 fn no_source_file_is_over_820_lines() {
-    for name in ["models", "services"] {
+    for name in ["models", "services", "tools"] {
         let mut files = Vec::new();
         rust_files(&crate_src(name), &mut files);
         for f in files {

@@ -1,13 +1,11 @@
 //! The `pantowatch` command line: one module per subcommand; only this layer knows about
 //! terminals, progress bars and files.
 
-pub mod bench;
 pub mod demo;
 pub mod design;
 pub mod examples;
 pub mod fit;
 pub mod keys;
-pub mod load;
 pub mod migrate;
 pub mod refit;
 pub mod report;

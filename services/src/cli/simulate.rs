@@ -2,6 +2,8 @@
 //! swing or force-gauge (`static_force`) test with chosen
 //! friction, release, noise, sample rate and seed — what the tests and the demo use.
 
+pub mod docs;
+
 use std::path::PathBuf;
 
 use anyhow::Context;

@@ -160,7 +160,7 @@ impl PgStore {
     /// TLS follows the URL's `sslmode`. A URL without one to a loopback host gets
     /// `sslmode=disable`: sqlx's default (`prefer`) negotiates TLS wherever the server offers it,
     /// which protects nothing on loopback and cost the ingest path 3.6× (57 against 205 traces/s,
-    /// `pantowatch bench suite --only ingest`). Any other host keeps sqlx's default; production
+    /// `pantowatch-tools bench suite --only ingest`). Any other host keeps sqlx's default; production
     /// sets `sslmode=verify-full` (SECURITY.md).
     pub async fn connect(url: &str, opts: PoolOptions) -> Result<Self> {
         let mut connect: PgConnectOptions = url.parse()?;

@@ -475,7 +475,7 @@ pub async fn an_uninformative_lift_leaves_a_workshop_alarm_standing(b: Backend) 
             .unwrap()
     };
     assert_eq!(j5(&fit)["status"], "alarm", "{fit}");
-    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let defaults = pantowatch::cli::simulate::docs::simulate_defaults().expect("defaults");
     let lift = pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
         kind: "lift".into(),
         protocol: "raise-and-lower".into(),

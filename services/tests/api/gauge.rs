@@ -11,7 +11,7 @@ use crate::harness::*;
 /// A simulated gauge measurement (`simulate --kind static_force`): 15 readings raising, 14
 /// lowering, 0.2 N noise, 0.1 N resolution.
 pub fn gauge_doc(serial: &str, trace_id: &str, scale: &[&str]) -> pantowatch::trace::TraceDoc {
-    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let defaults = pantowatch::cli::simulate::docs::simulate_defaults().expect("defaults");
     pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
         kind: "static_force".into(),
         scale_joints: scale.iter().map(|s| s.to_string()).collect(),
@@ -321,7 +321,7 @@ pub async fn a_gauge_record_pools_with_the_next_lift(b: Backend) {
         .await;
     assert_eq!(r.status(), StatusCode::ACCEPTED);
     app.wait_for_fit("gp-gauge").await;
-    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let defaults = pantowatch::cli::simulate::docs::simulate_defaults().expect("defaults");
     let lift = pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
         kind: "lift".into(),
         protocol: "raise-and-lower".into(),
@@ -380,7 +380,7 @@ fn live_alerts(alerts: &Value, serial: &str, joint: &str) -> usize {
 pub async fn a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm(b: Backend) {
     let app = spawn_app(b).await;
     let serial = "160EC-GZ-1";
-    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let defaults = pantowatch::cli::simulate::docs::simulate_defaults().expect("defaults");
     let gauge = |id: &str, day: u32, effects: &[&str]| {
         pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
             kind: "static_force".into(),

@@ -218,7 +218,7 @@ pub async fn a_designed_lift_is_accepted_and_fitted(b: Backend) {
     p.t_end_s = 7.5;
     let file = std::env::temp_dir().join(format!("pw-designed-{}.json", std::process::id()));
     std::fs::write(&file, serde_json::to_vec(&p).expect("json")).expect("write");
-    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let defaults = pantowatch::cli::simulate::docs::simulate_defaults().expect("defaults");
     let doc = pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
         kind: "lift".into(),
         protocol: file.display().to_string(),
@@ -275,7 +275,7 @@ pub async fn a_designed_lift_is_accepted_and_fitted(b: Backend) {
 /// written once.
 pub async fn recent_lifts_are_pooled(b: Backend) {
     let app = spawn_app(b).await;
-    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let defaults = pantowatch::cli::simulate::docs::simulate_defaults().expect("defaults");
     let ids = ["pool-jan", "pool-feb", "pool-mar"];
     for (k, id) in ids.iter().enumerate() {
         let doc =
@@ -365,7 +365,7 @@ pub async fn recent_lifts_are_pooled(b: Backend) {
 /// opened and fleet health shows nothing drifted.
 pub async fn a_model_error_raises_no_wear_alarm(b: Backend) {
     let app = spawn_app(b).await;
-    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let defaults = pantowatch::cli::simulate::docs::simulate_defaults().expect("defaults");
     let doc = pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
         kind: "lift".into(),
         protocol: "raise-and-lower".into(),
@@ -431,7 +431,7 @@ pub async fn a_model_error_raises_no_wear_alarm(b: Backend) {
 /// nothing drifted. The next lift of the pantograph, without the delay, resolves it.
 pub async fn a_sensor_delay_is_a_sensor_finding_not_a_joint_alarm(b: Backend) {
     let app = spawn_app(b).await;
-    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let defaults = pantowatch::cli::simulate::docs::simulate_defaults().expect("defaults");
     let lift = |seed: u64, id: &str, at: &str, effects: Vec<String>| {
         pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
             kind: "lift".into(),

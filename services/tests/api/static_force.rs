@@ -7,7 +7,7 @@ use serde_json::Value;
 use crate::harness::*;
 
 async fn upload_j3_pendulum(app: &TestApp, serial: &str, trace_id: &str, dry: Option<f64>) {
-    let defaults = pantowatch::cli::bench::docs::simulate_defaults().expect("defaults");
+    let defaults = pantowatch::cli::simulate::docs::simulate_defaults().expect("defaults");
     let doc = pantowatch::cli::simulate::simulate_doc(&pantowatch::cli::simulate::SimulateArgs {
         kind: "pendulum".into(),
         joint: "J3".into(),

@@ -48,7 +48,7 @@ fn simulated(kind: &str, seed: u64, set: impl FnOnce(&mut SimulateArgs)) -> Trac
     let mut a = SimulateArgs {
         kind: kind.into(),
         seed,
-        ..crate::cli::bench::docs::simulate_defaults().expect("defaults")
+        ..crate::cli::simulate::docs::simulate_defaults().expect("defaults")
     };
     if kind == "lift" {
         a.protocol = "raise-and-lower".into();

@@ -1,4 +1,4 @@
-//! `pantowatch bench suite`: runs the sections (fits, fleet, ingest + storage, query) at the
+//! `pantowatch-tools bench suite`: runs the sections (fits, fleet, ingest + storage, query) at the
 //! issue's sizes (or `--quick`), then prints one table — measured / target / pass — under the
 //! machine line, or the same as JSON (`--json`) for docs/PERFORMANCE.md and the README.
 

@@ -1,8 +1,7 @@
-//! `pantowatch bench`: `bench FILE…` times the fit of trace files on one core; `bench suite`
+//! `pantowatch-tools bench`: `bench FILE…` times the fit of trace files on one core; `bench suite`
 //! runs every measure of issue 8 (fits vs the SciPy peer, fleet re-processing, ingest, storage,
 //! fleet-health query) and prints one table against the targets.
 
-pub mod docs;
 pub mod files;
 pub mod fits;
 pub mod fleet;
@@ -16,7 +15,7 @@ pub mod table;
 
 pub use table::{BenchArgs, BenchCommand};
 
-use crate::config::{LogSettings, init_logging};
+use pantowatch::config::{LogSettings, init_logging};
 
 /// `bench FILE…` or `bench suite`. The suite logs warnings only (`RUST_LOG` still wins): its
 /// in-process service would otherwise log every timed request.

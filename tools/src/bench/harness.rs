@@ -9,8 +9,8 @@ use sqlx::{AssertSqlSafe, Connection, Executor};
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
 
-use crate::config::{SecretString, Settings};
-use crate::store::{Role, Store};
+use pantowatch::config::{SecretString, Settings};
+use pantowatch::store::{Role, Store};
 
 /// A PostgreSQL database of this run; [`FreshPg::drop_now`] removes it.
 pub struct FreshPg {
@@ -109,7 +109,7 @@ impl Server {
         let (tx, rx) = oneshot::channel::<()>();
         let run_store = store.clone();
         let handle = tokio::spawn(async move {
-            crate::server::run(listener, run_store, &settings, async {
+            pantowatch::server::run(listener, run_store, &settings, async {
                 let _ = rx.await;
             })
             .await

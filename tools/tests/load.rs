@@ -1,9 +1,10 @@
-//! `pantowatch load` (the binary) against the real server on a fresh PostgreSQL database: a small
-//! run loses and duplicates nothing, even sent twice; the verifier catches a deleted trace, a
-//! duplicate row and swapped samples.
+//! `pantowatch-tools load` (the binary) against the real server on a fresh PostgreSQL database:
+//! a small run loses and duplicates nothing, even sent twice; the verifier catches a deleted
+//! trace, a duplicate row and swapped samples.
 
+// The service's own test harness (a server on a fresh database), shared rather than copied.
 #[allow(dead_code)]
-#[path = "api/harness.rs"]
+#[path = "../../services/tests/api/harness.rs"]
 mod harness;
 
 use harness::{Backend, Opts, fresh_db, spawn_app_with};
@@ -13,9 +14,9 @@ use sqlx::{Connection, Executor};
 const WORKERS: usize = 4;
 const PER_WORKER: usize = 10;
 
-/// Runs `pantowatch load --json` with `extra` flags; (exit success, summary).
+/// Runs `pantowatch-tools load --json` with `extra` flags; (exit success, summary).
 async fn load(url: &str, key: &str, run: &str, extra: &[&str]) -> (bool, Value) {
-    let out = tokio::process::Command::new(env!("CARGO_BIN_EXE_pantowatch"))
+    let out = tokio::process::Command::new(env!("CARGO_BIN_EXE_pantowatch-tools"))
         .args(["load", "--json", "--url", url, "--run-id", run])
         .args(["--concurrency", &WORKERS.to_string()])
         .args(["--traces-per-worker", &PER_WORKER.to_string()])
@@ -24,7 +25,7 @@ async fn load(url: &str, key: &str, run: &str, extra: &[&str]) -> (bool, Value) 
         .env("PANTOWATCH_KEY", key)
         .output()
         .await
-        .expect("run pantowatch load");
+        .expect("run pantowatch-tools load");
     let summary: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
         panic!(
             "no JSON summary ({e}): stdout {} stderr {}",

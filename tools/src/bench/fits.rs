@@ -49,7 +49,7 @@ impl Timed {
 
 pub fn run(a: &SuiteArgs, sizes: &Sizes) -> Vec<Row> {
     let mut rows = Vec::new();
-    match crate::cli::examples_dir() {
+    match pantowatch::cli::examples_dir() {
         None => {
             for m in ["fit: pendulum", "fit: slider"] {
                 rows.push(Row::failed(
@@ -123,7 +123,7 @@ fn single_joints(a: &SuiteArgs, sizes: &Sizes, ex: &Path) -> anyhow::Result<Vec<
 
 /// Our identification (`fit_base`, what the peer does too) of one file: median of `repeat`.
 fn time_file(f: &Path, repeat: usize, truth: &Value) -> anyhow::Result<Timed> {
-    let doc = crate::cli::read_trace(f)?;
+    let doc = pantowatch::cli::read_trace(f)?;
     let (test, _) = doc
         .joint_test()
         .map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;

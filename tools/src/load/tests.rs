@@ -30,7 +30,7 @@ fn documents_are_valid_distinct_and_reproducible() {
     assert_ne!(e1.vehicle_id, e3.vehicle_id);
     assert_ne!(b1, b2);
     // The server's hash of the body is the one expected.
-    let parsed = crate::ingest::parse_body_blocking(crate::ingest::BodyFormat::Json, &b1)
+    let parsed = pantowatch::ingest::parse_body_blocking(pantowatch::ingest::BodyFormat::Json, &b1)
         .expect("valid upload");
     assert_eq!(parsed.sha256, e1.content_sha256);
     assert_eq!(e1.sample_count, 51);

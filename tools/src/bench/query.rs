@@ -14,7 +14,7 @@ use tokio::task::JoinSet;
 
 use super::harness::{FreshPg, Server};
 use super::table::{Row, Sizes, SuiteArgs, quantile};
-use crate::store::{FleetFilter, NewFit, NewTrace, Page, Role, Status, Store};
+use pantowatch::store::{FleetFilter, NewFit, NewTrace, Page, Role, Status, Store};
 
 /// Target p99 of one fleet-health page, s.
 const P99_TARGET_S: f64 = 0.020;
@@ -24,7 +24,7 @@ const FITS_EACH: usize = 12;
 const JOINTS: [&str; 9] = ["J1", "J2", "J3", "J4", "J5", "J6", "J7", "J8", "J9"];
 
 pub fn run(a: &SuiteArgs, sizes: &Sizes) -> Vec<Row> {
-    let rt = match crate::cli::serve::runtime() {
+    let rt = match pantowatch::cli::serve::runtime() {
         Ok(rt) => rt,
         Err(e) => {
             return vec![Row::failed(

@@ -1,7 +1,7 @@
-//! The trace documents the measures fit and upload: `pantowatch simulate` with its defaults,
-//! as the demo's fleet records them.
+//! Ready-made trace documents: `pantowatch simulate` with its defaults, as the demo's fleet
+//! records them — what the tests fit and the bench suite (`pantowatch-tools`) fits and uploads.
 
-use crate::cli::simulate::{SimulateArgs, simulate_doc};
+use super::{SimulateArgs, simulate_doc};
 use crate::trace::TraceDoc;
 
 /// `pantowatch simulate`'s defaults for every option a caller does not set.

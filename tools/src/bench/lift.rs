@@ -9,9 +9,9 @@ use std::time::Instant;
 use pantowatch_models::drift::DriftThresholds;
 use serde_json::json;
 
-use super::docs::{noisy_lift_doc, simulate_defaults};
 use super::table::{Row, Sizes, median, quantile};
-use crate::cli::simulate::{SimulateArgs, simulate_doc};
+use pantowatch::cli::simulate::docs::{noisy_lift_doc, simulate_defaults};
+use pantowatch::cli::simulate::{SimulateArgs, simulate_doc};
 
 /// Target time of one lift fit on one core, s (issue 15: p50, on realistic and 2× noise).
 pub const LIFT_TARGET_S: f64 = 0.3;
@@ -94,7 +94,7 @@ fn loop_row(n: usize, plain_p50_s: Option<f64>) -> anyhow::Result<Row> {
             .map_err(|e| anyhow::anyhow!("plain lift fit ({effect}): {e}"))?;
         let plain_s = t0.elapsed().as_secs_f64();
         let t0 = Instant::now();
-        let rep = crate::fitting::fit_lift(&doc, &th)
+        let rep = pantowatch::fitting::fit_lift(&doc, &th)
             .map_err(|e| anyhow::anyhow!("lift fit ({effect}): {e}"))?;
         let s = t0.elapsed().as_secs_f64();
         times.push(s);
@@ -190,7 +190,7 @@ fn level(k: f64, n: usize) -> anyhow::Result<Row> {
     let mut per = Vec::with_capacity(n);
     for (case, doc) in &docs {
         let t0 = Instant::now();
-        let rep = crate::fitting::fit_lift(doc, &th)
+        let rep = pantowatch::fitting::fit_lift(doc, &th)
             .map_err(|e| anyhow::anyhow!("lift fit ({}): {e}", case.join(" ")))?;
         let s = t0.elapsed().as_secs_f64();
         times.push(s);

@@ -11,9 +11,9 @@ use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::lift::batch;
 use serde_json::json;
 
-use super::docs::noisy_lift_doc;
 use super::table::{FLEET_YEAR, Row, Sizes};
-use crate::trace::TraceDoc;
+use pantowatch::cli::simulate::docs::noisy_lift_doc;
+use pantowatch::trace::TraceDoc;
 
 /// Target for re-processing [`FLEET_YEAR`] traces on 2 cores, s.
 const TARGET_S: f64 = 600.0;
@@ -59,7 +59,7 @@ fn parallel<T: Send>(
 fn fit_all(docs: &[TraceDoc], threads: usize, bar: &ProgressBar) -> Vec<Result<(), String>> {
     let th = DriftThresholds::default();
     parallel(docs.len(), threads, bar, |i| {
-        crate::fitting::fit_document(&docs[i], &th)
+        pantowatch::fitting::fit_document(&docs[i], &th)
             .map(|_| ())
             .map_err(|e| e.to_string())
     })

@@ -1,5 +1,6 @@
-//! `pantowatch load`: N concurrent uploaders against a running service, then a read-back check
-//! that every accepted trace is stored exactly once with the content sent (counts and SHA-256).
+//! `pantowatch-tools load`: N concurrent uploaders against a running service, then a read-back
+//! check that every accepted trace is stored exactly once with the content sent (counts and
+//! SHA-256).
 //!
 //! The documents are a pure function of `(run id, worker, index)`, so `--verify-only` can
 //! regenerate what a run sent and check the server again later (e.g. after a restart).
@@ -17,10 +18,10 @@ use serde::Serialize;
 use serde_json::Value;
 use sha2::{Digest, Sha256};
 
-use super::serve::runtime;
-use super::simulate::{SimulateArgs, simulate_doc};
-use crate::ingest::content_sha256;
-use crate::trace::TraceDoc;
+use pantowatch::cli::serve::runtime;
+use pantowatch::cli::simulate::{SimulateArgs, simulate_doc};
+use pantowatch::ingest::content_sha256;
+use pantowatch::trace::TraceDoc;
 
 /// Longest `--run-id`: the ids built from it (`{run}-w000-000000`) stay well under the
 /// contract's 256 characters.
@@ -243,7 +244,7 @@ pub fn make_doc(
     let trace_id = format!("{run}-w{worker:03}-{index:06}");
     let vehicle_id = format!("{run}-V{worker:03}");
     let v = serde_json::json!({
-        "format": crate::trace::FORMAT,
+        "format": pantowatch::trace::FORMAT,
         "trace_id": trace_id,
         "vehicle_id": vehicle_id,
         "pantograph": {"model": "160EC", "serial": format!("{run}-S{worker:03}")},
@@ -783,7 +784,7 @@ fn print_human(s: &LoadSummary) {
     println!("{}", if s.ok { "OK" } else { "FAILED" });
 }
 
-/// `pantowatch load`: exit status 1 when anything was lost, duplicated, altered or failed.
+/// `pantowatch-tools load`: exit status 1 when anything was lost, duplicated, altered or failed.
 pub fn run(a: LoadArgs) -> anyhow::Result<()> {
     let key = match a
         .key

@@ -10,12 +10,12 @@ use serde_json::{Value, json};
 use tokio::sync::Semaphore;
 use tokio::task::JoinSet;
 
-use super::docs::{lift_doc, simulate_defaults};
 use super::harness::{FreshPg, Server};
 use super::table::{Row, Sizes, SuiteArgs};
-use crate::cli::simulate::{SimulateArgs, simulate_doc};
-use crate::store::{Role, Store};
-use crate::trace::TraceDoc;
+use pantowatch::cli::simulate::docs::{lift_doc, simulate_defaults};
+use pantowatch::cli::simulate::{SimulateArgs, simulate_doc};
+use pantowatch::store::{Role, Store};
+use pantowatch::trace::TraceDoc;
 
 /// Target: the API within this factor of the `COPY` floor.
 const RATIO_TARGET: f64 = 3.0;
@@ -81,7 +81,7 @@ pub fn run(a: &SuiteArgs, sizes: &Sizes) -> Vec<Row> {
             Row::failed("storage: bytes per sample", "≤ 4 B, lossless", &why),
         ]
     };
-    let rt = match crate::cli::serve::runtime() {
+    let rt = match pantowatch::cli::serve::runtime() {
         Ok(rt) => rt,
         Err(e) => return fail(format!("{e:#}")),
     };

@@ -1,4 +1,4 @@
-//! `pantowatch bench FILE…`: time the identification of each trace on one core (median of
+//! `pantowatch-tools bench FILE…`: time the identification of each trace on one core (median of
 //! `--repeat` runs) — the Rust side of `bench/run.sh`, which puts it beside the SciPy peer.
 //! Lift traces are timed too: the complete-pantograph MAP fit with its fit-result mapping (one
 //! thread; "viscous"/"dry" show J3's, the joint a lift informs best).
@@ -9,7 +9,7 @@ use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::identify::{FitOptions, fit_base};
 use serde_json::json;
 
-use crate::trace::{Kind, TraceDoc};
+use pantowatch::trace::{Kind, TraceDoc};
 
 use super::table::{BenchArgs, median};
 
@@ -22,7 +22,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         );
     }
     for f in &a.files {
-        let doc = crate::cli::read_trace(f)?;
+        let doc = pantowatch::cli::read_trace(f)?;
         if doc.kind == Kind::Lift {
             bench_lift(&a, f, &doc)?;
             continue;
@@ -77,7 +77,7 @@ fn bench_lift(a: &BenchArgs, f: &std::path::Path, doc: &TraceDoc) -> anyhow::Res
     let mut last = None;
     for _ in 0..a.repeat.max(1) {
         let t0 = Instant::now();
-        let rep = crate::fitting::fit_lift(doc, &DriftThresholds::default())
+        let rep = pantowatch::fitting::fit_lift(doc, &DriftThresholds::default())
             .map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
         times.push(t0.elapsed().as_secs_f64());
         last = Some(rep);
