@@ -11,18 +11,7 @@ impl TraceDoc {
     /// The contract allows `test.rig` overrides of that geometry; none is supported yet, so a
     /// non-empty `test.rig` is refused rather than silently ignored.
     fn check_lift(&self) -> Result<Option<LiftProtocol>, TraceError> {
-        if self.kind != Kind::Lift {
-            return Err(bad("test.kind", "not a lift test"));
-        }
-        if self.pantograph_model != "160EC" {
-            return Err(bad(
-                "pantograph.model",
-                format!(
-                    "lift tests are fitted with the 160EC geometry only, got `{}`",
-                    self.pantograph_model
-                ),
-            ));
-        }
+        self.geometry_160ec_only("lift tests")?;
         if let Some(j) = &self.joint {
             return Err(bad(
                 "test.joint",
@@ -103,18 +92,7 @@ impl TraceDoc {
     /// (built-in 160EC geometry). `test.rig`: `incline_deg` (default 70), `gravity_m_s2`
     /// (default 9.81), `attachments` (point masses fixed to a body, at body coordinates).
     fn check_quadrangle(&self) -> Result<QuadRig, TraceError> {
-        if self.kind != Kind::QuadrangleSwing {
-            return Err(bad("test.kind", "not a quadrangle_swing test"));
-        }
-        if self.pantograph_model != "160EC" {
-            return Err(bad(
-                "pantograph.model",
-                format!(
-                    "quadrangle swings are fitted with the 160EC geometry only, got `{}`",
-                    self.pantograph_model
-                ),
-            ));
-        }
+        self.geometry_160ec_only("quadrangle swings")?;
         if let Some(j) = &self.joint {
             return Err(bad(
                 "test.joint",
@@ -217,9 +195,6 @@ impl TraceDoc {
     /// branch (H never decreasing up to the first highest reading) then a lowering branch (H
     /// never increasing after it), each of at least `min_points_per_branch` readings.
     fn check_static_force(&self) -> Result<(f64, usize), TraceError> {
-        if self.kind != Kind::StaticForce {
-            return Err(bad("test.kind", "not a static_force test"));
-        }
         let sf = self
             .pantograph_data()
             .and_then(|d| d.static_force.as_ref())
@@ -307,6 +282,22 @@ impl TraceDoc {
             gauge_resolution_n,
             raise_len,
         })
+    }
+
+    /// The whole-pantograph kinds (lift, quadrangle swing) are fitted with the built-in 160EC
+    /// geometry only.
+    fn geometry_160ec_only(&self, what: &str) -> Result<(), TraceError> {
+        if self.pantograph_model == "160EC" {
+            Ok(())
+        } else {
+            Err(bad(
+                "pantograph.model",
+                format!(
+                    "{what} are fitted with the 160EC geometry only, got `{}`",
+                    self.pantograph_model
+                ),
+            ))
+        }
     }
 
     /// The pantograph type's data when compiled in (`160EC`); `None` for other models.
