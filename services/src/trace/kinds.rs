@@ -12,23 +12,10 @@ impl TraceDoc {
     /// non-empty `test.rig` is refused rather than silently ignored.
     fn check_lift(&self) -> Result<Option<LiftProtocol>, TraceError> {
         self.geometry_160ec_only("lift tests")?;
-        if let Some(j) = &self.joint {
-            return Err(bad(
-                "test.joint",
-                format!("a lift test is of the whole pantograph, got joint `{j}`"),
-            ));
-        }
-        if let Some((k, _)) = self
-            .test
-            .get("rig")
-            .and_then(Value::as_object)
-            .and_then(|r| r.iter().next())
-        {
-            return Err(bad(
-                format!("test.rig.{k}"),
-                "overrides of the 160EC lift geometry are not supported yet (send an empty rig)",
-            ));
-        }
+        self.whole_pantograph(
+            "a lift test",
+            "overrides of the 160EC lift geometry are not supported yet (send an empty rig)",
+        )?;
         let get = |name: &str| self.channel(name).unwrap_or_default();
         lift_gaps(get("t_s"))?;
         let protocol = self.lift_protocol(get("t_s"))?;
@@ -209,23 +196,10 @@ impl TraceDoc {
                     ),
                 )
             })?;
-        if let Some(j) = &self.joint {
-            return Err(bad(
-                "test.joint",
-                format!("a static_force test is of the whole pantograph, got joint `{j}`"),
-            ));
-        }
-        if let Some((k, _)) = self
-            .test
-            .get("rig")
-            .and_then(Value::as_object)
-            .and_then(|r| r.iter().next())
-        {
-            return Err(bad(
-                format!("test.rig.{k}"),
-                "a static_force test has no rig to state (send an empty rig or none)",
-            ));
-        }
+        self.whole_pantograph(
+            "a static_force test",
+            "a static_force test has no rig to state (send an empty rig or none)",
+        )?;
         if self.test.get("protocol").is_some_and(|v| !v.is_null()) {
             return Err(bad(
                 "test.protocol",
@@ -298,6 +272,26 @@ impl TraceDoc {
                 ),
             ))
         }
+    }
+
+    /// A test of the whole pantograph (`what`: "a lift test") names no joint and states no
+    /// rig: the first rig key is refused with `rig_message`.
+    fn whole_pantograph(&self, what: &str, rig_message: &str) -> Result<(), TraceError> {
+        if let Some(j) = &self.joint {
+            return Err(bad(
+                "test.joint",
+                format!("{what} is of the whole pantograph, got joint `{j}`"),
+            ));
+        }
+        if let Some((k, _)) = self
+            .test
+            .get("rig")
+            .and_then(Value::as_object)
+            .and_then(|r| r.iter().next())
+        {
+            return Err(bad(format!("test.rig.{k}"), rig_message));
+        }
+        Ok(())
     }
 
     /// The pantograph type's data when compiled in (`160EC`); `None` for other models.
