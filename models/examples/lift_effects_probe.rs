@@ -6,7 +6,9 @@
 //! `cargo run --release -p pantowatch-models --example lift_effects_probe -- [SEEDS] [CASE…]`
 //! (cases: `clean`, `drag:<c_a N/(m/s)²>`, `delay:<ms>`, `offset:<mm>`, `gain:<%>`,
 //! `stribeck:<μs/μk − 1>` at `$STRIBECK_JOINT` (J3) with `$STRIBECK_VS` rad/s, `band:<factor>`:
-//! J3 dry friction × factor over the middle third of the lift's α range, outside the vocabulary)
+//! J3 dry friction × factor over the middle third of the lift's α range, outside the vocabulary,
+//! `compliance:<k N·m/rad>`: the bellows as spring k, damper `$DRIVE_C` N·m·s/rad (default 10)
+//! and drive inertia `$DRIVE_JD` kg·m² (default 0.2))
 use pantowatch_models::drift::{DriftThresholds, Status};
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
@@ -90,6 +92,19 @@ fn main() {
                     alpha_lo_rad: lo,
                     alpha_hi_rad: hi,
                     factor: size,
+                });
+            }
+            if name == "compliance" {
+                let env = |k: &str, d: f64| {
+                    std::env::var(k)
+                        .ok()
+                        .and_then(|v| v.parse().ok())
+                        .unwrap_or(d)
+                };
+                m.drive_compliance = Some(pantowatch_models::lift::dynamics::DriveCompliance {
+                    stiffness_nm_per_rad: size,
+                    damping_nms_per_rad: env("DRIVE_C", 10.0),
+                    inertia_kgm2: env("DRIVE_JD", 0.2),
                 });
             }
             if name == "stribeck" {

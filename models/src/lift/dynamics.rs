@@ -69,12 +69,50 @@ pub struct LiftModel {
     /// dry friction at one joint multiplied by a factor over a band of the lower arm's angle (a
     /// scored or dirty stretch of a pin). `None` in the paper's model; no fit estimates it.
     pub friction_band: Option<FrictionBand>,
+    /// `drive_compliance` (issue 16, a lift effect; `None` in the paper's model, whose drive
+    /// torque acts on the lower arm directly): the bellows as a spring and damper between the
+    /// drive side, of its own inertia, and the lower arm ([`DriveCompliance`]).
+    pub drive_compliance: Option<DriveCompliance>,
     /// Lower-arm range searched for static states (`[range]`), rad.
     pub alpha_range_rad: (f64, f64),
     /// H and its partials tabulated over α (geometry only; shared by the clones a fit makes).
     /// Made from `linkage` and `alpha_range_rad` by [`LiftModel::new`]: a model whose linkage
     /// is changed afterwards must be made anew.
     pub strip_table: Arc<StripTable>,
+}
+
+/// `drive_compliance` (issue 16, a lift effect; the paper's Fig 2a: the pneumatic bellows as an
+/// equivalent spring and damper). The recorded drive torque T acts on the drive side (bellows
+/// plate, cams, their lever: inertia J_d about the lower arm's axis, angle β); the drive side
+/// turns the lower arm (angle α) through the bellows' spring k and damper c, which transmit
+/// τ = k·δ + c·δ̇ with the deflection δ = β − α:
+///
+/// J_d·β̈ = T − τ,   the lower arm's Kane equation driven by τ instead of T.
+///
+/// The state gains δ and δ̇ (δ̈ = (T − τ)/J_d − α̈). A lift starts at rest with the spring
+/// carrying the first sample's torque, δ₀ = T₀/k. Assumptions: linear spring and damper
+/// (small deflections about the working pressure); the drive side a rigid body on the lower
+/// arm's axis (the cams' radius R(α) lumped into k, c and J_d as equivalents at the arm); T
+/// measured on the drive side (the bellows' pressure), so a rigid drive (k → ∞) is the paper's
+/// model. Where a user sees it: a lift whose head rings or lags after the weight's cut and
+/// every turn of the drive, at the two-mass mode √(k·(1/J_d + 1/M_α)), which no friction makes.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DriveCompliance {
+    /// k, N·m/rad.
+    pub stiffness_nm_per_rad: f64,
+    /// c, N·m·s/rad.
+    pub damping_nms_per_rad: f64,
+    /// J_d, kg·m².
+    pub inertia_kgm2: f64,
+}
+
+impl DriveCompliance {
+    /// The torque the bellows pass to the lower arm at deflection δ and rate δ̇, N·m.
+    #[inline]
+    pub fn transmitted_nm(&self, deflection_rad: f64, deflection_rate_rad_s: f64) -> f64 {
+        self.stiffness_nm_per_rad * deflection_rad
+            + self.damping_nms_per_rad * deflection_rate_rad_s
+    }
 }
 
 /// Kane's equations of a state before the revolute joints' friction is added.
@@ -135,7 +173,18 @@ impl LiftModel {
             stribeck_excess: [0.0; N_REV],
             stribeck_speed_rad_s: [DEFAULT_STRIBECK_SPEED_RAD_S; N_REV],
             friction_band: None,
+            drive_compliance: None,
             alpha_range_rad,
+        }
+    }
+
+    /// Number of mechanical state components: α, h, α̇, ḣ, and with a compliant drive its
+    /// deflection δ and δ̇ ([`DriveCompliance`]).
+    pub fn n_state(&self) -> usize {
+        if self.drive_compliance.is_some() {
+            6
+        } else {
+            4
         }
     }
 

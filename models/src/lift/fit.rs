@@ -334,6 +334,31 @@ pub fn effect_prior(p: LiftParam) -> Option<EffectPrior> {
             lower: 0.005,
             upper: 0.5,
         }),
+        // `drive_compliance` (the bellows between the drive side and the lower arm, referred
+        // to the arm's axis): J_d N(0, 1²) kg·m² in [0.001, 10] — the bellows plate, cams and
+        // their lever, ~0.05–0.5 kg·m² on a 160EC-size drive; a few kg·m² is a heavy drive
+        // train; the lower bound keeps δ̈ = (T − τ)/J_d finite. k N(5000, 5000²) N·m/rad in
+        // [300, 10⁵] — an air bellows of ~0.01 m² at 4–6 bar on a ~0.1 m cam radius gives
+        // 10³–10⁴ N·m/rad; c N(20, 50²) N·m·s/rad in [0, 500] (the bellows' own damping,
+        // small beside the drive's equivalent 330 N·m·s/rad on the arm: `lift-example.meta`).
+        LiftParam::DriveInertia => Some(EffectPrior {
+            mean: 0.0,
+            sd: 1.0,
+            lower: 1e-3,
+            upper: 10.0,
+        }),
+        LiftParam::DriveStiffness => Some(EffectPrior {
+            mean: 5000.0,
+            sd: 5000.0,
+            lower: 300.0,
+            upper: 1e5,
+        }),
+        LiftParam::DriveDamping => Some(EffectPrior {
+            mean: 20.0,
+            sd: 50.0,
+            lower: 0.0,
+            upper: 500.0,
+        }),
         _ => None,
     }
 }

@@ -187,8 +187,12 @@ pub fn record(
     };
     let start = initial_state(model, &inputs, &sim)?;
     let run = simulate(model, &inputs, start, &sim)?;
+    // The recorded torque is the drive side's: with a compliant drive its rate is α̇ + δ̇.
     let torque_nm = (0..n)
-        .map(|k| set[k] - p.drive_damping_nms_per_rad * run.alpha_dot_rad_s[k])
+        .map(|k| {
+            let rate = run.alpha_dot_rad_s[k] + run.deflection_rate_rad_s.get(k).unwrap_or(&0.0);
+            set[k] - p.drive_damping_nms_per_rad * rate
+        })
         .collect();
     let fs_n = run
         .strip_height_m

@@ -14,7 +14,7 @@ use std::cell::Cell;
 use super::dynamics::{DynamicsError, LiftModel, Q_DRIVE, Q_SLIDE, State};
 use super::integrate::{Segmented, integrate};
 use super::kinematics::HeadKin;
-use super::simulate::{LiftInputs, SimError, SimOptions, initial_state};
+use super::simulate::{LiftInputs, SimError, SimOptions, initial_deflection_rad, initial_state};
 use super::topology::{N_REV, RevJoint};
 use crate::numerics::ode::{OdeError, Rosw, Tolerances, WSystem};
 
@@ -49,7 +49,22 @@ pub enum LiftParam {
     StribeckExcess(RevJoint),
     /// `stribeck` at a revolute joint: its Stribeck speed v_s, rad/s.
     StribeckSpeed(RevJoint),
+    /// `drive_compliance`: the drive side's inertia J_d, kg·m² ([`super::dynamics::DriveCompliance`]).
+    DriveInertia,
+    /// `drive_compliance`: the bellows' stiffness k, N·m/rad.
+    DriveStiffness,
+    /// `drive_compliance`: the bellows' damping c, N·m·s/rad.
+    DriveDamping,
 }
+
+/// The compliant drive a fit starts from when it sets one of its parameters on a model without
+/// one: the middle of [`super::fit::effect_prior`]'s ranges.
+pub const DRIVE_COMPLIANCE_START: super::dynamics::DriveCompliance =
+    super::dynamics::DriveCompliance {
+        stiffness_nm_per_rad: 5000.0,
+        damping_nms_per_rad: 20.0,
+        inertia_kgm2: 0.5,
+    };
 
 impl LiftParam {
     /// An effect on the H read-out rather than on the dynamics (`sensor_delay`).
@@ -94,6 +109,9 @@ impl LiftParam {
             LiftParam::HeadDrag => "head",
             LiftParam::SensorDelay | LiftParam::SensorOffset => "H",
             LiftParam::StribeckExcess(j) | LiftParam::StribeckSpeed(j) => j.name(),
+            LiftParam::DriveInertia | LiftParam::DriveStiffness | LiftParam::DriveDamping => {
+                "drive"
+            }
         }
     }
 
@@ -109,6 +127,9 @@ impl LiftParam {
             LiftParam::SensorOffset => "zero",
             LiftParam::StribeckExcess(_) => "stribeck_excess",
             LiftParam::StribeckSpeed(_) => "stribeck_speed",
+            LiftParam::DriveInertia => "inertia",
+            LiftParam::DriveStiffness => "stiffness",
+            LiftParam::DriveDamping => "damping",
         }
     }
 
@@ -126,6 +147,19 @@ impl LiftParam {
             LiftParam::SensorOffset => model.h_sensor_offset_m,
             LiftParam::StribeckExcess(j) => model.stribeck_excess[j.index()],
             LiftParam::StribeckSpeed(j) => model.stribeck_speed_rad_s[j.index()],
+            LiftParam::DriveInertia => model.drive_compliance.map_or(0.0, |c| c.inertia_kgm2),
+            LiftParam::DriveStiffness => {
+                model
+                    .drive_compliance
+                    .unwrap_or(DRIVE_COMPLIANCE_START)
+                    .stiffness_nm_per_rad
+            }
+            LiftParam::DriveDamping => {
+                model
+                    .drive_compliance
+                    .unwrap_or(DRIVE_COMPLIANCE_START)
+                    .damping_nms_per_rad
+            }
         }
     }
 
@@ -143,6 +177,14 @@ impl LiftParam {
             LiftParam::SensorOffset => model.h_sensor_offset_m = v,
             LiftParam::StribeckExcess(j) => model.stribeck_excess[j.index()] = v,
             LiftParam::StribeckSpeed(j) => model.stribeck_speed_rad_s[j.index()] = v,
+            LiftParam::DriveInertia | LiftParam::DriveStiffness | LiftParam::DriveDamping => {
+                let c = model.drive_compliance.get_or_insert(DRIVE_COMPLIANCE_START);
+                match self {
+                    LiftParam::DriveInertia => c.inertia_kgm2 = v,
+                    LiftParam::DriveStiffness => c.stiffness_nm_per_rad = v,
+                    _ => c.damping_nms_per_rad = v,
+                }
+            }
         }
     }
 }
@@ -189,15 +231,19 @@ impl Segmented for SensSys<'_> {
 
 impl SensSys<'_> {
     /// Accelerations and the exact ∂acc/∂θ at (t, state), plus ∂acc/∂y by differences; when
-    /// `w` is given, the state's Jacobian into it.
+    /// `w` is given, the state's Jacobian into it (its leading [`LiftModel::n_state`] square).
+    ///
+    /// State order: α, h, α̇, ḣ, and with a compliant drive δ, δ̇; each parameter's
+    /// sensitivity column follows in the same order.
     fn eval(
         &self,
         t: f64,
         y: &[f64],
         dy: &mut [f64],
-        w: Option<&mut [[f64; 4]; 4]>,
+        w: Option<&mut [[f64; 6]; 6]>,
     ) -> Result<(), DynamicsError> {
         let m = self.model;
+        let ns = m.n_state();
         let s = State {
             alpha_rad: y[0],
             h_m: y[1],
@@ -205,6 +251,12 @@ impl SensSys<'_> {
             h_dot_m_s: y[3],
         };
         let mut loads = self.inputs.loads(t, self.fm_n, self.offset_nm);
+        // `drive_compliance`: the recorded torque acts on the drive side; the arm gets τ.
+        let drive_side_nm = loads.drive_torque_nm;
+        let compliance = m.drive_compliance;
+        if let Some(c) = &compliance {
+            loads.drive_torque_nm = c.transmitted_nm(y[4], y[5]);
+        }
         let pose = m.linkage.pose(s.alpha_rad)?;
         let head = m.linkage.head(&pose, s.h_m, s.alpha_dot_rad_s, s.h_dot_m_s);
         // `quadratic_drag` is a load that depends on the state: each perturbed state below
@@ -232,7 +284,7 @@ impl SensSys<'_> {
         // State Jacobian of the accelerations, one column per state component: one-sided
         // differences of the accelerations linearised in the friction torques about this
         // evaluation (`accelerations_near`: first-order exact, one reaction recovery each).
-        let mut jy = [[0.0; 4]; 2];
+        let mut jy = [[0.0; 6]; 2];
         for c in 0..4 {
             let mut sp = s;
             let d = FD_STEP[c];
@@ -259,13 +311,41 @@ impl SensSys<'_> {
             jy[0][c] = (ap[0] - acc[0]) / d;
             jy[1][c] = (ap[1] - acc[1]) / d;
         }
+        // With a compliant drive: τ = k·δ + c·δ̇ enters the accelerations as the drive torque
+        // (Φ's drive column, exact), and δ̈ = (T − τ)/J_d − α̈.
+        let mut jd = [0.0; 6];
+        let mut transmitted_nm = 0.0;
+        if let Some(c) = &compliance {
+            transmitted_nm = loads.drive_torque_nm;
+            for r in 0..2 {
+                jy[r][4] = phi[r][Q_DRIVE] * c.stiffness_nm_per_rad;
+                jy[r][5] = phi[r][Q_DRIVE] * c.damping_nms_per_rad;
+            }
+            for col in 0..6 {
+                jd[col] = -jy[0][col];
+            }
+            jd[4] -= c.stiffness_nm_per_rad / c.inertia_kgm2;
+            jd[5] -= c.damping_nms_per_rad / c.inertia_kgm2;
+        }
         dy[0] = y[2];
         dy[1] = y[3];
         dy[2] = acc[0];
         dy[3] = acc[1];
+        if let Some(c) = &compliance {
+            dy[4] = y[5];
+            dy[5] = (drive_side_nm - transmitted_nm) / c.inertia_kgm2 - acc[0];
+        }
         if let Some(w) = w {
-            // d(α, h)/dt = (α̇, ḣ); d(α̇, ḣ)/dt = acc.
-            *w = [[0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0], jy[0], jy[1]];
+            // d(α, h)/dt = (α̇, ḣ); d(α̇, ḣ)/dt = acc; dδ/dt = δ̇; dδ̇/dt = δ̈.
+            *w = [[0.0; 6]; 6];
+            w[0][2] = 1.0;
+            w[1][3] = 1.0;
+            w[2] = jy[0];
+            w[3] = jy[1];
+            if compliance.is_some() {
+                w[4][5] = 1.0;
+                w[5] = jd;
+            }
         }
         let f = &m.friction;
         let hd = s.h_dot_m_s;
@@ -275,8 +355,9 @@ impl SensSys<'_> {
         let mut per_strip_n = None;
         for (i, p) in self.params.iter().enumerate() {
             // Direct change of the accelerations per unit parameter: through one generalised
-            // friction input (Φ's column), or for the drag through the strip load.
-            let direct: [f64; 2] = if *p == LiftParam::HeadDrag {
+            // friction input (Φ's column), or for the drag through the strip load; the third
+            // entry is δ̈'s (with a compliant drive: −α̈'s, plus the drive side's own).
+            let direct: [f64; 3] = if *p == LiftParam::HeadDrag {
                 let d = match per_strip_n {
                     Some(d) => d,
                     None => {
@@ -293,7 +374,38 @@ impl SensSys<'_> {
                     }
                 };
                 let v = head.strip_d_alpha.y * s.alpha_dot_rad_s + head.u.y * hd;
-                [d[0] * v * v.abs(), d[1] * v * v.abs()]
+                let a = d[0] * v * v.abs();
+                [a, d[1] * v * v.abs(), -a]
+            } else if let (Some(c), true) = (
+                &compliance,
+                matches!(
+                    p,
+                    LiftParam::TorqueOffset
+                        | LiftParam::DriveInertia
+                        | LiftParam::DriveStiffness
+                        | LiftParam::DriveDamping
+                ),
+            ) {
+                let jd_kgm2 = c.inertia_kgm2;
+                match p {
+                    // The offset moves the drive side's torque only: δ̈ by −1/J_d.
+                    LiftParam::TorqueOffset => [0.0, 0.0, -1.0 / jd_kgm2],
+                    LiftParam::DriveInertia => [
+                        0.0,
+                        0.0,
+                        -(drive_side_nm - transmitted_nm) / (jd_kgm2 * jd_kgm2),
+                    ],
+                    _ => {
+                        // ∂τ/∂k = δ, ∂τ/∂c = δ̇.
+                        let dtau = if *p == LiftParam::DriveStiffness {
+                            y[4]
+                        } else {
+                            y[5]
+                        };
+                        let a = phi[0][Q_DRIVE] * dtau;
+                        [a, phi[1][Q_DRIVE] * dtau, -dtau / jd_kgm2 - a]
+                    }
+                }
             } else {
                 let (q, dq) = match *p {
                     LiftParam::Viscous(j) => (j.index(), e.rel_rate_rad_s[j.index()]),
@@ -331,24 +443,60 @@ impl SensSys<'_> {
                     ),
                     LiftParam::J9Damping => (Q_SLIDE, -m.j9_count * hd),
                     LiftParam::TorqueOffset => (Q_DRIVE, -1.0),
-                    // Not reached (the strip-load branch above; a delay is never a
-                    // sensitivity run's parameter): no generalised input.
-                    LiftParam::HeadDrag | LiftParam::SensorDelay | LiftParam::SensorOffset => {
-                        (Q_DRIVE, 0.0)
-                    }
+                    // Not reached (the strip-load and drive branches above; a delay is never
+                    // a sensitivity run's parameter; the drive's parameters without a
+                    // compliant drive move nothing): no generalised input.
+                    LiftParam::HeadDrag
+                    | LiftParam::SensorDelay
+                    | LiftParam::SensorOffset
+                    | LiftParam::DriveInertia
+                    | LiftParam::DriveStiffness
+                    | LiftParam::DriveDamping => (Q_DRIVE, 0.0),
                 };
-                [phi[0][q] * dq, phi[1][q] * dq]
+                let a = phi[0][q] * dq;
+                [a, phi[1][q] * dq, -a]
             };
-            let sv = &y[4 + 4 * i..8 + 4 * i];
-            let o = &mut dy[4 + 4 * i..8 + 4 * i];
+            let sv = &y[ns + ns * i..ns + ns * (i + 1)];
+            let o = &mut dy[ns + ns * i..ns + ns * (i + 1)];
             o[0] = sv[2];
             o[1] = sv[3];
             for r in 0..2 {
-                o[2 + r] = jy[r][0] * sv[0]
-                    + jy[r][1] * sv[1]
-                    + jy[r][2] * sv[2]
-                    + jy[r][3] * sv[3]
-                    + direct[r];
+                let mut v = direct[r];
+                for col in 0..ns {
+                    v += jy[r][col] * sv[col];
+                }
+                o[2 + r] = v;
+            }
+            if ns == 6 {
+                o[4] = sv[5];
+                let mut v = direct[2];
+                for col in 0..6 {
+                    v += jd[col] * sv[col];
+                }
+                o[5] = v;
+            }
+        }
+        Ok(())
+    }
+
+    /// [`SensSys::eval`] for the stepper's block of `B` (= [`LiftModel::n_state`]) components.
+    fn rhs_block<const B: usize>(
+        &self,
+        t: f64,
+        y: &[f64],
+        dy: &mut [f64],
+        w: Option<&mut [[f64; B]; B]>,
+    ) -> Result<(), OdeError> {
+        let mut full = [[0.0; 6]; 6];
+        let want = w.is_some();
+        if self.eval(t, y, dy, want.then_some(&mut full)).is_err() {
+            // Outside the assembly range in a trial stage: reject the step.
+            dy.fill(f64::NAN);
+            return Ok(());
+        }
+        if let Some(w) = w {
+            for r in 0..B {
+                w[r].copy_from_slice(&full[r][..B]);
             }
         }
         Ok(())
@@ -366,11 +514,23 @@ impl WSystem<4> for SensSys<'_> {
         dy: &mut [f64],
         w: Option<&mut [[f64; 4]; 4]>,
     ) -> Result<(), OdeError> {
-        if self.eval(t, y, dy, w).is_err() {
-            // Outside the assembly range in a trial stage: reject the step.
-            dy.fill(f64::NAN);
-        }
-        Ok(())
+        self.rhs_block(t, y, dy, w)
+    }
+}
+
+/// The system with a compliant drive: δ and δ̇ join the block.
+impl WSystem<6> for SensSys<'_> {
+    fn dim(&self) -> usize {
+        6 + 6 * self.params.len()
+    }
+    fn rhs_w(
+        &self,
+        t: f64,
+        y: &[f64],
+        dy: &mut [f64],
+        w: Option<&mut [[f64; 6]; 6]>,
+    ) -> Result<(), OdeError> {
+        self.rhs_block(t, y, dy, w)
     }
 }
 
@@ -382,6 +542,8 @@ impl WSystem<4> for SensSys<'_> {
 #[derive(Default)]
 pub struct SensWorkspace {
     ode: Option<Rosw<4>>,
+    /// The stepper of a model with a compliant drive (six state components).
+    ode6: Option<Rosw<6>>,
     y: Vec<f64>,
     buf: Vec<f64>,
     run: SensitivityRun,
@@ -396,7 +558,8 @@ impl SensWorkspace {
 
     /// Bytes held (capacity of every buffer), for callers that bound what a thread keeps.
     pub fn capacity_bytes(&self) -> usize {
-        let ode = self.ode.as_ref().map_or(0, Rosw::capacity_bytes);
+        let ode = self.ode.as_ref().map_or(0, Rosw::capacity_bytes)
+            + self.ode6.as_ref().map_or(0, Rosw::capacity_bytes);
         ode + std::mem::size_of::<f64>()
             * (self.y.capacity()
                 + self.buf.capacity()
@@ -434,7 +597,8 @@ pub fn simulate_sensitivities_in<'w>(
     inputs.validate()?;
     let n = inputs.t_s.len();
     let p = params.len();
-    let dim = 4 + 4 * p;
+    let ns = model.n_state();
+    let dim = ns + ns * p;
     let sim_opts = SimOptions {
         torque_offset_nm: offset_nm,
         drive: None,
@@ -446,7 +610,13 @@ pub fn simulate_sensitivities_in<'w>(
     y.clear();
     y.resize(dim, 0.0);
     y[..4].copy_from_slice(&[start.alpha_rad, start.h_m, 0.0, 0.0]);
-    // Only the offset moves the static start (friction vanishes at rest).
+    // A compliant drive starts with its spring carrying the first torque: δ₀ = T₀/k.
+    let deflection0 = initial_deflection_rad(model, inputs, &sim_opts, &start);
+    if ns == 6 {
+        y[4] = deflection0;
+    }
+    // Only the offset (and a compliant drive's stiffness, through δ₀) moves the static start
+    // (friction vanishes at rest).
     if let Some(i) = params.iter().position(|q| *q == LiftParam::TorqueOffset) {
         let d = 1e-3;
         let at = |o: f64| {
@@ -460,8 +630,17 @@ pub fn simulate_sensitivities_in<'w>(
             )
         };
         let (a, b) = (at(offset_nm + d)?, at(offset_nm - d)?);
-        y[4 + 4 * i] = (a.alpha_rad - b.alpha_rad) / (2.0 * d);
-        y[4 + 4 * i + 1] = (a.h_m - b.h_m) / (2.0 * d);
+        y[ns + ns * i] = (a.alpha_rad - b.alpha_rad) / (2.0 * d);
+        y[ns + ns * i + 1] = (a.h_m - b.h_m) / (2.0 * d);
+        if let Some(c) = &model.drive_compliance {
+            y[ns + ns * i + 4] = -1.0 / c.stiffness_nm_per_rad;
+        }
+    }
+    if let (Some(c), Some(i)) = (
+        &model.drive_compliance,
+        params.iter().position(|q| *q == LiftParam::DriveStiffness),
+    ) {
+        y[ns + ns * i + 4] = -deflection0 / c.stiffness_nm_per_rad;
     }
     let mut sys = SensSys {
         model,
@@ -489,40 +668,63 @@ pub fn simulate_sensitivities_in<'w>(
     };
     // Only the state is error-controlled: an L-stable method keeps the sensitivities bounded,
     // and they come out within 0.2 % of tightly integrated ones at the fit's tolerance.
-    // W: the state's 4 × 4 Jacobian, repeated over every sensitivity column (their equations
-    // S′ = f_y·S + f_θ have the same Jacobian; the coupling ∂(f_y·S)/∂y is left out of W).
-    let ode = match &mut ws.ode {
-        Some(o) if o.dim() == dim => {
-            o.restart(tol);
-            o
+    // W: the state's Jacobian (4 × 4, 6 × 6 with a compliant drive), repeated over every
+    // sensitivity column (their equations S′ = f_y·S + f_θ have the same Jacobian; the
+    // coupling ∂(f_y·S)/∂y is left out of W).
+    let rate_atol = RATE_ATOL_FACTOR * opts.atol;
+    let atol = [
+        opts.atol, opts.atol, rate_atol, rate_atol, opts.atol, rate_atol,
+    ];
+    let sample = |_: usize, y: &[f64]| -> Result<(), DynamicsError> {
+        let (height, d_alpha, d_h) = model.strip_height_partials(y[0], y[1])?;
+        out.strip_height_m.push(height);
+        // H = y of strip: ∂H/∂θ = ∂H/∂α·∂α/∂θ + ∂H/∂h·∂h/∂θ.
+        for i in 0..p {
+            let sv = &y[ns + ns * i..ns + ns * i + 2];
+            out.d_height.push(d_alpha * sv[0] + d_h * sv[1]);
         }
-        slot => slot.insert(Rosw::<4>::new(dim, 4, tol)),
+        Ok(())
     };
-    ode.set_atol(&[
-        opts.atol,
-        opts.atol,
-        RATE_ATOL_FACTOR * opts.atol,
-        RATE_ATOL_FACTOR * opts.atol,
-    ]);
-    let work = integrate(
-        &mut sys,
-        ode,
-        inputs.t_s,
-        |k| inputs.is_break(k),
-        y,
-        opts.max_steps,
-        &mut ws.buf,
-        |_, y| -> Result<(), DynamicsError> {
-            let (height, d_alpha, d_h) = model.strip_height_partials(y[0], y[1])?;
-            out.strip_height_m.push(height);
-            // H = y of strip: ∂H/∂θ = ∂H/∂α·∂α/∂θ + ∂H/∂h·∂h/∂θ.
-            for i in 0..p {
-                let sv = &y[4 + 4 * i..6 + 4 * i];
-                out.d_height.push(d_alpha * sv[0] + d_h * sv[1]);
+    let breaks = |k| inputs.is_break(k);
+    let work = if ns == 6 {
+        let ode = match &mut ws.ode6 {
+            Some(o) if o.dim() == dim => {
+                o.restart(tol);
+                o
             }
-            Ok(())
-        },
-    )
+            slot => slot.insert(Rosw::<6>::new(dim, 6, tol)),
+        };
+        ode.set_atol(&atol);
+        integrate(
+            &mut sys,
+            ode,
+            inputs.t_s,
+            breaks,
+            y,
+            opts.max_steps,
+            &mut ws.buf,
+            sample,
+        )
+    } else {
+        let ode = match &mut ws.ode {
+            Some(o) if o.dim() == dim => {
+                o.restart(tol);
+                o
+            }
+            slot => slot.insert(Rosw::<4>::new(dim, 4, tol)),
+        };
+        ode.set_atol(&atol[..4]);
+        integrate(
+            &mut sys,
+            ode,
+            inputs.t_s,
+            breaks,
+            y,
+            opts.max_steps,
+            &mut ws.buf,
+            sample,
+        )
+    }
     .map_err(SimError::from_integrate)?;
     out.steps = work.steps;
     out.rhs_evaluations = work.rhs;
@@ -619,9 +821,27 @@ mod tests {
     /// column) and c_a among the parameters.
     #[test]
     fn sensitivities_match_finite_differences_of_whole_runs() {
+        sensitivities_match_finite_differences(false);
+    }
+
+    /// The same with a compliant drive (`drive_compliance`: six state components, its three
+    /// parameters among the fitted, the offset acting on the drive side).
+    #[test]
+    fn sensitivities_with_a_compliant_drive_match_finite_differences() {
+        sensitivities_match_finite_differences(true);
+    }
+
+    fn sensitivities_match_finite_differences(compliant: bool) {
         let mut base = LiftModel::new(builtin_160ec());
         base.head_drag_ns2_per_m2 = 3.0;
         base.stribeck_excess[RevJoint::J3.index()] = 0.2;
+        if compliant {
+            base.drive_compliance = Some(crate::lift::dynamics::DriveCompliance {
+                stiffness_nm_per_rad: 3000.0,
+                damping_nms_per_rad: 15.0,
+                inertia_kgm2: 0.8,
+            });
+        }
         let (t, tq, fs, fm) = short_lift();
         let inputs = LiftInputs {
             t_s: &t,
@@ -640,6 +860,13 @@ mod tests {
             LiftParam::StribeckExcess(RevJoint::J3),
             LiftParam::StribeckSpeed(RevJoint::J3),
         ]);
+        if compliant {
+            params.extend([
+                LiftParam::DriveInertia,
+                LiftParam::DriveStiffness,
+                LiftParam::DriveDamping,
+            ]);
+        }
         let offset = 2.0;
         // Sensitivities are error-controlled with the state: 10⁻⁹ suffices against 10⁻⁴.
         let sens_opts = SimOptions {

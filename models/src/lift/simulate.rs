@@ -166,6 +166,10 @@ pub struct LiftRun {
     pub h_m: Vec<f64>,
     pub alpha_dot_rad_s: Vec<f64>,
     pub h_dot_m_s: Vec<f64>,
+    /// With a compliant drive ([`crate::lift::dynamics::DriveCompliance`]): the bellows'
+    /// deflection δ = β − α, rad, and its rate, rad/s; empty otherwise.
+    pub deflection_rad: Vec<f64>,
+    pub deflection_rate_rad_s: Vec<f64>,
     pub dissipation: Option<Dissipation>,
     pub rhs_evaluations: usize,
     pub steps: usize,
@@ -239,7 +243,8 @@ impl Default for SimOptions {
     }
 }
 
-/// Components of the ODE state: α, h, α̇, ḣ, then (with energy) the dissipation integrals.
+/// Components of the ODE state: α, h, α̇, ḣ, with a compliant drive δ and δ̇
+/// ([`LiftModel::n_state`]), then (with energy) the dissipation integrals.
 const N_STATE: usize = 4;
 const N_ENERGY: usize = 2 * N_REV + 3;
 
@@ -263,9 +268,9 @@ impl Segmented for Sys<'_> {
 impl OdeSystem for Sys<'_> {
     fn dim(&self) -> usize {
         if self.energy {
-            N_STATE + N_ENERGY
+            self.model.n_state() + N_ENERGY
         } else {
-            N_STATE
+            self.model.n_state()
         }
     }
 
@@ -277,8 +282,21 @@ impl OdeSystem for Sys<'_> {
             h_dot_m_s: y[3],
         };
         let mut loads = self.inputs.loads(t, self.fm_n, self.offset_nm);
+        let ns = self.model.n_state();
+        // With a compliant drive the drive model and the recorded torque act on the drive side
+        // (angle α + δ); the lower arm gets what the bellows transmit.
+        let (mut beta, mut beta_dot) = (s.alpha_rad, s.alpha_dot_rad_s);
+        let compliance = self.model.drive_compliance;
+        if compliance.is_some() {
+            beta += y[4];
+            beta_dot += y[5];
+        }
         if let Some(d) = &self.drive {
-            loads.drive_torque_nm += d.torque_nm(s.alpha_rad, s.alpha_dot_rad_s);
+            loads.drive_torque_nm += d.torque_nm(beta, beta_dot);
+        }
+        let drive_side_nm = loads.drive_torque_nm;
+        if let Some(c) = &compliance {
+            loads.drive_torque_nm = c.transmitted_nm(y[4], y[5]);
         }
         // A trial stage outside the assembly range rejects the step (non-finite derivative)
         // rather than ending the run; a trajectory that really leaves it ends in underflow.
@@ -306,16 +324,20 @@ impl OdeSystem for Sys<'_> {
         dy[1] = s.h_dot_m_s;
         dy[2] = e.alpha_ddot_rad_s2;
         dy[3] = e.h_ddot_m_s2;
+        if let Some(c) = &compliance {
+            dy[4] = y[5];
+            dy[5] = (drive_side_nm - loads.drive_torque_nm) / c.inertia_kgm2 - e.alpha_ddot_rad_s2;
+        }
         if self.energy {
             for j in RevJoint::ALL {
                 let (v, d) = e.revolute_power_w(j);
-                dy[N_STATE + j.index()] = v;
-                dy[N_STATE + N_REV + j.index()] = d;
+                dy[ns + j.index()] = v;
+                dy[ns + N_REV + j.index()] = d;
             }
             let hd = s.h_dot_m_s;
-            dy[N_STATE + 2 * N_REV] = e.j8_viscous_n * hd;
-            dy[N_STATE + 2 * N_REV + 1] = e.j8_dry_n * hd;
-            dy[N_STATE + 2 * N_REV + 2] = e.j9_damping_n * hd;
+            dy[ns + 2 * N_REV] = e.j8_viscous_n * hd;
+            dy[ns + 2 * N_REV + 1] = e.j8_dry_n * hd;
+            dy[ns + 2 * N_REV + 2] = e.j9_damping_n * hd;
         }
         Ok(())
     }
@@ -364,6 +386,22 @@ pub fn initial_state(
     })
 }
 
+/// The compliant drive's deflection at rest at the start `s`, rad: the spring carries the
+/// first sample's drive torque, δ₀ = T₀/k (0 without a compliant drive).
+pub fn initial_deflection_rad(
+    model: &LiftModel,
+    inputs: &LiftInputs,
+    opts: &SimOptions,
+    s: &State,
+) -> f64 {
+    let Some(c) = &model.drive_compliance else {
+        return 0.0;
+    };
+    let loads = inputs.loads(inputs.t_s[0], inputs.fm(0), opts.torque_offset_nm);
+    let drive = opts.drive.unwrap_or_default();
+    (loads.drive_torque_nm + drive.torque_nm(s.alpha_rad, 0.0)) / c.stiffness_nm_per_rad
+}
+
 /// Simulate the lift from `start` at the first sample through the last.
 pub fn simulate(
     model: &LiftModel,
@@ -383,6 +421,7 @@ pub fn simulate(
         energy: opts.energy,
     };
     let dim = sys.dim();
+    let ns = model.n_state();
     let mut y = vec![0.0; dim];
     y[..N_STATE].copy_from_slice(&[
         start.alpha_rad,
@@ -390,6 +429,9 @@ pub fn simulate(
         start.alpha_dot_rad_s,
         start.h_dot_m_s,
     ]);
+    if ns > N_STATE {
+        y[4] = initial_deflection_rad(model, inputs, opts, &start);
+    }
     let mut buf = vec![0.0; dim];
     let mut run = LiftRun {
         strip_height_m: Vec::with_capacity(n),
@@ -397,6 +439,8 @@ pub fn simulate(
         h_m: Vec::with_capacity(n),
         alpha_dot_rad_s: Vec::with_capacity(n),
         h_dot_m_s: Vec::with_capacity(n),
+        deflection_rad: Vec::new(),
+        deflection_rate_rad_s: Vec::new(),
         dissipation: None,
         rhs_evaluations: 0,
         steps: 0,
@@ -407,7 +451,7 @@ pub fn simulate(
         h_max: opts.h_max_s,
         ..Default::default()
     };
-    let mut ode = Dopri5::new(dim, N_STATE, tol);
+    let mut ode = Dopri5::new(dim, ns, tol);
     let work = integrate(
         &mut sys,
         &mut ode,
@@ -423,6 +467,10 @@ pub fn simulate(
             run.h_m.push(y[1]);
             run.alpha_dot_rad_s.push(y[2]);
             run.h_dot_m_s.push(y[3]);
+            if ns > N_STATE {
+                run.deflection_rad.push(y[4]);
+                run.deflection_rate_rad_s.push(y[5]);
+            }
             Ok(())
         },
     )
@@ -430,7 +478,7 @@ pub fn simulate(
     run.steps = work.steps;
     run.rhs_evaluations = work.rhs;
     if opts.energy {
-        let e = &y[N_STATE..];
+        let e = &y[ns..];
         let mut d = Dissipation::default();
         d.revolute_viscous_j.copy_from_slice(&e[..N_REV]);
         d.revolute_dry_j.copy_from_slice(&e[N_REV..2 * N_REV]);
