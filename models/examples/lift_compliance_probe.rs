@@ -51,6 +51,50 @@ fn main() {
         let o = SimOptions::default();
         let s0 = initial_state(&base, &inputs, &o).unwrap();
         let rigid = simulate(&base, &inputs, s0, &o).unwrap();
+        // The compliant model itself driven by the recorded (sampled) torque: what a fit with
+        // the true parameters would leave.
+        let s1 = initial_state(&m, &inputs, &o).unwrap();
+        let own = simulate(&m, &inputs, s1, &o).unwrap();
+        let own_rms = (rec
+            .strip_height_m
+            .iter()
+            .zip(&own.strip_height_m)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            / rec.t_s.len() as f64)
+            .sqrt();
+        println!(
+            "  the compliant model on the recorded torque: H RMS {:.3} mm",
+            own_rms * 1e3
+        );
+        let mut fit_sim = pantowatch_models::lift::identify::LiftFitOptions::default().sim;
+        if let Some(h) = std::env::var("FIT_HMAX").ok().and_then(|v| v.parse().ok()) {
+            fit_sim.h_max_s = h;
+        }
+        if let Some(r) = std::env::var("FIT_RTOL").ok().and_then(|v| v.parse().ok()) {
+            fit_sim.rtol = r;
+        }
+        let sens = pantowatch_models::lift::sensitivity::simulate_sensitivities(
+            &m,
+            &inputs,
+            &[],
+            0.0,
+            &fit_sim,
+        )
+        .unwrap();
+        let sens_rms = (rec
+            .strip_height_m
+            .iter()
+            .zip(&sens.strip_height_m)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            / rec.t_s.len() as f64)
+            .sqrt();
+        println!(
+            "  at the fit's tolerance (Rosenbrock-W): H RMS {:.3} mm, {} steps",
+            sens_rms * 1e3,
+            sens.steps
+        );
         let d: Vec<f64> = rec
             .strip_height_m
             .iter()

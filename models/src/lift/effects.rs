@@ -376,6 +376,129 @@ pub fn try_stribeck(
     }))
 }
 
+/// The posterior sd of a fit with `drive_compliance` is multiplied by this (every parameter's),
+/// as [`DRAG_INTERVAL_SCALE`]: the drive side's regressor (its acceleration) comes from the motion
+/// the noisy drive torque drives. Measured: see the README's lift-effects score.
+pub const COMPLIANCE_INTERVAL_SCALE: f64 = 3.0;
+
+/// Smallest drive-side inertia named, kg·m²: below it a compliant drive moves H by less than
+/// the stand's noise on a raise and lower whatever its stiffness (`examples/lift_compliance_probe`
+/// and `lift_effects_probe compliance:…`: J_d 0.2–1 kg·m² at k 1000–5000 N·m/rad left the plain
+/// fit at 0.71–0.89× the noise).
+pub const MIN_DRIVE_INERTIA_KGM2: f64 = 0.1;
+
+/// `opts` with the compliant drive's J_d, k and c fitted, intervals scaled by
+/// [`COMPLIANCE_INTERVAL_SCALE`].
+pub fn compliance_options(opts: &LiftFitOptions) -> LiftFitOptions {
+    let mut o = with_effect(
+        opts,
+        &[
+            LiftParam::DriveInertia,
+            LiftParam::DriveStiffness,
+            LiftParam::DriveDamping,
+        ],
+        COMPLIANCE_INTERVAL_SCALE,
+    );
+    o.sim.h_max_s = o.sim.h_max_s.min(COMPLIANCE_H_MAX_S);
+    o
+}
+
+/// Longest integrator step of a fit with a compliant drive, s. The fit's 50 ms steps do not
+/// resolve the drive-side mode, and the state's error estimate does not see it: measured
+/// (`examples/lift_compliance_probe`, J_d 5 kg·m², k 15000 N·m/rad, c 80 N·m·s/rad, an 8.7 Hz
+/// mode, noise-free record, the true model): H off by 0.69 mm RMS at 50 ms steps, 0.10 mm at
+/// 10 ms, 0.037 mm at 5 ms (the tight DOPRI5 run: 0.026 mm); rtol 10⁻⁶ instead of 10⁻⁵ only
+/// halves the first. 5 ms is ≥ 10 steps per period of modes up to 20 Hz.
+pub const COMPLIANCE_H_MAX_S: f64 = 0.005;
+
+/// The starts of a `drive_compliance` refit (the better end is kept): a light drive side at the
+/// middle of the priors ([`super::sensitivity::DRIVE_COMPLIANCE_START`]) and a heavy one.
+/// Measured (`examples/lift_effects_probe compliance:15000`, J_d 5 kg·m², realistic noise):
+/// from the light start alone 2 of 3 refits stopped at J_d ≈ 0.6 with 2.1–2.4× the noise left.
+pub const COMPLIANCE_STARTS: [super::dynamics::DriveCompliance; 2] = [
+    super::sensitivity::DRIVE_COMPLIANCE_START,
+    super::dynamics::DriveCompliance {
+        stiffness_nm_per_rad: 15000.0,
+        damping_nms_per_rad: 20.0,
+        inertia_kgm2: 3.0,
+    },
+];
+
+/// A named compliant drive and the fit with it.
+#[derive(Debug, Clone)]
+pub struct ComplianceFinding {
+    pub inertia_kgm2: f64,
+    pub inertia_ci95_kgm2: [f64; 2],
+    pub stiffness_nm_per_rad: f64,
+    pub stiffness_ci95_nm_per_rad: [f64; 2],
+    pub damping_nms_per_rad: f64,
+    pub damping_ci95_nms_per_rad: [f64; 2],
+    /// The refit's residual RMS over the noise.
+    pub excess_ratio: f64,
+    pub fit: LiftFit,
+}
+
+/// Tries `drive_compliance` on a trace whose base fit `base` left a model error: one fit with the
+/// drive side's inertia J_d, the bellows' stiffness k and damping c among the parameters, warm at
+/// the plain fit's MAP and the middle of the compliance's priors
+/// ([`super::sensitivity::DRIVE_COMPLIANCE_START`]; from J_d at its prior mean 0 the drive would
+/// start as a stiff 350 Hz mode). Named when, besides the shared margins, J_d's whole interval
+/// lies above [`MIN_DRIVE_INERTIA_KGM2`] and under its prior's bound: J_d is the effect's size
+/// (a massless drive side passes the recorded torque on whatever k and c are).
+pub fn try_drive_compliance(
+    model: &LiftModel,
+    trace: &LiftTrace,
+    base: &LiftFit,
+    opts: &LiftFitOptions,
+) -> Result<Option<ComplianceFinding>, LiftFitError> {
+    let mut refits = Vec::new();
+    for s in COMPLIANCE_STARTS {
+        // Cold: every friction at Table 4 and the torque offset at 0 (the fit's continuation
+        // then runs from there), not the plain fit's MAP, whose friction has absorbed the
+        // drive: measured (`examples/lift_effects_probe compliance:3000`, J_d 5 kg·m², c 30,
+        // a near noise-free record) started at the true J_d, k and c but the plain MAP's
+        // friction, the refit stopped at 0.69 mm (J_d 3.8, k 6400); from Table 4, at 0.037 mm
+        // (J_d 4.95, k 2990).
+        let pf = base.params.len();
+        let mut start = vec![1.0; pf];
+        start.extend(std::iter::repeat_n(0.0, base.offsets.len()));
+        start.extend([
+            s.inertia_kgm2,
+            s.stiffness_nm_per_rad,
+            s.damping_nms_per_rad,
+        ]);
+        let opts = LiftFitOptions {
+            start: Some(start),
+            ..compliance_options(opts)
+        };
+        refits.extend(refit_with(model, trace, base, &opts)?);
+    }
+    let rmse = |r: &Refit| r.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
+    let Some(refit) = refits
+        .into_iter()
+        .min_by(|a, b| rmse(a).total_cmp(&rmse(b)))
+    else {
+        return Ok(None);
+    };
+    let (jd, k, c) = (
+        &refit.fit.effects[0],
+        &refit.fit.effects[1],
+        &refit.fit.effects[2],
+    );
+    let upper = effect_prior(jd.param).map_or(f64::INFINITY, |p| p.upper);
+    let named = refit.explains && jd.ci95[0] >= MIN_DRIVE_INERTIA_KGM2 && jd.ci95[1] < upper;
+    Ok(named.then(|| ComplianceFinding {
+        inertia_kgm2: jd.value,
+        inertia_ci95_kgm2: jd.ci95,
+        stiffness_nm_per_rad: k.value,
+        stiffness_ci95_nm_per_rad: k.ci95,
+        damping_nms_per_rad: c.value,
+        damping_ci95_nms_per_rad: c.ci95,
+        excess_ratio: refit.excess_ratio,
+        fit: refit.fit.clone(),
+    }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

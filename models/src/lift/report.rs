@@ -204,6 +204,7 @@ pub fn fit_lift_trace(
             Candidate::Drag,
             Candidate::Offset,
             Candidate::Stribeck,
+            Candidate::Compliance,
         ]
     } else {
         Candidate::ALL
@@ -333,6 +334,28 @@ fn try_candidate(
             fit: f.fit,
             opts: fx::stribeck_options(opts),
         }),
+        Candidate::Compliance => {
+            fx::try_drive_compliance(model, trace, base, opts)?.map(|f| Found {
+                name: "drive_compliance",
+                params: vec![
+                    ("inertia_kgm2", json!(f.inertia_kgm2)),
+                    ("inertia_kgm2_ci95", json!(f.inertia_ci95_kgm2)),
+                    ("stiffness_nm_per_rad", json!(f.stiffness_nm_per_rad)),
+                    (
+                        "stiffness_nm_per_rad_ci95",
+                        json!(f.stiffness_ci95_nm_per_rad),
+                    ),
+                    ("damping_nms_per_rad", json!(f.damping_nms_per_rad)),
+                    (
+                        "damping_nms_per_rad_ci95",
+                        json!(f.damping_ci95_nms_per_rad),
+                    ),
+                ],
+                excess_ratio: f.excess_ratio,
+                fit: f.fit,
+                opts: fx::compliance_options(opts),
+            })
+        }
     })
 }
 
@@ -343,6 +366,7 @@ enum Candidate {
     Delay,
     Offset,
     Stribeck,
+    Compliance,
 }
 
 /// A passing candidate whose refit leaves its residual within this ratio to the noise ends the
@@ -352,11 +376,12 @@ enum Candidate {
 const STOP_RATIO: f64 = 1.15;
 
 impl Candidate {
-    const ALL: [Candidate; 4] = [
+    const ALL: [Candidate; 5] = [
         Candidate::Drag,
         Candidate::Delay,
         Candidate::Offset,
         Candidate::Stribeck,
+        Candidate::Compliance,
     ];
 }
 

@@ -461,11 +461,13 @@ impl SensSys<'_> {
             o[0] = sv[2];
             o[1] = sv[3];
             for r in 0..2 {
-                let mut v = direct[r];
-                for col in 0..ns {
-                    v += jy[r][col] * sv[col];
+                // The rigid drive's sum in its historical order (bit-for-bit the same runs).
+                let mut v =
+                    jy[r][0] * sv[0] + jy[r][1] * sv[1] + jy[r][2] * sv[2] + jy[r][3] * sv[3];
+                if ns == 6 {
+                    v += jy[r][4] * sv[4] + jy[r][5] * sv[5];
                 }
-                o[2 + r] = v;
+                o[2 + r] = v + direct[r];
             }
             if ns == 6 {
                 o[4] = sv[5];

@@ -328,7 +328,7 @@ pub fn html_lift(
         h2 { "Acceptance" }
         p {
             "The vocabulary (" code { "quadratic_drag" } ", " code { "sensor_delay" } ", " code { "sensor_offset" } ", "
-            code { "stribeck" } " at J1+J3; one fit each, " code { "sensor_delay" }
+            code { "stribeck" } " at J1+J3, " code { "drive_compliance" } "; one fit each, " code { "sensor_delay" }
             " first where the plain residual follows the strip speed most) is tried; a candidate passes when its refit is back under "
             (format!("{:.0}", residual::MODEL_ERROR_RATIO)) "× the noise, its RMSE at most "
             (format!("{:.0}", effects::MIN_IMPROVEMENT * 100.0)) " % of the plain fit's, its held-out RMSE (every "

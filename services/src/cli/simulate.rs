@@ -70,8 +70,9 @@ pub struct SimulateArgs {
     /// `sensor_delay:delay_s=0.008`; outside it: `torsional_spring:k=4` (N·m/rad or N/m),
     /// `fading_friction:fade=0.5` (share of μ lost over the trace). A lift (`--kind lift`)
     /// takes `quadratic_drag:c_a=4` (N/(m/s)² on the head), `sensor_delay:delay_s=0.02`,
-    /// `sensor_offset:offset=0.02` (m, on H) and `stribeck:ratio=1.2,speed=0.05` (at J3, v_s in
-    /// rad/s).
+    /// `sensor_offset:offset=0.02` (m, on H), `stribeck:ratio=1.2,speed=0.05` (at J3, v_s in
+    /// rad/s) and `drive_compliance:inertia=5,stiffness=15000,damping=2` (the bellows between
+    /// the drive side, kg·m², and the lower arm: N·m/rad, N·m·s/rad).
     #[arg(long = "effect")]
     pub effects: Vec<String>,
     /// Slider only: hold the part with this pull (N) and release it at `--release-at` (the
@@ -276,7 +277,9 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
     }
     // Lift effects (issue 16): `quadratic_drag:c_a=…` (N/(m/s)², on the head) and
     // `stribeck:ratio=…[,speed=…]` (μs/μk ≥ 1 and v_s in rad/s at J3, the joint the lift's
-    // vocabulary tries) are physics and go into the model; `sensor_delay:delay_s=…` delays the
+    // vocabulary tries) and `drive_compliance:inertia=…,stiffness=…[,damping=…]` (the bellows
+    // between the drive side and the lower arm) are physics and go into the model;
+    // `sensor_delay:delay_s=…` delays the
     // logged H after the noise, `sensor_offset:offset=…` (m) shifts it.
     let (mut delay_s, mut h_offset_m) = (0.0, 0.0);
     for spec in &a.effects {
@@ -291,6 +294,26 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
                 pantowatch_models::lift::dynamics::DEFAULT_STRIBECK_SPEED_RAD_S,
             )))
             .filter(|(_, vs)| *vs > 0.0);
+        // `drive_compliance:inertia=…,stiffness=…[,damping=…]` (kg·m², N·m/rad, N·m·s/rad).
+        let compliance = (name == "drive_compliance"
+            && kv
+                .keys()
+                .all(|k| k == "inertia" || k == "stiffness" || k == "damping"))
+        .then(|| {
+            Some(pantowatch_models::lift::dynamics::DriveCompliance {
+                inertia_kgm2: *kv.get("inertia")?,
+                stiffness_nm_per_rad: *kv.get("stiffness")?,
+                damping_nms_per_rad: kv.get("damping").copied().unwrap_or(0.0),
+            })
+        })
+        .flatten()
+        .filter(|c| {
+            c.inertia_kgm2 > 0.0 && c.stiffness_nm_per_rad > 0.0 && c.damping_nms_per_rad >= 0.0
+        });
+        if let Some(c) = compliance {
+            model.drive_compliance = Some(c);
+            continue;
+        }
         match (name, only("c_a"), only("delay_s"), stribeck) {
             ("quadratic_drag", Some(v), _, _) if v >= 0.0 => model.head_drag_ns2_per_m2 = v,
             ("sensor_delay", _, Some(v), _) if v >= 0.0 => delay_s = v,
@@ -305,8 +328,9 @@ fn simulate_lift(a: &SimulateArgs) -> anyhow::Result<TraceDoc> {
             _ => anyhow::bail!(
                 "--effect {spec}: a lift takes `quadratic_drag:c_a=<N/(m/s)², >= 0>`, \
                  `sensor_delay:delay_s=<s, >= 0>`, `sensor_offset:offset=<m>` or \
-                 `stribeck:ratio=<μs/μk, >= 1>[,speed=<rad/s, > 0>]` (at J3) (unknown effect or \
-                 key for a lift)"
+                 `stribeck:ratio=<μs/μk, >= 1>[,speed=<rad/s, > 0>]` (at J3) or \
+                 `drive_compliance:inertia=<kg·m², > 0>,stiffness=<N·m/rad, > 0>[,damping=<N·m·s/rad, >= 0>]` \
+                 (unknown effect or key for a lift)"
             ),
         }
     }
