@@ -1,4 +1,8 @@
 //! Explore: what the raise and lower and a designed protocol tell (issue 15, point 3).
+//! `-- N [SEED0]`: also fit N realistic-noise lifts of each (seeds SEED0.., default 7000) and
+//! compare their realised sd with the linearised and the simulated-fit predictions
+//! (`design::simulated_spread`, `SIMULATED_FITS` lifts from `SIMULATED_SEED0`). `PW_DRAWS=D`:
+//! D input-noise draws in the linearised prediction (default `INPUT_DRAWS`).
 use pantowatch_models::lift::design::*;
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
@@ -23,23 +27,13 @@ fn main() {
         eprintln!("{:?} dwell {} logdet {:.2}", s.chosen, s.dwell_s, s.log_det);
     }
     let rl = LiftProtocol::raise_and_lower(&m, g).unwrap();
-    let a = predict(
-        &m,
-        &rl,
-        &noise,
-        &opts,
-        pantowatch_models::lift::design::INPUT_DRAWS,
-    )
-    .unwrap();
+    let draws = std::env::var("PW_DRAWS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(INPUT_DRAWS);
+    let a = predict(&m, &rl, &noise, &opts, draws).unwrap();
     let a0 = predict(&m, &rl, &noise, &opts, 0).unwrap();
-    let b = predict(
-        &m,
-        &d.protocol,
-        &noise,
-        &opts,
-        pantowatch_models::lift::design::INPUT_DRAWS,
-    )
-    .unwrap();
+    let b = predict(&m, &d.protocol, &noise, &opts, draws).unwrap();
     let b0 = predict(&m, &d.protocol, &noise, &opts, 0).unwrap();
     eprintln!("logdet {:.2} vs {:.2}", a.log_det, b.log_det);
     for pr in [&a, &b] {
@@ -70,6 +64,10 @@ fn main() {
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(0);
+    let seed0: u64 = std::env::args()
+        .nth(2)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(7000);
     for (name, proto, pred, pred0) in [
         ("designed", &d.protocol, &b, &b0),
         ("raise-and-lower", &rl, &a, &a0),
@@ -77,6 +75,25 @@ fn main() {
         if seeds == 0 {
             break;
         }
+        let t_sim = std::time::Instant::now();
+        let sim = simulated_spread(
+            &m,
+            proto,
+            &pred.params,
+            &noise,
+            &opts,
+            SIMULATED_FITS,
+            SIMULATED_SEED0,
+            None,
+            &|_| {},
+        )
+        .unwrap();
+        eprintln!(
+            "{name}: {} simulated fits in {:.1} s ({} failed)",
+            sim.fits,
+            t_sim.elapsed().as_secs_f64(),
+            sim.failed
+        );
         let clean =
             pantowatch_models::lift::protocol::record(&m, proto, &Default::default()).unwrap();
         let mut est: Vec<Vec<f64>> = Vec::new();
@@ -96,7 +113,7 @@ fn main() {
                 },
                 _ => noise,
             };
-            let rec = applied.apply(&clean, 7000 + seed);
+            let rec = applied.apply(&clean, seed0 + seed);
             let t0 = std::time::Instant::now();
             let fit = pantowatch_models::lift::identify::fit_map(
                 &m,
@@ -115,9 +132,9 @@ fn main() {
                         fit.params
                             .iter()
                             .find(|e| e.param == *q)
-                            .map_or(f64::NAN, |e| {
-                                e.map_value / if e.baseline > 0.0 { e.baseline } else { 1.0 }
-                            })
+                            .map(|e| e.map_value / e.baseline)
+                            .or_else(|| fit.offsets.first().map(|o| o.map_value))
+                            .unwrap_or(f64::NAN)
                     })
                     .collect(),
             );
@@ -130,15 +147,18 @@ fn main() {
             let sd =
                 (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (xs.len() - 1) as f64).sqrt();
             eprintln!(
-                "{:>4} {:>8} predicted {:.3} sampling {:.3} (H alone {:.3}) realised {:.3} (mean {:.3}) ratio {:.2} {}",
+                "{:>4} {:>8} predicted {:.3} sampling {:.3} (H alone {:.3}) simulated {:.3} (mean {:.3}) realised {:.3} (mean {:.3}) ratio to sampling {:.2} to simulated {:.2} {}",
                 p.joint(),
                 p.kind(),
                 pred.sd[i],
                 pred.sd_sampling[i],
                 pred0.sd_sampling[i],
+                sim.sd[i],
+                sim.mean[i],
                 sd,
                 mean,
                 sd / pred.sd_sampling[i],
+                sd / sim.sd[i],
                 if pred.informed[i] { "informed" } else { "" }
             );
         }

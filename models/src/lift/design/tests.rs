@@ -60,15 +60,18 @@ fn set_torque_is_continuous_through_every_move() {
 }
 
 /// Issue 15, point 3: the designed protocol's predicted standard deviations against those its
-/// fits realise. 16 lifts of the designed protocol at Table 4 with the stand's realistic sensor
-/// noise on every channel (H 0.5 mm, T 1 N·m, Fs/Fm 0.2 N, logger steps; seeds 7000–7015),
-/// each fitted as the service fits a lift; the sample sd of each estimate the design says is
-/// informed is within a factor 1.5 of the predicted spread (`Prediction::sd_sampling`), J3 dry
-/// excepted: its prediction is conservative, asserted within 1/3–1.5×. Measured
-/// (`examples/lift_design -- 16`, predicted vs realised × Table 4): J3 dry 0.047 vs 0.022,
-/// J5 dry 0.235 vs 0.253, J8 dry 0.075 vs 0.076. (Until session 7 the fits stopped at one
-/// standard error of σ_H = 1 mm, whose stopping noise made J3's realised spread 0.039.) The design beats the raise and lower on its criterion and
-/// on J3 dry's predicted sd, and keeps the stand's limits.
+/// fits realise. The prediction is the design's final one, the simulated-fit spread
+/// (`simulated_spread`: `SIMULATED_FITS` lifts, seeds from `SIMULATED_SEED0` = 9000). The
+/// realisation: 16 other lifts of the designed protocol at Table 4 with the stand's realistic
+/// sensor noise on every channel (H 0.5 mm, T 1 N·m, Fs/Fm 0.2 N, logger steps; seeds
+/// 7000–7015, disjoint from the prediction's), each fitted as the service fits a lift. For every
+/// parameter the design reports informed (J3, J5, J8 dry), the realised sample sd is within a
+/// factor 1.5 of the predicted, both ways. Measured (`examples/lift_design -- 16 [SEED0]`,
+/// × Table 4): predicted J3 dry 0.025, J5 dry 0.254, J8 dry 0.092; realised on seeds 7000–7015
+/// 0.023, 0.307, 0.091 (0.94×, 1.21×, 0.99×), on 8000–8015 0.024, 0.297, 0.074, on
+/// 10000–10015 0.018, 0.346, 0.106 (0.71×, 1.36×, 1.15×: 16 lifts' sd is itself ±18 %).
+/// The design beats the raise and lower on its criterion and on J3 dry's linearised sd, and
+/// keeps the stand's limits.
 #[test]
 fn designed_protocol_realises_its_predicted_spread() {
     use crate::lift::identify::fit_map;
@@ -96,6 +99,20 @@ fn designed_protocol_realises_its_predicted_spread() {
     assert!(b.log_det > a.log_det, "{} vs {}", b.log_det, a.log_det);
     let j3 = LiftParam::named("J3", "dry").unwrap();
     assert!(b.sd_of(j3).unwrap() < a.sd_of(j3).unwrap());
+    let sim = simulated_spread(
+        &m,
+        &d.protocol,
+        &b.params,
+        &noise,
+        &opts,
+        SIMULATED_FITS,
+        SIMULATED_SEED0,
+        None,
+        &|_| {},
+    )
+    .unwrap();
+    assert_eq!(sim.failed, 0);
+    // The realisation's seeds (7000–7015) are none of the prediction's (9000..).
     let clean = record(&m, &d.protocol, &SimOptions::default()).unwrap();
     let fits: Vec<_> = (0..16u64)
         .map(|seed| {
@@ -111,7 +128,7 @@ fn designed_protocol_realises_its_predicted_spread() {
             .unwrap()
         })
         .collect();
-    let mut checked = 0;
+    let mut checked = Vec::new();
     for (i, p) in b.params.iter().enumerate() {
         if !b.informed[i] || *p == LiftParam::TorqueOffset {
             continue;
@@ -126,28 +143,25 @@ fn designed_protocol_realises_its_predicted_spread() {
         let mean = xs.iter().sum::<f64>() / xs.len() as f64;
         let sd =
             (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (xs.len() - 1) as f64).sqrt();
-        let ratio = sd / b.sd_sampling[i];
+        let ratio = sd / sim.sd[i];
         eprintln!(
-            "{}.{}: predicted {:.3} (H alone {:.3}), realised {sd:.3} (ratio {ratio:.2})",
+            "{}.{}: predicted {:.3} (linearised {:.3}, Fisher H alone {:.3}), realised {sd:.3} (ratio {ratio:.2})",
             p.joint(),
             p.kind(),
+            sim.sd[i],
             b.sd_sampling[i],
             b.sd_h[i]
         );
-        // Within 1.5× both ways, except J3 dry: pinned with the torque offset, its linearised
-        // input-noise share is conservative (measured 0.46×; `INPUT_DRAWS`) — a prediction may
-        // overstate it, never understate it.
-        let band = if *p == LiftParam::Dry(crate::lift::topology::RevJoint::J3) {
-            1.0 / 3.0..=1.5
-        } else {
-            1.0 / 1.5..=1.5
-        };
         assert!(
-            band.contains(&ratio),
+            (1.0 / 1.5..=1.5).contains(&ratio),
             "{p:?}: predicted {} realised {sd}",
-            b.sd_sampling[i]
+            sim.sd[i]
         );
-        checked += 1;
+        checked.push(*p);
     }
-    assert!(checked >= 2, "only {checked} informed parameters");
+    // The design informs J3, J5 and J8 dry (README, "A designed lift test"): each is checked.
+    for (j, kind) in [("J3", "dry"), ("J5", "dry"), ("J8", "dry")] {
+        let p = LiftParam::named(j, kind).unwrap();
+        assert!(checked.contains(&p), "{j} {kind} not informed: {checked:?}");
+    }
 }
