@@ -493,12 +493,14 @@ pub fn try_drive_compliance(
         &refit.fit.effects[2],
     );
     let upper = effect_prior(jd.param).map_or(f64::INFINITY, |p| p.upper);
+    // Each interval within its prior's range (the fit's bounds).
     let ci = |e: &super::fit::EffectEstimate| {
         let half = Z95 * e.posterior_sd * COMPLIANCE_EXTRA_SCALE;
-        [(e.value - half).max(0.0), e.value + half]
+        let (lo, hi) = effect_prior(e.param).map_or((0.0, f64::INFINITY), |p| (p.lower, p.upper));
+        [(e.value - half).max(lo), (e.value + half).min(hi)]
     };
     let jd_ci = ci(jd);
-    let named = refit.explains && jd_ci[0] >= MIN_DRIVE_INERTIA_KGM2 && jd_ci[1] < upper;
+    let named = refit.explains && jd_ci[0] >= MIN_DRIVE_INERTIA_KGM2 && jd.value < upper;
     Ok(named.then(|| ComplianceFinding {
         inertia_kgm2: jd.value,
         inertia_ci95_kgm2: jd_ci,
