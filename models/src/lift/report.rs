@@ -235,20 +235,14 @@ pub fn fit_lift_trace(
             break;
         }
     }
-    let no_name = |result, fit, fitted_height_m| {
-        Ok(LiftReport {
+    let Some((_, Named { found, hold_after })) = best else {
+        return Ok(LiftReport {
             result,
             fit,
             fitted_height_m,
             plain_fitted_height_m: None,
-        })
+        });
     };
-    let Some((_, Named { found, hold_after })) = best else {
-        return no_name(result, fit, fitted_height_m);
-    };
-    if plain_was_stuck(model, &trace, &opts, &fit, &found.fit) {
-        return no_name(result, fit, fitted_height_m);
-    }
     // A delay's or an offset's refitted H is the sensor's: what the logger would have recorded.
     let (mut named, refitted) = named_result(
         model,
@@ -269,42 +263,6 @@ pub fn fit_lift_trace(
         plain_fitted_height_m: Some(fitted_height_m),
     })
 }
-
-/// The plain model refitted from the named candidate's friction and torque offset (its effect
-/// dropped): `true` when that restart finds a much better plain fit than the first (RMSE under
-/// [`STUCK_RATIO`] of it) which the candidate no longer improves by the shared margin
-/// ([`super::effects::MIN_IMPROVEMENT`]): the first plain fit had stopped in a poor basin, and
-/// the effect only looked necessary against it. Then nothing is named. Measured (twice the
-/// stand's noise, an out-of-vocabulary J3 friction band ×1.05, seed 203): the plain fit stopped
-/// at 3.26 mm (a local minimum, `StepConverged`; the other seeds 1.66–1.77 mm) and an H offset's
-/// refit at 1.18 mm was named — a wrong name. Only a named candidate is checked, and a failed
-/// check never names another: it can lose a name, never make one.
-fn plain_was_stuck(
-    model: &LiftModel,
-    trace: &LiftTrace,
-    opts: &LiftFitOptions,
-    plain: &LiftFit,
-    named: &LiftFit,
-) -> bool {
-    let keep = plain.params.len() + plain.offsets.len();
-    let mut start = named.start_point();
-    start.truncate(keep);
-    let restart_opts = LiftFitOptions {
-        start: Some(start),
-        ..opts.clone()
-    };
-    let Ok(restart) = fit_map(model, std::slice::from_ref(trace), &restart_opts) else {
-        return false;
-    };
-    let rmse = |f: &LiftFit| f.rmse_m.first().copied().unwrap_or(f64::INFINITY);
-    rmse(&restart) < STUCK_RATIO * rmse(plain)
-        && rmse(named) > super::effects::MIN_IMPROVEMENT * rmse(&restart)
-}
-
-/// A plain restart this much better than the first plain fit shows the first was stuck
-/// ([`plain_was_stuck`]): well beyond the spread of plain fits of one record (a correct lift's
-/// refits agree within a few per cent), well within seed 203's 3.26 → ~1.7 mm.
-const STUCK_RATIO: f64 = 0.75;
 
 /// A candidate that passed, with its held-out test.
 struct Named {
