@@ -178,7 +178,7 @@ fn refit_with(
         &r,
         &fitted,
         trace.inputs.torque_nm,
-        with_effect.h_noise_m,
+        with_effect.h_noise_m.max(super::residual::GATE_FLOOR_M),
     );
     Ok(Some(Refit {
         explains: diag.trusted && after <= MIN_IMPROVEMENT * base_rms,
