@@ -26,7 +26,9 @@ use crate::numerics::stats::{corr, ljung_box, noise_sigma};
 /// (0.7 mm). Session 14 lowered the intervals' floor (`LiftFitOptions::h_noise_m`, 0.6 mm,
 /// issue 15's coverage band); the gates were not re-measured, so the lift pipeline judges the
 /// residual against `h_noise_m.max(GATE_FLOOR_M)`: a correct lift's ratio stays where it was
-/// measured (≤ 1.21 at the stand's noise) instead of moving up by 0.7/0.6.
+/// measured (≤ 1.21 at the stand's noise) instead of moving up by 0.7/0.6. The augmented fits
+/// of `lift::effects` run at it too: their interval scales were measured there (at 0.6 mm a
+/// drag's and an H offset's intervals missed the truth in `lift::residual::tests`).
 pub const GATE_FLOOR_M: f64 = 0.7e-3;
 
 /// Residual RMS over the noise above which the model is missing something a friction refit has
