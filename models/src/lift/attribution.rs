@@ -128,7 +128,11 @@ pub fn attribute(
             continue;
         }
         let uninformed_at_table4 = match &lambda4 {
-            Some(l4) => !(v.dot(&(l4 * &v)) >= needed),
+            // NaN counts as uninformed.
+            Some(l4) => v
+                .dot(&(l4 * &v))
+                .partial_cmp(&needed)
+                .is_none_or(|o| o.is_lt()),
             None => failed && rank > 0,
         };
         if uninformed_at_table4 {
