@@ -114,9 +114,9 @@ pub fn attribute(
     // Informed along v: the data's information there (eigenvalue, H noise only) at least
     // that of a posterior sd of prior sd / factor — (factor² − 1)/prior sd².
     let needed = (informed_factor.powi(2) - 1.0) / (prior_sd * prior_sd);
-    if failed {
+    if let Some(&k0) = order.first().filter(|_| failed) {
         // Only the best-informed direction's members may stay separately identified.
-        let lead = eig.eigenvectors.column(order[0]);
+        let lead = eig.eigenvectors.column(k0);
         for (i, s) in separate.iter_mut().enumerate() {
             *s &= lead[i] * lead[i] >= opts.min_share;
         }
@@ -327,5 +327,31 @@ mod tests {
         assert!((truth - 1.4).abs() < 0.02, "{truth}");
         assert!(c.ci95[0] <= truth && truth <= c.ci95[1], "{c:?}");
         assert_ne!(c.status, Status::Unknown);
+
+        // Informed only at the estimate: with a Table 4 posterior that is the prior alone,
+        // nothing is informed; with the Table 4 run failed, only the best-informed direction
+        // (J3+J1) is reported and J8, alone in a weaker one, is not separately identified.
+        let prior_only = DMatrix::<f64>::identity(4, 4) * prior.powi(2);
+        let run = |table4| {
+            attribute(
+                &params,
+                &x,
+                &cov,
+                table4,
+                &cov,
+                &contracted,
+                prior,
+                2.0,
+                &DriftThresholds::default(),
+                &AttributionOptions::default(),
+            )
+        };
+        let none = run(AtTable4::Posterior(&prior_only));
+        assert_eq!(none.separate, [false; 4]);
+        assert!(none.combinations.is_empty(), "{:?}", none.combinations);
+        let failed = run(AtTable4::RunFailed);
+        assert_eq!(failed.separate, [false; 4]);
+        assert_eq!(failed.combinations.len(), 1);
+        assert_eq!(failed.combinations[0].label(), "J3+J1 dry");
     }
 }
