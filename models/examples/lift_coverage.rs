@@ -2,7 +2,8 @@
 //! lift has one joint's dry or viscous friction drifted (0.4–3×) or none; prints, per lift, the
 //! informed parameters whose 95 % interval misses the truth and any flag on an undrifted joint.
 //!
-//! `cargo run --release -p pantowatch-models --example lift_coverage -- [SEEDS] [K]`; the fit's
+//! `cargo run --release -p pantowatch-models --example lift_coverage -- [SEEDS] [K] [FIRST]`
+//! (seeds FIRST..FIRST+SEEDS, FIRST 0 by default: the README's set; 100 and up are fresh); the fit's
 //! settings can be varied by `PW_DRAWS` (input-noise draws), `PW_ROBUST=1` (sandwich) and
 //! `PW_SIGMA_H_M` (the σ_H floor): how the README's coverage table was measured. Prints the
 //! RMS of z = ln(estimate/truth)/relative sd (1 when calibrated).
@@ -20,6 +21,7 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let seeds: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(2);
     let k: f64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1.0);
+    let first: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(0);
     let g = builtin_160ec();
     let base = LiftModel::new(g);
     let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
@@ -40,7 +42,7 @@ fn main() {
     {
         opts.h_noise_m = s;
     }
-    for seed in 0..seeds {
+    for seed in first..first + seeds {
         for d in &drifts {
             let mut m = base.clone();
             let mut truth_of = |p: LiftParam| p.get(&base, 0.0);

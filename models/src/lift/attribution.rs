@@ -23,7 +23,19 @@
 //! - a parameter alone in its informed direction is separately identified if its own
 //!   contraction test passes (`lift::identify`);
 //! - a direction whose components differ in sign is a contrast, no level a depot can judge: its
-//!   members stay not separately identified and no combination is reported.
+//!   members stay not separately identified and no combination is reported;
+//! - what a test informs is a property of the test at the prior's mean, not only of the
+//!   estimate ([`AtTable4`]): where the fit ran the model at Table 4 (its first evaluation, no
+//!   extra cost), a direction or a single parameter counts as informed only if the data's
+//!   information there informs it too. Where that run failed (the recorded torque drives the
+//!   Table 4 model into a stiff corner: a lift far from baseline), nothing beyond the
+//!   best-informed direction — the friction level that moved the lift, which every raise and
+//!   lower informs at Table 4 (`lift::design`: J3 dry Fisher sd 0.032) — is reported as
+//!   informed. Measured (issue 15, point 2, `examples/lift_coverage`): on J3 dry ×0.4 lifts,
+//!   whose Table 4 run fails, a viscous direction (J2, J2′, J3, J5 viscous with J4 dry),
+//!   uninformed at Table 4, read anywhere in 0–3.5 × baseline from seed to seed (two basins)
+//!   with a linearised interval of ±8–12 %: false watches and alarms at σ_H 0.5–0.6 mm. The
+//!   cost: a drift that a test informs only once it has happened stays `unknown`, never a flag.
 
 use nalgebra::DMatrix;
 
@@ -33,6 +45,18 @@ use super::fit::{LiftFit, ParamEstimate};
 use super::sensitivity::LiftParam;
 use crate::contract::drift::{DriftThresholds, Status};
 use crate::numerics::stats::Z95;
+
+/// What the fit knows of the data's information at Table 4 and zero offsets (module doc).
+#[derive(Debug, Clone, Copy)]
+pub enum AtTable4<'a> {
+    /// The posterior covariance from the H data there and the prior (scaled units, the
+    /// friction block first, like `cov_h`).
+    Posterior(&'a DMatrix<f64>),
+    /// The model did not run there: only the best-informed direction may be reported.
+    RunFailed,
+    /// Not evaluated (a refit from a given start; a gauge fit): the estimate's alone decides.
+    NotEvaluated,
+}
 
 /// The outcome: per parameter whether it is separately identified, and the combinations.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,12 +72,14 @@ pub struct Attribution {
 /// covariance from the H data and the prior alone (its friction block's directions are
 /// deterministic given the inputs) and `cov` the full one (input noise added, for the
 /// intervals), all in scaled units with the friction block first (`params.len()` rows);
-/// `contracted[i]` is the contraction test on `cov`; `prior_sd` the scaled prior sd.
+/// `table4` what is known of the information at Table 4; `contracted[i]` is the contraction
+/// test on `cov`; `prior_sd` the scaled prior sd.
 #[allow(clippy::too_many_arguments)]
 pub fn attribute(
     params: &[LiftParam],
     x: &[f64],
     cov_h: &DMatrix<f64>,
+    table4: AtTable4,
     cov: &DMatrix<f64>,
     contracted: &[bool],
     prior_sd: f64,
@@ -62,33 +88,56 @@ pub fn attribute(
     opts: &AttributionOptions,
 ) -> Attribution {
     let p = params.len();
-    let mut separate = contracted.to_vec();
+    // Informed at Table 4 too (module doc): a single parameter by the contraction test there
+    // (scaled units: the estimate is 1), a direction by the data's information along it.
+    let (cov4, lambda4) = match table4 {
+        AtTable4::Posterior(c) => (Some(c), data_information(c, p, prior_sd)),
+        _ => (None, None),
+    };
+    let failed = matches!(table4, AtTable4::RunFailed);
+    let at_table4 = |i: usize| cov4.is_none_or(|c| c[(i, i)].sqrt() < prior_sd / informed_factor);
+    let mut separate: Vec<bool> = (0..p).map(|i| contracted[i] && at_table4(i)).collect();
     let mut group = vec![None; p];
     let mut combinations = Vec::new();
     // The data's information on the friction parameters, the torque offsets marginalised:
     // Λ = (Σ_ff)⁻¹ − P⁻¹. Its eigenvectors are the directions the data pin.
-    let block = cov_h.view((0, 0), (p, p)).into_owned();
-    let Some(mut lambda) = block.clone().try_inverse() else {
+    let Some(lambda) = data_information(cov_h, p, prior_sd) else {
         return Attribution {
             separate,
             group,
             combinations,
         };
     };
-    for i in 0..p {
-        lambda[(i, i)] -= 1.0 / (prior_sd * prior_sd);
-    }
-    let lambda = (&lambda + lambda.transpose()) * 0.5;
     let eig = lambda.symmetric_eigen();
     let mut order: Vec<usize> = (0..p).collect();
     order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-    for k in order {
+    // Informed along v: the data's information there (eigenvalue, H noise only) at least
+    // that of a posterior sd of prior sd / factor — (factor² − 1)/prior sd².
+    let needed = (informed_factor.powi(2) - 1.0) / (prior_sd * prior_sd);
+    if let Some(&k0) = order.first().filter(|_| failed) {
+        // Only the best-informed direction's members may stay separately identified.
+        let lead = eig.eigenvectors.column(k0);
+        for (i, s) in separate.iter_mut().enumerate() {
+            *s &= lead[i] * lead[i] >= opts.min_share;
+        }
+    }
+    for (rank, k) in order.into_iter().enumerate() {
         let v = eig.eigenvectors.column(k).into_owned();
         let members: Vec<usize> = (0..p).filter(|&i| v[i] * v[i] >= opts.min_share).collect();
-        // Informed along v: the data's information there (eigenvalue, H noise only) at least
-        // that of a posterior sd of prior sd / factor — (factor² − 1)/prior sd².
-        let needed = (informed_factor.powi(2) - 1.0) / (prior_sd * prior_sd);
         if eig.eigenvalues[k].is_nan() || eig.eigenvalues[k] < needed {
+            continue;
+        }
+        let uninformed_at_table4 = match &lambda4 {
+            // NaN counts as uninformed.
+            Some(l4) => v
+                .dot(&(l4 * &v))
+                .partial_cmp(&needed)
+                .is_none_or(|o| o.is_lt()),
+            None => failed && rank > 0,
+        };
+        if uninformed_at_table4 {
+            // Informed only at the estimate: no combination; its members keep their own
+            // (gated) tests.
             continue;
         }
         if members.len() < 2 {
@@ -122,8 +171,10 @@ pub fn attribute(
         let post_sd = var.max(0.0).sqrt();
         let norm = w.iter().map(|c| c * c).sum::<f64>().sqrt();
         let prior = norm * prior_sd;
-        // On ln(level), as for a single coefficient: relative sd against the prior's.
-        let informed = level > 0.0 && post_sd / level < prior / informed_factor;
+        // As for a single coefficient (`identify::fit_map_in`): contracted both in Table 4
+        // units and on ln(level), sd < prior sd / factor × min(level, 1). A level pushed to
+        // several times its baseline with a relative sd that looks small is not informed.
+        let informed = level > 0.0 && post_sd < prior / informed_factor * level.min(1.0);
         let ci95 = if level > 0.0 {
             let rel = post_sd / level;
             [level * (-Z95 * rel).exp(), level * (Z95 * rel).exp()]
@@ -156,6 +207,16 @@ pub fn attribute(
         group,
         combinations,
     }
+}
+
+/// The data's information on the first `p` (friction) parameters of a posterior covariance
+/// with the prior sd `prior_sd` on each: Λ = (Σ_ff)⁻¹ − P⁻¹, symmetrised; `None` if singular.
+fn data_information(cov: &DMatrix<f64>, p: usize, prior_sd: f64) -> Option<DMatrix<f64>> {
+    let mut lambda = cov.view((0, 0), (p, p)).into_owned().try_inverse()?;
+    for i in 0..p {
+        lambda[(i, i)] -= 1.0 / (prior_sd * prior_sd);
+    }
+    Some((&lambda + lambda.transpose()) * 0.5)
 }
 
 impl LiftFit {
@@ -240,6 +301,7 @@ mod tests {
             &params,
             &x,
             &cov,
+            AtTable4::Posterior(&cov),
             &cov,
             &contracted,
             prior,
@@ -265,5 +327,31 @@ mod tests {
         assert!((truth - 1.4).abs() < 0.02, "{truth}");
         assert!(c.ci95[0] <= truth && truth <= c.ci95[1], "{c:?}");
         assert_ne!(c.status, Status::Unknown);
+
+        // Informed only at the estimate: with a Table 4 posterior that is the prior alone,
+        // nothing is informed; with the Table 4 run failed, only the best-informed direction
+        // (J3+J1) is reported and J8, alone in a weaker one, is not separately identified.
+        let prior_only = DMatrix::<f64>::identity(4, 4) * prior.powi(2);
+        let run = |table4| {
+            attribute(
+                &params,
+                &x,
+                &cov,
+                table4,
+                &cov,
+                &contracted,
+                prior,
+                2.0,
+                &DriftThresholds::default(),
+                &AttributionOptions::default(),
+            )
+        };
+        let none = run(AtTable4::Posterior(&prior_only));
+        assert_eq!(none.separate, [false; 4]);
+        assert!(none.combinations.is_empty(), "{:?}", none.combinations);
+        let failed = run(AtTable4::RunFailed);
+        assert_eq!(failed.separate, [false; 4]);
+        assert_eq!(failed.combinations.len(), 1);
+        assert_eq!(failed.combinations[0].label(), "J3+J1 dry");
     }
 }

@@ -78,11 +78,13 @@ pub fn drag_options(opts: &LiftFitOptions) -> LiftFitOptions {
     with_effect(opts, &[LiftParam::HeadDrag], DRAG_INTERVAL_SCALE)
 }
 
-/// `opts` with `params` fitted among the friction's and every interval scaled by `scale`.
+/// `opts` with `params` fitted among the friction's and every interval scaled by `scale`, at
+/// σ_H ≥ [`super::residual::GATE_FLOOR_M`]: the scales were measured at that floor (0.7 mm).
 fn with_effect(opts: &LiftFitOptions, params: &[LiftParam], scale: f64) -> LiftFitOptions {
     LiftFitOptions {
         effect_params: params.to_vec(),
         interval_scale: scale,
+        h_noise_m: opts.h_noise_m.max(super::residual::GATE_FLOOR_M),
         ..opts.clone()
     }
 }

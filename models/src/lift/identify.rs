@@ -12,6 +12,7 @@ use std::cell::RefCell;
 
 use nalgebra::DMatrix;
 
+use super::attribution::AtTable4;
 pub use super::attribution::Shown;
 use super::dynamics::LiftModel;
 pub use super::fit::{
@@ -387,6 +388,12 @@ pub fn fit_map_in(
         })
     });
     let close = start == Some(true) || (warm.is_some() && start.is_some());
+    // The data's information at Table 4 (the first evaluation, when it ran): what the test
+    // informs at the prior's mean, which `lift::attribution` also asks of an estimate.
+    let info_table4 = (warm.is_none() && start.is_some()).then(|| {
+        let j0 = jac0.rows(0, n_data + n_gauge);
+        j0.tr_mul(&j0)
+    });
     let schedule = if close {
         Vec::new()
     } else {
@@ -510,6 +517,12 @@ pub fn fit_map_in(
     }
     // H noise only: the directions the data pin (`lift::attribution`).
     let cov_h = cov.clone();
+    let cov_table4 = info_table4.map(|mut a| {
+        for i in 0..p {
+            a[(i, i)] += 1.0 / prior_sd(i).powi(2);
+        }
+        inverse_spd(&a) * opts.interval_scale.max(1.0).powi(2)
+    });
     if opts.input_noise_draws > 0 {
         let at = problem.model_at(&rep.x);
         let jd = rep.jacobian.rows(0, n_data).into_owned();
@@ -536,6 +549,11 @@ pub fn fit_map_in(
         fric,
         &rep.x[..pf],
         &cov_h,
+        match (&cov_table4, warm) {
+            (Some(c), _) => AtTable4::Posterior(c),
+            (None, None) => AtTable4::RunFailed,
+            (None, Some(_)) => AtTable4::NotEvaluated,
+        },
         &cov,
         &contracted,
         opts.prior_relative_sd,

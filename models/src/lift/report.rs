@@ -193,7 +193,7 @@ pub fn fit_lift_trace(
         &residual,
         &fitted_height_m,
         channels.torque_nm,
-        opts.h_noise_m,
+        opts.h_noise_m.max(super::residual::GATE_FLOOR_M),
     )
     .correlates_with
     .first()
@@ -683,7 +683,7 @@ fn build_result(
         &residual,
         fitted_height_m,
         trace.inputs.torque_nm,
-        opts.h_noise_m,
+        opts.h_noise_m.max(super::residual::GATE_FLOOR_M),
     );
     let withheld = gate && !diag.trusted;
     if withheld {
@@ -730,7 +730,7 @@ fn build_result(
                      joint statuses from this fit are not trustworthy and raise no alert",
                     diag.excess_ratio,
                     diag.rms_m * 1e3,
-                    diag.noise_m.max(opts.h_noise_m) * 1e3,
+                    diag.rms_m / diag.excess_ratio * 1e3,
                     super::residual::MODEL_ERROR_RATIO
                 )
             }),

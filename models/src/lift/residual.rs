@@ -4,7 +4,7 @@
 //! Protocol (every number a stated choice, measured with `examples/lift_residual_probe`):
 //! - Noise: σ̂ from the residual's first differences (`stats::noise_sigma`): at 500 Hz the
 //!   H noise is white sample to sample, while what the model misses is slow. Floored at the
-//!   fit's σ_H (`LiftFitOptions::h_noise_m`, 0.7 mm), the noise its intervals assume: a
+//!   fit's σ_H, at least [`GATE_FLOOR_M`] (0.7 mm, the σ_H the gates were measured at): a
 //!   noise-free simulated record (σ̂ ~ µm) is not judged against its integrator's error.
 //! - Excess: RMS(residual)/max(σ̂, floor). Against σ̂ alone, on realistic-noise raise-and-lower lifts of the model itself
 //!   (Table 4 or one joint drifted 0.4–3×, 2 seeds × 12 lifts) it was 1.01–1.60: the inputs'
@@ -21,6 +21,15 @@
 //!   against χ²₂₀(0.001) = 45.3).
 
 use crate::numerics::stats::{corr, ljung_box, noise_sigma};
+
+/// The noise floor the gates below were measured against, m: the fit's σ_H of sessions 7–13
+/// (0.7 mm). Session 14 lowered the intervals' floor (`LiftFitOptions::h_noise_m`, 0.6 mm,
+/// issue 15's coverage band); the gates were not re-measured, so the lift pipeline judges the
+/// residual against `h_noise_m.max(GATE_FLOOR_M)`: a correct lift's ratio stays where it was
+/// measured (≤ 1.21 at the stand's noise) instead of moving up by 0.7/0.6. The augmented fits
+/// of `lift::effects` run at it too: their interval scales were measured there (at 0.6 mm a
+/// drag's and an H offset's intervals missed the truth in `lift::residual::tests`).
+pub const GATE_FLOOR_M: f64 = 0.7e-3;
 
 /// Residual RMS over the noise above which the model is missing something a friction refit has
 /// absorbed: 3 — about 2× the largest seen on correct lifts (1.60 against σ̂), under a third of

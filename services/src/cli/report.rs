@@ -240,7 +240,9 @@ pub fn html_lift(
     let svg = fit_svg(&format!("{id} — lift, H (mm)"), t, "mm", &top, &bottom)
         .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
     let r = &rep.result.residual;
-    let floor = pantowatch_models::lift::identify::LiftFitOptions::default().h_noise_m;
+    let floor = pantowatch_models::lift::identify::LiftFitOptions::default()
+        .h_noise_m
+        .max(residual::GATE_FLOOR_M);
     // `diagnose` takes measured − fitted, m.
     let plain_m: Vec<f64> = plain_res.iter().map(|v| -v * 1e-3).collect();
     let d = residual::diagnose(t, &plain_m, plain, torque, floor);

@@ -438,6 +438,7 @@ pub fn fit_gauge_from(
         &params,
         &xs[..pf],
         &cov_h,
+        super::super::attribution::AtTable4::NotEvaluated,
         &cov_x,
         &contracted,
         s,
