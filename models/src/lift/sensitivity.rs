@@ -505,35 +505,41 @@ impl SensSys<'_> {
     }
 }
 
-impl WSystem<4> for SensSys<'_> {
+/// The block is the mechanical state: 4 components, 6 with a compliant drive (δ and δ̇ join it;
+/// [`LiftModel::n_state`]).
+impl<const B: usize> WSystem<B> for SensSys<'_> {
     fn dim(&self) -> usize {
-        4 + 4 * self.params.len()
+        B + B * self.params.len()
     }
     fn rhs_w(
         &self,
         t: f64,
         y: &[f64],
         dy: &mut [f64],
-        w: Option<&mut [[f64; 4]; 4]>,
+        w: Option<&mut [[f64; B]; B]>,
     ) -> Result<(), OdeError> {
         self.rhs_block(t, y, dy, w)
     }
 }
 
-/// The system with a compliant drive: δ and δ̇ join the block.
-impl WSystem<6> for SensSys<'_> {
-    fn dim(&self) -> usize {
-        6 + 6 * self.params.len()
+/// The stepper kept in `slot`, restarted for a run of dimension `dim`, with the state's
+/// absolute tolerances `atol` (its first `B`).
+fn stepper<'s, const B: usize>(
+    slot: &'s mut Option<Rosw<B>>,
+    dim: usize,
+    tol: Tolerances,
+    atol: &[f64],
+) -> &'s mut Rosw<B> {
+    if slot.as_ref().is_some_and(|o| o.dim() != dim) {
+        *slot = None;
     }
-    fn rhs_w(
-        &self,
-        t: f64,
-        y: &[f64],
-        dy: &mut [f64],
-        w: Option<&mut [[f64; 6]; 6]>,
-    ) -> Result<(), OdeError> {
-        self.rhs_block(t, y, dy, w)
+    let fresh = slot.is_none();
+    let ode = slot.get_or_insert_with(|| Rosw::<B>::new(dim, B, tol));
+    if !fresh {
+        ode.restart(tol);
     }
+    ode.set_atol(&atol[..B]);
+    ode
 }
 
 /// The buffers of a sensitivity run, kept from one run to the next so that a fit's evaluations,
@@ -689,14 +695,7 @@ pub fn simulate_sensitivities_in<'w>(
     };
     let breaks = |k| inputs.is_break(k);
     let work = if ns == 6 {
-        let ode = match &mut ws.ode6 {
-            Some(o) if o.dim() == dim => {
-                o.restart(tol);
-                o
-            }
-            slot => slot.insert(Rosw::<6>::new(dim, 6, tol)),
-        };
-        ode.set_atol(&atol);
+        let ode = stepper(&mut ws.ode6, dim, tol, &atol);
         integrate(
             &mut sys,
             ode,
@@ -708,14 +707,7 @@ pub fn simulate_sensitivities_in<'w>(
             sample,
         )
     } else {
-        let ode = match &mut ws.ode {
-            Some(o) if o.dim() == dim => {
-                o.restart(tol);
-                o
-            }
-            slot => slot.insert(Rosw::<4>::new(dim, 4, tol)),
-        };
-        ode.set_atol(&atol[..4]);
+        let ode = stepper(&mut ws.ode, dim, tol, &atol);
         integrate(
             &mut sys,
             ode,
