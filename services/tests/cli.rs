@@ -397,14 +397,15 @@ fn simulate_lift_sensor_noise_scales_every_channel() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--sensor-noise"));
 }
 
-/// Issue 16, point 5, for a lift: `simulate --kind lift --sensor-noise 1 --effect
-/// quadratic_drag:c_a=4` makes a realistic-noise lift whose head has air drag the paper's model
-/// lacks; `fit --json --report` names it (its interval holding 4), gives the error before and
-/// after on the whole trace and the held-out blocks, and writes the HTML with the verdict, the
-/// accepted line, the plot and the autocorrelation. An effect a lift cannot take is refused.
-#[test]
-fn a_lift_with_head_drag_is_named_and_reported() {
-    let trace = tmp("lift-drag.json");
+/// `simulate --kind lift --sensor-noise 1 --seed SEED [EXTRA…] --effect EFFECT` into `NAME.json`,
+/// then `fit --json --report NAME.html`: the fit result and the report's HTML.
+fn simulate_and_fit_lift(
+    name: &str,
+    seed: &str,
+    effect: &str,
+    extra: &[&str],
+) -> (serde_json::Value, String) {
+    let trace = tmp(&format!("{name}.json"));
     run_ok(
         bin()
             .args([
@@ -414,16 +415,14 @@ fn a_lift_with_head_drag_is_named_and_reported() {
                 "--sensor-noise",
                 "1",
                 "--seed",
-                "3",
-                "--effect",
-                "quadratic_drag:c_a=4",
-                "--trace-id",
-                "lift-drag",
+                seed,
             ])
+            .args(extra)
+            .args(["--effect", effect, "--trace-id", name])
             .arg("-o")
             .arg(&trace),
     );
-    let html = tmp("lift-report.html");
+    let html = tmp(&format!("{name}.html"));
     let out = run_ok(
         bin()
             .arg("fit")
@@ -432,7 +431,20 @@ fn a_lift_with_head_drag_is_named_and_reported() {
             .arg("--report")
             .arg(&html),
     );
-    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    (
+        serde_json::from_str(&out).unwrap(),
+        std::fs::read_to_string(&html).unwrap(),
+    )
+}
+
+/// Issue 16, point 5, for a lift: `simulate --kind lift --sensor-noise 1 --effect
+/// quadratic_drag:c_a=4` makes a realistic-noise lift whose head has air drag the paper's model
+/// lacks; `fit --json --report` names it (its interval holding 4), gives the error before and
+/// after on the whole trace and the held-out blocks, and writes the HTML with the verdict, the
+/// accepted line, the plot and the autocorrelation. An effect a lift cannot take is refused.
+#[test]
+fn a_lift_with_head_drag_is_named_and_reported() {
+    let (v, html) = simulate_and_fit_lift("lift-drag", "3", "quadratic_drag:c_a=4", &[]);
     let res = &v["residual"];
     assert_eq!(res["effects"][0]["name"], "quadratic_drag", "{res}");
     let ci = &res["effects"][0]["params"]["c_a_ns2_per_m2_ci95"];
@@ -442,7 +454,6 @@ fn a_lift_with_head_drag_is_named_and_reported() {
     assert!(f("rmse_after") <= 0.5 * f("rmse_before"), "{res}");
     assert!(f("holdout_rmse_after") < f("holdout_rmse_before"), "{res}");
     assert!(res.get("verdict").is_none() && res.get("joints_withheld").is_none());
-    let html = std::fs::read_to_string(&html).unwrap();
     assert!(
         html.contains("Lift residual report")
             && html.contains("Finding: quadratic_drag")
@@ -474,37 +485,12 @@ fn a_lift_with_head_drag_is_named_and_reported() {
 /// flagged, and the HTML shows the finding. A malformed drive is refused naming the effect.
 #[test]
 fn a_lift_with_a_compliant_drive_is_named_and_reported() {
-    let trace = tmp("lift-compliance.json");
-    run_ok(
-        bin()
-            .args([
-                "simulate",
-                "--kind",
-                "lift",
-                "--sensor-noise",
-                "1",
-                "--h-noise-mm",
-                "0",
-                "--seed",
-                "2",
-                "--effect",
-                "drive_compliance:inertia=5,stiffness=15000,damping=80",
-                "--trace-id",
-                "lift-compliance",
-            ])
-            .arg("-o")
-            .arg(&trace),
+    let (v, html) = simulate_and_fit_lift(
+        "lift-compliance",
+        "2",
+        "drive_compliance:inertia=5,stiffness=15000,damping=80",
+        &["--h-noise-mm", "0"],
     );
-    let html = tmp("lift-compliance.html");
-    let out = run_ok(
-        bin()
-            .arg("fit")
-            .arg(&trace)
-            .arg("--json")
-            .arg("--report")
-            .arg(&html),
-    );
-    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     let res = &v["residual"];
     assert_eq!(res["effects"].as_array().unwrap().len(), 1, "{res}");
     assert_eq!(res["effects"][0]["name"], "drive_compliance", "{res}");
@@ -521,7 +507,6 @@ fn a_lift_with_a_compliant_drive_is_named_and_reported() {
     for j in v["joints"].as_array().unwrap() {
         assert!(j["status"] != "watch" && j["status"] != "alarm", "{j}");
     }
-    let html = std::fs::read_to_string(&html).unwrap();
     assert!(
         html.contains("Finding: drive_compliance") && html.contains("Accepted: drive_compliance"),
         "{html}"
