@@ -17,7 +17,7 @@ pub use super::attribution::Shown;
 use super::dynamics::LiftModel;
 pub use super::fit::{
     EffectEstimate, EffectPrior, Identifiability, JointEstimate, LiftFit, LiftFitError,
-    LiftFitOptions, LiftTrace, ParamEstimate, PooledGauge, effect_prior,
+    LiftFitOptions, LiftTrace, POOLED_PER_TRACE, ParamEstimate, PooledGauge, effect_prior,
 };
 use super::inputs::{InputReconstruction, reconstruct};
 use super::sensitivity::{
@@ -333,7 +333,24 @@ pub fn fit_map_in(
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| LiftFitError::Invalid(format!("pooled gauge record: {e}")))?;
     let n_gauge: usize = opts.gauge_records.iter().map(|g| g.record.len()).sum();
+    let per_trace_ix = opts
+        .per_trace
+        .iter()
+        .map(|(p, tau)| {
+            fric.iter()
+                .position(|f| f == p)
+                .filter(|_| *tau > 0.0 && tau.is_finite())
+                .ok_or_else(|| {
+                    LiftFitError::Invalid(format!(
+                        "per-trace {}.{} is not a fitted friction parameter with τ > 0",
+                        p.joint(),
+                        p.kind()
+                    ))
+                })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let mut problem = MapProblem {
+        per_trace_ix: &per_trace_ix,
         ws,
         base: model,
         traces,
@@ -355,8 +372,9 @@ pub fn fit_map_in(
             .zip(&effect_priors)
             .map(|(p, pr)| p.get(model, 0.0).clamp(pr.lower, pr.upper)),
     );
-    // Each pooled gauge record's zero starts at 0.
+    // Each pooled gauge record's zero starts at 0, each trace's deviations too.
     x.extend(opts.gauge_records.iter().map(|_| 0.0));
+    x.extend(std::iter::repeat_n(0.0, traces.len() * per_trace_ix.len()));
     // Continuation in the horizon: driven open-loop by the recorded torque, a lift drifts away
     // from the data with the smallest friction error (the net stiffness is nearly zero), so
     // output error over the whole trace is far from quadratic around the baseline (J3 ×1.8
@@ -429,6 +447,7 @@ pub fn fit_map_in(
             effect_priors: problem.effect_priors,
             gauge_warm: problem.gauge_warm,
             n_gauge: problem.n_gauge,
+            per_trace_ix: problem.per_trace_ix,
         };
         // A stage only has to bring the next one into its quadratic region: a few iterations,
         // stopping once a step would move the parameters by less than one standard error. No
@@ -464,7 +483,8 @@ pub fn fit_map_in(
     rep.iterations += iterations;
     let e0 = pf + traces.len();
     let z0 = e0 + ne;
-    let p = z0 + opts.gauge_records.len();
+    let u0 = z0 + opts.gauge_records.len();
+    let p = u0 + traces.len() * per_trace_ix.len();
     // Noise scale: the stated σ_H, or the residual RMS if the fit is worse than that.
     let ssr: f64 = rep.residuals[..n_data].iter().map(|v| v * v).sum();
     let kappa2 = (ssr / n_data as f64).max(1.0);
@@ -504,8 +524,10 @@ pub fn fit_map_in(
             opts.offset_prior_sd_nm
         } else if i < z0 {
             effect_priors[i - e0].sd
-        } else {
+        } else if i < u0 {
             GAUGE_ZERO_PRIOR.sd
+        } else {
+            opts.per_trace[(i - u0) % per_trace_ix.len()].1
         }
     };
     for i in 0..p {

@@ -501,6 +501,7 @@ pub fn fit_pooled_lift_and_gauge_traces(
     let opts = LiftFitOptions {
         thresholds: *thresholds,
         gauge_records,
+        per_trace: super::identify::POOLED_PER_TRACE.to_vec(),
         ..LiftFitOptions::default()
     };
     let traces: Vec<LiftTrace> = channels
@@ -517,11 +518,8 @@ pub fn fit_pooled_lift_and_gauge_traces(
         .collect();
     let fit = fit_map(model, &traces, &opts)?;
     let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
-    // Not gated, only reported: three Table 4 lifts with realistic noise pooled leave 0.6–2.3 mm
-    // of H per trace where each alone leaves 0.5 mm (`examples/lift_pooled_probe`; shared
-    // friction cannot follow what each lift's input noise did), so a pooled residual is no
-    // evidence of a model error. A lift whose own fit was withheld is not pooled (the
-    // service's rule, `services/src/pooled.rs`).
+    // Not gated, only reported (each lift was judged by its own fit; one withheld is not
+    // pooled: `services/src/pooled.rs`). Each lift has its own J8 dry (`POOLED_PER_TRACE`).
     let mut result = build_result(
         model,
         &fit,

@@ -21,9 +21,18 @@ pub(super) struct MapProblem<'a, 'w> {
     pub(super) gauge_warm: &'a [Vec<crate::lift::gauge::solve::Warm>],
     /// Readings of every pooled gauge record.
     pub(super) n_gauge: usize,
+    /// Index in `fric` of each `opts.per_trace` parameter.
+    pub(super) per_trace_ix: &'a [usize],
 }
 
 impl MapProblem<'_, '_> {
+    /// Index of the first per-trace deviation (`opts.per_trace`), after the gauge zeros.
+    pub(super) fn u0(&self) -> usize {
+        self.fric.len()
+            + self.traces.len()
+            + self.effect_priors.len()
+            + self.opts.gauge_records.len()
+    }
     pub(super) fn model_at(&self, x: &[f64]) -> LiftModel {
         let mut m = self.base.clone();
         let mut dummy = 0.0;
@@ -40,10 +49,7 @@ impl MapProblem<'_, '_> {
 
 impl Problem for MapProblem<'_, '_> {
     fn n_params(&self) -> usize {
-        self.fric.len()
-            + self.traces.len()
-            + self.effect_priors.len()
-            + self.opts.gauge_records.len()
+        self.u0() + self.traces.len() * self.per_trace_ix.len()
     }
     fn n_residuals(&self) -> usize {
         self.n_data + self.n_gauge + self.n_params()
@@ -69,10 +75,21 @@ impl Problem for MapProblem<'_, '_> {
             .map_or(0.0, |e| x[e0 + e]);
         jac.fill(0.0);
         let mut row = 0;
+        let (u0, q) = (self.u0(), self.per_trace_ix.len());
         for (ti, tr) in self.traces.iter().enumerate() {
+            // This trace's own deviations of the `per_trace` coefficients, if any.
+            let mt = (q > 0).then(|| {
+                let mut mt = m.clone();
+                let mut dummy = 0.0;
+                for (k, &i) in self.per_trace_ix.iter().enumerate() {
+                    let v = (x[i] + x[u0 + ti * q + k]).max(0.0) * self.baseline[i];
+                    self.fric[i].set(&mut mt, &mut dummy, v);
+                }
+                mt
+            });
             let run = simulate_sensitivities_in(
                 self.ws,
-                &m,
+                mt.as_ref().unwrap_or(&m),
                 &tr.inputs,
                 &self.with_offset,
                 x[pf + ti],
@@ -122,6 +139,9 @@ impl Problem for MapProblem<'_, '_> {
                     jac[(row, i)] = at(&|q| run.d_height[q * p + i]) * self.baseline[i] / sigma;
                 }
                 jac[(row, pf + ti)] = at(&|q| run.d_height[q * p + pf]) / sigma;
+                for (k, &i) in self.per_trace_ix.iter().enumerate() {
+                    jac[(row, u0 + ti * q + k)] = jac[(row, i)];
+                }
                 let mut col = pf + 1;
                 for (e, ep) in self.opts.effect_params.iter().enumerate() {
                     jac[(row, e0 + e)] = if *ep == LiftParam::SensorDelay {
@@ -194,6 +214,13 @@ impl Problem for MapProblem<'_, '_> {
             jac[(row, z0 + gi)] = 1.0 / pr.sd;
             row += 1;
         }
+        for ti in 0..self.traces.len() {
+            for (k, (_, tau)) in self.opts.per_trace.iter().enumerate() {
+                r[row] = x[u0 + ti * q + k] / tau;
+                jac[(row, u0 + ti * q + k)] = 1.0 / tau;
+                row += 1;
+            }
+        }
         Ok(())
     }
     fn lower_bounds(&self) -> Vec<f64> {
@@ -206,6 +233,10 @@ impl Problem for MapProblem<'_, '_> {
                 .iter()
                 .map(|_| GAUGE_ZERO_PRIOR.lower),
         );
+        v.extend(std::iter::repeat_n(
+            -MAX_MULTIPLE,
+            self.traces.len() * self.per_trace_ix.len(),
+        ));
         v
     }
     /// At most 10× Table 4 (20 prior sd): far beyond any worn joint, and it keeps trial steps
@@ -220,6 +251,10 @@ impl Problem for MapProblem<'_, '_> {
                 .iter()
                 .map(|_| GAUGE_ZERO_PRIOR.upper),
         );
+        v.extend(std::iter::repeat_n(
+            MAX_MULTIPLE,
+            self.traces.len() * self.per_trace_ix.len(),
+        ));
         v
     }
 }

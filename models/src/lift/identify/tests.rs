@@ -37,6 +37,7 @@ fn the_delay_column_is_the_derivative_of_the_delayed_read_out() {
         n_data,
         gauge_warm: &[],
         n_gauge: 0,
+        per_trace_ix: &[],
     };
     let (np, nr) = (problem.n_params(), problem.n_residuals());
     let pf = fric.len();
