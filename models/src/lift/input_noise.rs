@@ -173,6 +173,28 @@ pub const COVERAGE_DRIFTS: [Option<(&str, &str, f64)>; 12] = [
     Some(("J5", "viscous", 2.5)),
 ];
 
+/// A pantograph whose friction coefficients (`params`) each sit at Table 4 ×
+/// exp(`log_sd`·z), z standard normal, seeded by `seed` (`numerics::noise`): the spread of a
+/// fleet about the paper's values, for coverage checks where the truth is nowhere the prior's
+/// mean (issue 15, point 2). In the drift set alone every undrifted joint sits exactly at
+/// Table 4, the prior's mean, so the width an interval owes to the joints the prior holds is
+/// never used, and coverage reads high (README, "What a lift interval means").
+pub fn fleet_scatter(
+    base: &LiftModel,
+    params: &[super::sensitivity::LiftParam],
+    log_sd: f64,
+    seed: u64,
+) -> LiftModel {
+    let mut rng = crate::numerics::noise::Noise::new(seed);
+    let mut m = base.clone();
+    for p in params {
+        let mut off = 0.0;
+        let v = p.get(base, 0.0) * (log_sd * rng.normal()).exp();
+        p.set(&mut m, &mut off, v);
+    }
+    m
+}
+
 #[cfg(test)]
 mod coverage_tests {
     use crate::contract::drift::Status;
@@ -276,5 +298,67 @@ mod coverage_tests {
         assert_eq!(false_flags, 0, "flags on entries without the drifted joint");
         assert_eq!(j1_shown, 8);
         assert!(j3_found >= 8, "J3 ×2.2 found in {j3_found} of 8 lifts");
+    }
+
+    /// Issue 15, point 2, with no joint at Table 4: the coverage set's lifts (realistic noise on
+    /// every channel, the 12 drift cases, seeds 0–11) on pantographs whose every friction
+    /// coefficient first sits at Table 4 × exp(0.2·z) (`fleet_scatter`: a fleet's spread), the
+    /// drift on top. The 95 % intervals of the reported entries hold the truth for 90–98 %
+    /// (measured, `examples/lift_coverage` with `PW_SCATTER=0.2`: 94.2 % on seeds 0–23; the
+    /// README's table has the fresh seeds and 2×), and no entry without the drifted parameter is
+    /// flagged while its truth lies inside the watch band.
+    #[test]
+    fn intervals_hold_the_truth_when_no_joint_sits_at_table_4() {
+        let g = builtin_160ec();
+        let base = LiftModel::new(g);
+        let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
+        let opts = LiftFitOptions::default();
+        let thresholds = opts.thresholds;
+        let inside = |level: f64| thresholds.watch[0] < level && level < thresholds.watch[1];
+        let (mut n, mut hit, mut false_flags) = (0, 0, 0);
+        for seed in 0..12u64 {
+            for d in &super::COVERAGE_DRIFTS {
+                let drifted = d.map(|(j, kind, _)| LiftParam::named(j, kind).unwrap());
+                let mut m = super::fleet_scatter(&base, &opts.friction_params, 0.2, 77_000 + seed);
+                if let Some((j, kind, f)) = d {
+                    let p = LiftParam::named(j, kind).unwrap();
+                    let (mut off, v) = (0.0, p.get(&m, 0.0) * f);
+                    p.set(&mut m, &mut off, v);
+                }
+                let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
+                let rec = LiftSensorNoise::realistic().apply(&clean, 1000 + seed);
+                let trace = LiftTrace {
+                    inputs: rec.inputs(),
+                    strip_height_m: &rec.strip_height_m,
+                };
+                let fit = fit_map(&base, &[trace], &opts).unwrap();
+                let relative = |p: LiftParam| p.get(&m, 0.0) / p.get(&base, 0.0);
+                for e in fit.params.iter().filter(|e| e.informed) {
+                    n += 1;
+                    hit += usize::from(Shown::Alone(e).covers(&m, &base));
+                    let flagged = matches!(e.status, Status::Watch | Status::Alarm);
+                    let own = Some(e.param) == drifted;
+                    false_flags += usize::from(flagged && !own && inside(relative(e.param)));
+                }
+                for c in fit.combinations.iter().filter(|c| c.informed) {
+                    n += 1;
+                    hit += usize::from(Shown::In(c).covers(&m, &base));
+                    let flagged = matches!(c.status, Status::Watch | Status::Alarm);
+                    let own = drifted.is_some_and(|p| c.params.contains(&p));
+                    false_flags += usize::from(flagged && !own && inside(c.level_of(relative)));
+                }
+            }
+        }
+        let coverage = hit as f64 / n as f64;
+        eprintln!(
+            "scattered fleet: coverage {hit}/{n} = {:.1} %, false flags {false_flags}",
+            coverage * 100.0
+        );
+        assert!(n >= 80, "only {n} informed entries");
+        assert!((0.90..=0.98).contains(&coverage), "coverage {hit}/{n}");
+        assert_eq!(
+            false_flags, 0,
+            "flags on entries whose truth is inside the watch band"
+        );
     }
 }
