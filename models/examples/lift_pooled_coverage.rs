@@ -1,7 +1,9 @@
 //! Pooled lift fits on realistic-noise lifts (issue 15, point 4): sets of three raise-and-lower
 //! lifts of one pantograph, one joint's friction drifted (0.4–3×, `COVERAGE_DRIFTS`) or none,
-//! each lift with its own sensor noise, fitted together with every coefficient shared and with
-//! per-lift deviations of the `per_trace` coefficients (`PW_PER_TRACE`, e.g. `J8:dry:0.3`).
+//! each lift with its own sensor noise, fitted together as the service fits them (each lift its
+//! own J8 dry, the pooled intervals' calibrated widening); `PW_SHARED=1`: every coefficient
+//! shared with JᵀJ intervals, as before; `PW_PER_TRACE` (e.g. `J8:dry:0.3`) sets the per-lift
+//! coefficients.
 //! Prints per set the pooled H RMSE of each lift, J5 dry's estimate, the entries whose 95 %
 //! interval misses the truth and any flag on an undrifted entry; then coverage over the set.
 //!
@@ -9,7 +11,9 @@
 use pantowatch_models::drift::Status;
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
-use pantowatch_models::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
+use pantowatch_models::lift::identify::{
+    LiftFitOptions, LiftTrace, POOLED_INTERVAL_SCALE, POOLED_PER_TRACE, fit_map,
+};
 use pantowatch_models::lift::protocol::{LiftProtocol, record};
 use pantowatch_models::lift::sensitivity::LiftParam;
 use pantowatch_models::lift::sensors::LiftSensorNoise;
@@ -23,7 +27,17 @@ fn main() {
     let g = builtin_160ec();
     let base = LiftModel::new(g);
     let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
-    let mut opts = LiftFitOptions::default();
+    // The service's pooled fit (`lift::report::fit_pooled_lift_and_gauge_traces`); `PW_SHARED=1`:
+    // every coefficient shared and JᵀJ intervals (before session 15).
+    let mut opts = LiftFitOptions {
+        per_trace: POOLED_PER_TRACE.to_vec(),
+        param_interval_scale: POOLED_INTERVAL_SCALE.to_vec(),
+        ..LiftFitOptions::default()
+    };
+    if std::env::var("PW_SHARED").is_ok_and(|s| s == "1") {
+        opts.per_trace.clear();
+        opts.param_interval_scale.clear();
+    }
     if let Ok(spec) = std::env::var("PW_PER_TRACE") {
         opts.per_trace = spec
             .split(',')
@@ -130,12 +144,15 @@ fn main() {
                         e.value / e.baseline
                     )
                 })
-                .chain(
-                    fit.combinations
-                        .iter()
-                        .filter(|c| c.informed)
-                        .map(|c| format!("{} {:.2}", c.label(), c.value)),
-                )
+                .chain(fit.combinations.iter().filter(|c| c.informed).map(|c| {
+                    format!(
+                        "{} {:.3} [{:.3}, {:.3}]",
+                        c.label(),
+                        c.value,
+                        c.ci95[0],
+                        c.ci95[1]
+                    )
+                }))
                 .collect();
             rms_worst = fit.rmse_m.iter().fold(rms_worst, |a, &b| a.max(b));
             println!(

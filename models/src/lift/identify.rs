@@ -17,7 +17,8 @@ pub use super::attribution::Shown;
 use super::dynamics::LiftModel;
 pub use super::fit::{
     EffectEstimate, EffectPrior, Identifiability, JointEstimate, LiftFit, LiftFitError,
-    LiftFitOptions, LiftTrace, POOLED_PER_TRACE, ParamEstimate, PooledGauge, effect_prior,
+    LiftFitOptions, LiftTrace, POOLED_INTERVAL_SCALE, POOLED_PER_TRACE, ParamEstimate, PooledGauge,
+    effect_prior,
 };
 use super::inputs::{InputReconstruction, reconstruct};
 use super::sensitivity::{
@@ -539,6 +540,17 @@ pub fn fit_map_in(
     }
     // H noise only: the directions the data pin (`lift::attribution`).
     let cov_h = cov.clone();
+    // Per-parameter widening measured for this kind of fit (`param_interval_scale`, ≥ 1): the
+    // intervals and the contraction test read it; the directions the data pin do not.
+    for (q, s) in &opts.param_interval_scale {
+        if let Some(i) = fric.iter().position(|f| f == q) {
+            let s = s.max(1.0);
+            for j in 0..p {
+                cov[(i, j)] *= s;
+                cov[(j, i)] *= s;
+            }
+        }
+    }
     let cov_table4 = info_table4.map(|mut a| {
         for i in 0..p {
             a[(i, i)] += 1.0 / prior_sd(i).powi(2);
@@ -586,7 +598,10 @@ pub fn fit_map_in(
     let estimate = |i: usize, param: LiftParam, base: f64| -> ParamEstimate {
         let sd_x = cov[(i, i)].max(0.0).sqrt();
         let informed = if i < pf {
-            attribution.separate[i]
+            // A coefficient each trace has its own deviation of (`per_trace`) absorbs what
+            // each trace's input noise did: its shared level is no wear reading (measured, J8
+            // ×1.8 pools read 1.22–1.43 with intervals below 1.8: README, "Pooled lifts").
+            attribution.separate[i] && !per_trace_ix.contains(&i)
         } else {
             sd_x < prior_sd(i) / opts.informed_factor
         };

@@ -502,6 +502,7 @@ pub fn fit_pooled_lift_and_gauge_traces(
         thresholds: *thresholds,
         gauge_records,
         per_trace: super::identify::POOLED_PER_TRACE.to_vec(),
+        param_interval_scale: super::identify::POOLED_INTERVAL_SCALE.to_vec(),
         ..LiftFitOptions::default()
     };
     let traces: Vec<LiftTrace> = channels
@@ -518,8 +519,7 @@ pub fn fit_pooled_lift_and_gauge_traces(
         .collect();
     let fit = fit_map(model, &traces, &opts)?;
     let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
-    // Not gated, only reported (each lift was judged by its own fit; one withheld is not
-    // pooled: `services/src/pooled.rs`). Each lift has its own J8 dry (`POOLED_PER_TRACE`).
+    // Not gated, only reported (each lift was judged alone; one withheld is not pooled).
     let mut result = build_result(
         model,
         &fit,

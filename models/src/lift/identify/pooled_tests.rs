@@ -224,7 +224,8 @@ fn a_per_trace_deviation_s_column_is_its_trace_s_friction_column() {
 /// noise did); with a per-lift J8 dry deviation (τ 0.3, `lift::identify::POOLED_PER_TRACE`) every
 /// lift is fitted to its noise, as its own fit is. Seeds 5000–5005 (two sets, the README's
 /// `examples/lift_pooled_coverage` sets 0 and 1), J3 dry ×1 and ×1.8: the drift is flagged in the
-/// entry holding J3 and nothing else is flagged.
+/// entry holding J3 and nothing else is flagged. The widening of the service's pool is checked
+/// on the same fits.
 #[test]
 fn a_per_lift_head_friction_fits_pooled_noisy_lifts_to_their_noise() {
     let model = LiftModel::new(builtin_160ec());
@@ -244,6 +245,32 @@ fn a_per_lift_head_friction_fits_pooled_noisy_lifts_to_their_noise() {
             .collect();
         let shared = fit_map(&model, &traces, &LiftFitOptions::default()).unwrap();
         let fit = fit_map(&model, &traces, &per_lift).unwrap();
+        // The service's pool: the same fit, its intervals widened where pools scatter more
+        // than JᵀJ says (`POOLED_INTERVAL_SCALE`): the estimates are the same, J5 dry's sd is
+        // ×6.35, and neither J5 nor J8 dry (each lift's own) is reported identified.
+        let widened = fit_map(
+            &model,
+            &traces,
+            &LiftFitOptions {
+                param_interval_scale: crate::lift::identify::POOLED_INTERVAL_SCALE.to_vec(),
+                ..per_lift.clone()
+            },
+        )
+        .unwrap();
+        let j5 = LiftParam::Dry(RevJoint::J5);
+        let (a, b) = (
+            fit.params.iter().find(|e| e.param == j5).unwrap(),
+            widened.params.iter().find(|e| e.param == j5).unwrap(),
+        );
+        assert_eq!(a.map_value, b.map_value);
+        assert!(
+            (b.posterior_sd / a.posterior_sd - 6.35).abs() < 1e-9,
+            "{a:?} {b:?}"
+        );
+        for p in [j5, LiftParam::J8Dry] {
+            let e = widened.params.iter().find(|e| e.param == p).unwrap();
+            assert!(!e.informed, "{e:?}");
+        }
         eprintln!(
             "J3 ×{j3}: RMSE shared {:?} mm, per-lift J8 {:?} mm",
             shared.rmse_m.iter().map(|v| v * 1e3).collect::<Vec<_>>(),
