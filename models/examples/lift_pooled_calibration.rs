@@ -4,6 +4,8 @@
 //! realised spread of the estimate about the truth against the mean posterior sd the fit reports.
 //!
 //! `cargo run --release -p pantowatch-models --example lift_pooled_calibration -- [K] [N] [SEED0] [J5_FACTOR]`
+//! (`PW_PROTOCOL=FILE`: lifts of that protocol; `PW_SHARED=1`: every coefficient shared;
+//! `PW_WARM=1`: started from the mean of the lifts' own fits)
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
 use pantowatch_models::lift::identify::{LiftFitOptions, LiftTrace, POOLED_PER_TRACE, fit_map};
@@ -24,7 +26,11 @@ fn main() {
     let j5 = LiftParam::named("J5", "dry").unwrap();
     let mut off = 0.0;
     j5.set(&mut m, &mut off, j5.get(&base, 0.0) * j5f);
-    let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
+    // `PW_PROTOCOL=FILE`: a stated protocol (the JSON `pantowatch design-test --out` writes).
+    let protocol = match std::env::var("PW_PROTOCOL") {
+        Ok(path) => serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap(),
+        Err(_) => LiftProtocol::raise_and_lower(&base, g).unwrap(),
+    };
     let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
     let opts = LiftFitOptions {
         per_trace: if n > 1 {
