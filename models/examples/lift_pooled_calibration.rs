@@ -55,6 +55,12 @@ fn main() {
             })
             .collect();
         let mut o = opts.clone();
+        if let Some(s) = std::env::var("PW_J5_SCALE")
+            .ok()
+            .and_then(|s| s.parse::<f64>().ok())
+        {
+            o.param_interval_scale = vec![(j5, s)];
+        }
         if std::env::var("PW_SHARED").is_ok_and(|s| s == "1") {
             o.per_trace.clear();
         }
@@ -86,8 +92,30 @@ fn main() {
             sd_sum[i] += e.posterior_sd / e.baseline;
         }
         let e5 = fit.params.iter().find(|e| e.param == j5).unwrap();
+        let shown: Vec<String> = fit
+            .params
+            .iter()
+            .filter(|e| e.informed)
+            .map(|e| {
+                format!(
+                    "{}.{} {:.3} [{:.3}, {:.3}] {:?}",
+                    e.param.joint(),
+                    e.param.kind(),
+                    e.value / e.baseline,
+                    e.ci95[0] / e.baseline,
+                    e.ci95[1] / e.baseline,
+                    e.status
+                )
+            })
+            .chain(
+                fit.combinations
+                    .iter()
+                    .filter(|c| c.informed)
+                    .map(|c| format!("{} {:.3} {:?}", c.label(), c.value, c.status)),
+            )
+            .collect();
         eprintln!(
-            "pool {set}: J5 dry {:.3} sd {:.3}; RMSE {:?} mm",
+            "pool {set}: J5 dry {:.3} sd {:.3}; RMSE {:?} mm; shown {shown:?}",
             e5.map_value / e5.baseline,
             e5.posterior_sd / e5.baseline,
             fit.rmse_m
