@@ -113,13 +113,14 @@ impl PooledGauge {
 /// each lift's fit absorbs what its own input noise did, mostly in J8 dry (single-lift fits of
 /// J3 and J8 dry on Table 4 lifts, seeds 40–45: J8 read 0.63–1.58, RMSE 0.51–0.57 mm; J1 dry
 /// read 0.30–1.69 in its place). With a per-lift J8 (τ 0.3, that spread) every lift is fitted
-/// to 0.5–0.84 mm, 96.4 % of the 95 % intervals hold the truth over 72 sets (12 drift cases,
-/// sets 0–5), no undrifted entry is flagged, and J5 dry's estimate errs by 0.34 RMS against
-/// 0.48 shared. On fresh sets 6–11: worst lift 2.47 mm, 94.2 %, one false J5 dry watch, where
-/// the shared fit went to a J5/J8 contrast basin (74.9 mm, J8 ≈ 4.2): 90.7 %, two false J8
-/// alarms. The same with J1 dry (τ 0.45) put the drift into a J3+J5+J8 level that
-/// missed 17 times. Assumption: a lift's head friction may differ from the next lift's by
-/// ~30 % (its input noise, and the head's state: temperature, dirt), its other joints' not.
+/// to 0.5–0.84 mm (sets 0–5; 2.47 mm worst on fresh sets 6–11, where the shared fit went to a
+/// J5/J8 contrast basin at 74.9 mm and raised two false J8 alarms), and J5 dry's estimate errs
+/// by 0.34 RMS against 0.48 shared. J8's shared level is then not reported (`per_trace`), and
+/// with [`POOLED_INTERVAL_SCALE`] the 144 pools of sets 0–11 gave 141/144 intervals holding the
+/// truth and no false flag (without the widening: one false J5 dry watch). The same with J1
+/// dry (τ 0.45) put the drift into a J3+J5+J8 level that missed 17 times. Assumption: a lift's
+/// head friction may differ from the next lift's by ~30 % (its input noise, and the head's
+/// state: temperature, dirt), its other joints' not.
 pub const POOLED_PER_TRACE: [(LiftParam, f64); 1] = [(LiftParam::J8Dry, 0.3)];
 
 /// How much wider a pooled lift fit's intervals must be than its JᵀJ says (issue 15, point 4):

@@ -310,6 +310,11 @@ pub fn fit_map_in(
             "input-noise draws are not propagated through effect parameters".into(),
         ));
     }
+    if !opts.per_trace.is_empty() && opts.input_noise_draws > 0 {
+        return Err(LiftFitError::Invalid(
+            "input-noise draws are not propagated through per-trace deviations".into(),
+        ));
+    }
     if !opts.gauge_records.is_empty() && opts.input_noise_draws > 0 {
         return Err(LiftFitError::Invalid(
             "input-noise draws are not propagated through pooled gauge records".into(),
