@@ -317,7 +317,8 @@ impl FitCurve {
     }
 }
 
-/// The tests a pooled fit combined: the friction shared, one torque offset per test.
+/// The tests a pooled fit combined: the friction shared but for each test's own J8 dry deviation
+/// (not reported), one torque offset per test (`lift::identify::POOLED_PER_TRACE`).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct PooledTests {
     /// Trace ids, newest first (the fit's `trace_id` is the first).
