@@ -11,7 +11,7 @@
 use pantowatch_models::drift::Status;
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
-use pantowatch_models::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
+use pantowatch_models::lift::identify::{LiftFitOptions, fit_map};
 use pantowatch_models::lift::input_noise::fleet_scatter;
 use pantowatch_models::lift::protocol::{LiftProtocol, record};
 use pantowatch_models::lift::sensitivity::LiftParam;
@@ -67,14 +67,7 @@ fn main() {
             let rec = LiftSensorNoise::realistic()
                 .scaled(k)
                 .apply(&clean, 1000 + seed);
-            let fit = fit_map(
-                &base,
-                &[LiftTrace {
-                    inputs: rec.inputs(),
-                    strip_height_m: &rec.strip_height_m,
-                }],
-                &opts,
-            );
+            let fit = fit_map(&base, &[rec.trace()], &opts);
             let Ok(fit) = fit else {
                 println!("{d:?} seed {seed}: fit failed {:?}", fit.err());
                 continue;

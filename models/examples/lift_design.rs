@@ -115,15 +115,8 @@ fn main() {
             };
             let rec = applied.apply(&clean, seed0 + seed);
             let t0 = std::time::Instant::now();
-            let fit = pantowatch_models::lift::identify::fit_map(
-                &m,
-                &[pantowatch_models::lift::identify::LiftTrace {
-                    inputs: rec.inputs(),
-                    strip_height_m: &rec.strip_height_m,
-                }],
-                &opts,
-            )
-            .unwrap();
+            let fit =
+                pantowatch_models::lift::identify::fit_map(&m, &[rec.trace()], &opts).unwrap();
             times.push(t0.elapsed().as_secs_f64());
             est.push(
                 pred.params

@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
-use pantowatch_models::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
+use pantowatch_models::lift::identify::{LiftFitOptions, fit_map};
 use pantowatch_models::lift::inputs::reconstruct;
 use pantowatch_models::lift::protocol::{LiftProtocol, record};
 use pantowatch_models::lift::sensitivity::{LiftParam, simulate_sensitivities};
@@ -65,10 +65,7 @@ fn main() {
                             },
                             |o| (o.rhs_evaluations, o.steps),
                         );
-                    let tr = LiftTrace {
-                        inputs: rec.inputs(),
-                        strip_height_m: &rec.strip_height_m,
-                    };
+                    let tr = rec.trace();
                     let t0 = Instant::now();
                     let fit = fit_map(&base, &[tr], &opts).unwrap();
                     let dt = t0.elapsed().as_secs_f64();

@@ -9,7 +9,7 @@
 
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
-use pantowatch_models::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
+use pantowatch_models::lift::identify::{LiftFitOptions, fit_map};
 use pantowatch_models::lift::inputs::reconstruct;
 use pantowatch_models::lift::protocol::{LiftProtocol, record};
 use pantowatch_models::lift::sensitivity::{LiftParam, simulate_sensitivities};
@@ -27,10 +27,7 @@ fn main() {
     let clean = record(&base, &protocol, &SimOptions::default()).unwrap();
     let rec = LiftSensorNoise::realistic().apply(&clean, 500 + seed);
     let opts = LiftFitOptions::default();
-    let trace = LiftTrace {
-        inputs: rec.inputs(),
-        strip_height_m: &rec.strip_height_m,
-    };
+    let trace = rec.trace();
     let fit = fit_map(&base, &[trace], &opts).unwrap();
     let inputs = reconstruct(&rec.inputs(), &opts.inputs).unwrap();
     let j3 = LiftParam::named("J3", "dry").unwrap();

@@ -47,13 +47,7 @@ fn main() {
         let recs: Vec<_> = (0..n)
             .map(|i| LiftSensorNoise::realistic().apply(&clean, seed0 + n * set + i))
             .collect();
-        let traces: Vec<LiftTrace> = recs
-            .iter()
-            .map(|r| LiftTrace {
-                inputs: r.inputs(),
-                strip_height_m: &r.strip_height_m,
-            })
-            .collect();
+        let traces: Vec<LiftTrace> = recs.iter().map(|r| r.trace()).collect();
         let mut o = opts.clone();
         if let Some(s) = std::env::var("PW_J5_SCALE")
             .ok()

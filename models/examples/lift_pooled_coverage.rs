@@ -67,13 +67,7 @@ fn main() {
                         .apply(&clean, 5000 + 3 * set + i)
                 })
                 .collect();
-            let traces: Vec<LiftTrace> = recs
-                .iter()
-                .map(|r| LiftTrace {
-                    inputs: r.inputs(),
-                    strip_height_m: &r.strip_height_m,
-                })
-                .collect();
+            let traces: Vec<LiftTrace> = recs.iter().map(|r| r.trace()).collect();
             let fit = match fit_map(&base, &traces, &opts) {
                 Ok(f) => f,
                 Err(e) => {

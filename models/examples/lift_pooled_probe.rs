@@ -24,13 +24,7 @@ fn main() {
         let recs: Vec<_> = (0..3)
             .map(|k| LiftSensorNoise::realistic().apply(&clean, 40 + 3 * set + k))
             .collect();
-        let traces: Vec<LiftTrace> = recs
-            .iter()
-            .map(|r| LiftTrace {
-                inputs: r.inputs(),
-                strip_height_m: &r.strip_height_m,
-            })
-            .collect();
+        let traces: Vec<LiftTrace> = recs.iter().map(|r| r.trace()).collect();
         let pooled = fit_map(&m, &traces, &opts).unwrap();
         let alone: Vec<f64> = traces
             .iter()

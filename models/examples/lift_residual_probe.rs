@@ -7,7 +7,7 @@
 use pantowatch_models::drift::Status;
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
-use pantowatch_models::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
+use pantowatch_models::lift::identify::{LiftFitOptions, fit_map};
 use pantowatch_models::lift::protocol::{LiftProtocol, record};
 use pantowatch_models::lift::sensitivity::LiftParam;
 use pantowatch_models::lift::sensors::LiftSensorNoise;
@@ -62,15 +62,7 @@ fn main() {
                     }
                     _ => {}
                 }
-                let fit = fit_map(
-                    &base,
-                    &[LiftTrace {
-                        inputs: rec.inputs(),
-                        strip_height_m: &rec.strip_height_m,
-                    }],
-                    &LiftFitOptions::default(),
-                )
-                .unwrap();
+                let fit = fit_map(&base, &[rec.trace()], &LiftFitOptions::default()).unwrap();
                 let r: Vec<f64> = fit.fitted_height_m[0]
                     .iter()
                     .zip(&rec.strip_height_m)

@@ -12,7 +12,7 @@ use pantowatch_models::dynamics::{Dof, Mechanism};
 use pantowatch_models::friction::{DynParam, FrictionLaw};
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
-use pantowatch_models::lift::identify::{LiftFit, LiftFitOptions, LiftTrace, fit_map_in};
+use pantowatch_models::lift::identify::{LiftFit, LiftFitOptions, fit_map_in};
 use pantowatch_models::lift::protocol::{LiftProtocol, record};
 use pantowatch_models::lift::sensitivity::{
     LiftParam, SensWorkspace, simulate_sensitivities, simulate_sensitivities_in,
@@ -194,10 +194,7 @@ fn lift_buffers_are_reused_across_runs_and_fits() {
     // Whole fits: a worn trace (J3 dry ×1.5, so the LM takes several evaluations) fitted on a
     // new workspace, then again on the same one.
     let rec_w = record(&worn, &p, &SimOptions::default()).unwrap();
-    let trace = [LiftTrace {
-        inputs: rec_w.inputs(),
-        strip_height_m: &rec_w.strip_height_m,
-    }];
+    let trace = [rec_w.trace()];
     let fopts = LiftFitOptions::default();
     let mut fit_ws = SensWorkspace::default();
     let ((_, cold_b), cold_fit) =

@@ -12,7 +12,7 @@ use nalgebra::DMatrix;
 
 use super::dynamics::LiftModel;
 use super::geometry::Geometry;
-use super::identify::{LiftFitError, LiftFitOptions, LiftTrace, inverse_spd, scaled_jacobian};
+use super::identify::{LiftFitError, LiftFitOptions, inverse_spd, scaled_jacobian};
 use super::inputs::{ChannelReconstruction, InputReconstruction};
 use super::protocol::{LiftProtocol, Move, record};
 use super::sensitivity::LiftParam;
@@ -288,10 +288,7 @@ pub fn predict(
     let mut cov = cov_h.clone();
     let mut cov_sampling = &cov_h * &fisher * &cov_h;
     if input_draws > 0 {
-        let trace = LiftTrace {
-            inputs: rec.inputs(),
-            strip_height_m: &rec.strip_height_m,
-        };
+        let trace = rec.trace();
         let inputs = super::input_noise::covariance(
             model,
             &[trace],

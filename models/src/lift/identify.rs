@@ -581,7 +581,11 @@ pub fn fit_map_in(
     let contracted: Vec<bool> = (0..pf)
         .map(|i| {
             let sd = cov[(i, i)].max(0.0).sqrt();
-            sd < prior_sd(i) / opts.informed_factor * rep.x[i].min(1.0)
+            // A coefficient each trace has its own deviation of (`per_trace`) absorbs what
+            // each trace's input noise did: its shared level is no wear reading (measured, J8
+            // ×1.8 pools read 1.22–1.43 with intervals below 1.8: README, "Pooled lifts").
+            !per_trace_ix.contains(&i)
+                && sd < prior_sd(i) / opts.informed_factor * rep.x[i].min(1.0)
         })
         .collect();
     let attribution = super::attribution::attribute(
@@ -603,10 +607,7 @@ pub fn fit_map_in(
     let estimate = |i: usize, param: LiftParam, base: f64| -> ParamEstimate {
         let sd_x = cov[(i, i)].max(0.0).sqrt();
         let informed = if i < pf {
-            // A coefficient each trace has its own deviation of (`per_trace`) absorbs what
-            // each trace's input noise did: its shared level is no wear reading (measured, J8
-            // ×1.8 pools read 1.22–1.43 with intervals below 1.8: README, "Pooled lifts").
-            attribution.separate[i] && !per_trace_ix.contains(&i)
+            attribution.separate[i]
         } else {
             sd_x < prior_sd(i) / opts.informed_factor
         };

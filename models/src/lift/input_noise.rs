@@ -200,7 +200,7 @@ mod coverage_tests {
     use crate::contract::drift::Status;
     use crate::lift::dynamics::LiftModel;
     use crate::lift::geometry::builtin_160ec;
-    use crate::lift::identify::{LiftFitOptions, LiftTrace, Shown, fit_map};
+    use crate::lift::identify::{LiftFitOptions, Shown, fit_map};
     use crate::lift::protocol::{LiftProtocol, record};
     use crate::lift::sensitivity::LiftParam;
     use crate::lift::sensors::LiftSensorNoise;
@@ -240,15 +240,7 @@ mod coverage_tests {
                 });
                 let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
                 let rec = LiftSensorNoise::realistic().apply(&clean, 1000 + seed);
-                let fit = fit_map(
-                    &base,
-                    &[LiftTrace {
-                        inputs: rec.inputs(),
-                        strip_height_m: &rec.strip_height_m,
-                    }],
-                    &LiftFitOptions::default(),
-                )
-                .unwrap();
+                let fit = fit_map(&base, &[rec.trace()], &LiftFitOptions::default()).unwrap();
                 for e in &fit.params {
                     assert!(e.ci95[0] >= 0.0, "{d:?} seed {seed}: {e:?}");
                     if e.informed {
@@ -329,10 +321,7 @@ mod coverage_tests {
                 }
                 let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
                 let rec = LiftSensorNoise::realistic().apply(&clean, 1000 + seed);
-                let trace = LiftTrace {
-                    inputs: rec.inputs(),
-                    strip_height_m: &rec.strip_height_m,
-                };
+                let trace = rec.trace();
                 let fit = fit_map(&base, &[trace], &opts).unwrap();
                 let relative = |p: LiftParam| p.get(&m, 0.0) / p.get(&base, 0.0);
                 for e in fit.params.iter().filter(|e| e.informed) {

@@ -147,6 +147,14 @@ impl LiftRecord {
             fm_n: &self.fm_n,
         }
     }
+
+    /// The record as a fit takes it: its inputs and its measured H.
+    pub fn trace(&self) -> super::fit::LiftTrace<'_> {
+        super::fit::LiftTrace {
+            inputs: self.inputs(),
+            strip_height_m: &self.strip_height_m,
+        }
+    }
 }
 
 /// Run `protocol` on `model` and record it, noise-free.

@@ -20,7 +20,7 @@
 
 use super::{DesignError, LiftModel, LiftParam, LiftProtocol, LiftSensorNoise, SimOptions, record};
 use crate::lift::batch::fit_many;
-use crate::lift::identify::{LiftFitOptions, LiftTrace};
+use crate::lift::identify::LiftFitOptions;
 
 /// Simulated lifts per protocol in the final prediction. The sample sd of K fits has a relative
 /// standard error of about 1/√(2(K − 1)) for normal estimates, 9 % at 64 against 18 % for the 16
@@ -85,13 +85,7 @@ pub fn simulated_spread(
     let recs: Vec<_> = (0..fits as u64)
         .map(|k| noise.apply(&clean, seed0 + k))
         .collect();
-    let traces: Vec<_> = recs
-        .iter()
-        .map(|r| LiftTrace {
-            inputs: r.inputs(),
-            strip_height_m: &r.strip_height_m,
-        })
-        .collect();
+    let traces: Vec<_> = recs.iter().map(|r| r.trace()).collect();
     let results = fit_many(model, &traces, opts, threads, progress);
     // Each fit's estimate of every parameter: friction over Table 4, the offset in N·m.
     let est: Vec<Vec<f64>> = results

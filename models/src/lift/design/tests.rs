@@ -117,15 +117,7 @@ fn designed_protocol_realises_its_predicted_spread() {
     let fits: Vec<_> = (0..16u64)
         .map(|seed| {
             let rec = noise.apply(&clean, 7000 + seed);
-            fit_map(
-                &m,
-                &[LiftTrace {
-                    inputs: rec.inputs(),
-                    strip_height_m: &rec.strip_height_m,
-                }],
-                &opts,
-            )
-            .unwrap()
+            fit_map(&m, &[rec.trace()], &opts).unwrap()
         })
         .collect();
     let mut checked = Vec::new();

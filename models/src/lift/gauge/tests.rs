@@ -445,7 +445,7 @@ fn the_report_has_every_joint_and_the_combination() {
 /// posterior sd of the truth.
 #[test]
 fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
-    use crate::lift::identify::{LiftFit, LiftFitOptions, LiftTrace, PooledGauge, fit_map};
+    use crate::lift::identify::{LiftFit, LiftFitOptions, PooledGauge, fit_map};
     use crate::lift::protocol::{LiftProtocol, record as lift_record};
     use crate::lift::sensors::LiftSensorNoise;
     use crate::lift::simulate::SimOptions;
@@ -454,10 +454,7 @@ fn a_gauge_record_pooled_with_a_lift_tells_its_members_apart() {
     let truth = drifted(&base, &[(RevJoint::J3, 2.0), (RevJoint::J1, 2.0)]);
     let clean = lift_record(&truth, &LiftProtocol::reference(g), &SimOptions::default()).unwrap();
     let rec = LiftSensorNoise::realistic().apply(&clean, 11);
-    let trace = LiftTrace {
-        inputs: rec.inputs(),
-        strip_height_m: &rec.strip_height_m,
-    };
+    let trace = rec.trace();
     // The gauge's zero off by 2 N besides: each pooled record's zero is a nuisance of the fit.
     let gauge = record(&truth, 11, 2.0, 1.0);
     let own = fit_gauge(&base, ar, &drive, &gauge, &GaugeFitOptions::default()).unwrap();

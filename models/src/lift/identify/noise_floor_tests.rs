@@ -16,10 +16,7 @@ fn the_noise_floor_never_stops_a_fit_far_from_its_minimum() {
     let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
     let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
     let rec = LiftSensorNoise::realistic().apply(&clean, 7000);
-    let trace = LiftTrace {
-        inputs: rec.inputs(),
-        strip_height_m: &rec.strip_height_m,
-    };
+    let trace = rec.trace();
     let fit = fit_map(&base, &[trace], &LiftFitOptions::default()).unwrap();
     assert!(
         fit.rmse_m[0] < 4e-3,

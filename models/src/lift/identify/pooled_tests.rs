@@ -141,13 +141,7 @@ fn noisy_set(j3: f64, seed0: u64) -> Vec<crate::lift::protocol::LiftRecord> {
 #[test]
 fn a_per_trace_deviation_s_column_is_its_trace_s_friction_column() {
     let recs = noisy_set(1.0, 5000);
-    let traces: Vec<LiftTrace> = recs[..2]
-        .iter()
-        .map(|r| LiftTrace {
-            inputs: r.inputs(),
-            strip_height_m: &r.strip_height_m,
-        })
-        .collect();
+    let traces: Vec<LiftTrace> = recs[..2].iter().map(|r| r.trace()).collect();
     let model = LiftModel::new(builtin_160ec());
     let j8 = LiftParam::J8Dry;
     let mut opts = LiftFitOptions {
@@ -236,13 +230,7 @@ fn a_per_lift_head_friction_fits_pooled_noisy_lifts_to_their_noise() {
     let mut worst_shared: f64 = 0.0;
     for (j3, seed0) in [(1.0, 5000), (1.8, 5003)] {
         let recs = noisy_set(j3, seed0);
-        let traces: Vec<LiftTrace> = recs
-            .iter()
-            .map(|r| LiftTrace {
-                inputs: r.inputs(),
-                strip_height_m: &r.strip_height_m,
-            })
-            .collect();
+        let traces: Vec<LiftTrace> = recs.iter().map(|r| r.trace()).collect();
         let shared = fit_map(&model, &traces, &LiftFitOptions::default()).unwrap();
         let fit = fit_map(&model, &traces, &per_lift).unwrap();
         // The service's pool: the same fit, its intervals widened where pools scatter more

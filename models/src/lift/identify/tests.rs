@@ -9,10 +9,7 @@ use crate::numerics::noise::Noise;
 #[test]
 fn the_delay_column_is_the_derivative_of_the_delayed_read_out() {
     let rec = drifted_trace(1.0, 3);
-    let trace = [LiftTrace {
-        inputs: rec.inputs(),
-        strip_height_m: &rec.strip_height_m,
-    }];
+    let trace = [rec.trace()];
     let model = LiftModel::new(builtin_160ec());
     let opts = LiftFitOptions {
         effect_params: vec![LiftParam::SensorDelay],
@@ -143,15 +140,7 @@ fn j3_drift_is_flagged_and_uninformed_joints_are_not_identified() {
     let base = LiftModel::new(g);
     let rec = drifted_trace(1.8, 7);
     let clock = std::time::Instant::now();
-    let fit = fit_map(
-        &base,
-        &[LiftTrace {
-            inputs: rec.inputs(),
-            strip_height_m: &rec.strip_height_m,
-        }],
-        &LiftFitOptions::default(),
-    )
-    .unwrap();
+    let fit = fit_map(&base, &[rec.trace()], &LiftFitOptions::default()).unwrap();
     eprintln!(
         "fit: {:?}, {} evaluations, {:?}, rmse {:.3} mm",
         clock.elapsed(),

@@ -5,7 +5,7 @@ use super::*;
 use crate::contract::drift::Status;
 use crate::lift::dynamics::LiftModel;
 use crate::lift::geometry::builtin_160ec;
-use crate::lift::identify::{LiftFitOptions, LiftTrace, fit_map};
+use crate::lift::identify::{LiftFitOptions, fit_map};
 use crate::lift::protocol::{LiftProtocol, LiftRecord, record};
 use crate::lift::sensitivity::LiftParam;
 use crate::lift::sensors::LiftSensorNoise;
@@ -216,10 +216,7 @@ fn noisy_input_fits_flag_a_j3_dry_drift_within_its_interval() {
         let mut covered = 0;
         for seed in 1..=5 {
             let rec = noise.apply(&clean, seed);
-            let tr = LiftTrace {
-                inputs: rec.inputs(),
-                strip_height_m: &rec.strip_height_m,
-            };
+            let tr = rec.trace();
             let fit = fit_map(&base, &[tr], &opts).unwrap();
             // Where J3 dry's drift shows: alone or in its combination (`lift::attribution`).
             let shown = fit.shown_in(j3);

@@ -94,15 +94,9 @@ fn an_undeclared_h_delay_withholds_the_joints_and_controls_do_not() {
         for i in 0..h.len() {
             rec.strip_height_m[i] = h[i.saturating_sub(k)];
         }
-        let trace = LiftTrace {
-            inputs: rec.inputs(),
-            strip_height_m: &rec.strip_height_m,
-        };
+        let trace = rec.trace();
         let fit = fit_map(&base, &[trace], &opts).unwrap();
-        let trace = LiftTrace {
-            inputs: rec.inputs(),
-            strip_height_m: &rec.strip_height_m,
-        };
+        let trace = rec.trace();
         fit_result(&base, &fit, &trace, &fit.fitted_height_m[0], &opts, "t")
     };
     for seed in 0..2 {
