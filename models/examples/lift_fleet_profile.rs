@@ -28,6 +28,7 @@ fn main() {
     let j3 = LiftParam::named("J3", "dry").unwrap();
     let th = DriftThresholds::default();
     let (mut times, mut looped) = (Vec::new(), Vec::new());
+    let (mut evals, mut iters) = (0usize, 0usize);
     for i in 0..lifts {
         let (p, month) = (i / 12, i % 12);
         let factor = if p % 6 == 1 {
@@ -53,6 +54,8 @@ fn main() {
         let ratio = rep.result.residual.excess_ratio.unwrap_or(f64::NAN);
         let tried = rep.result.residual.holdout_note.is_none();
         times.push(dt);
+        evals += rep.fit.evaluations;
+        iters += rep.fit.iterations;
         looped.push(tried);
         if tried {
             println!(
@@ -82,5 +85,10 @@ fn main() {
         s[lifts * 95 / 100],
         looped.iter().filter(|l| **l).count(),
         100.0 * in_loop / total
+    );
+    println!(
+        "LM of the plain fits: {:.1} evaluations and {:.1} iterations per lift",
+        evals as f64 / lifts as f64,
+        iters as f64 / lifts as f64
     );
 }
