@@ -100,6 +100,14 @@ pub struct LmReport {
     pub termination: Termination,
 }
 
+/// Nielsen's damping increase after a step that failed or was rejected: λ·ν, ν doubled.
+/// False once λ passes 10²⁰ (no step of any length helped).
+fn raise_damping(lambda: &mut f64, nu: &mut f64) -> bool {
+    *lambda *= *nu;
+    *nu *= 2.0;
+    *lambda <= 1e20
+}
+
 /// `x0` projected into the problem's bounds.
 pub fn project<P: Problem>(p: &P, x0: &[f64]) -> Vec<f64> {
     let (lb, ub) = (p.lower_bounds(), p.upper_bounds());
@@ -211,9 +219,7 @@ pub fn minimize_evaluated<P: Problem>(
                 None => match ak.lu().solve(&gk) {
                     Some(d) => d,
                     None => {
-                        lambda *= nu;
-                        nu *= 2.0;
-                        if lambda > 1e20 {
+                        if !raise_damping(&mut lambda, &mut nu) {
                             termination = Termination::NoProgress;
                             break 'outer;
                         }
@@ -244,21 +250,19 @@ pub fn minimize_evaluated<P: Problem>(
             // iterates and result as evaluating it; measured on realistic-noise lifts, where
             // steps into a friction's zero bound are common far from the optimum:
             // `examples/lift_fleet_profile`.
-            if pred < 0.0 {
+            // Whether the step is within `noise_sd` standard errors (the noise-floor test below).
+            let within_floor = || {
                 let quad = 0.5 * step_v.dot(&(&a * &step_v));
                 let half_s2 = (cost / m as f64).min(0.5);
-                let floor_test =
-                    opts.noise_sd > 0.0 && quad <= opts.noise_sd * opts.noise_sd * half_s2;
-                if !floor_test {
-                    skipped += 1;
-                    lambda *= nu;
-                    nu *= 2.0;
-                    if lambda > 1e20 {
-                        termination = Termination::NoProgress;
-                        break 'outer;
-                    }
-                    continue;
+                opts.noise_sd > 0.0 && quad <= opts.noise_sd * opts.noise_sd * half_s2
+            };
+            if pred < 0.0 && !within_floor() {
+                skipped += 1;
+                if !raise_damping(&mut lambda, &mut nu) {
+                    termination = Termination::NoProgress;
+                    break 'outer;
                 }
+                continue;
             }
             if crate::numerics::budget::charge().is_err() {
                 termination = Termination::Budget;
@@ -318,17 +322,11 @@ pub fn minimize_evaluated<P: Problem>(
             // only chase that noise. The residuals are in units of their noise sd, so the
             // norm's s² = 2·cost/m is capped at 1: far from the minimum a large misfit would
             // otherwise make every rejected step look short (a lift plain fit stopped at 60 mm).
-            if ok && opts.noise_sd > 0.0 {
-                let quad = 0.5 * step_v.dot(&(&a * &step_v));
-                let half_s2 = (cost / m as f64).min(0.5);
-                if quad <= opts.noise_sd * opts.noise_sd * half_s2 {
-                    termination = Termination::NoiseFloor;
-                    break 'outer;
-                }
+            if ok && within_floor() {
+                termination = Termination::NoiseFloor;
+                break 'outer;
             }
-            lambda *= nu;
-            nu *= 2.0;
-            if lambda > 1e20 {
+            if !raise_damping(&mut lambda, &mut nu) {
                 termination = Termination::NoProgress;
                 break 'outer;
             }
