@@ -9,12 +9,12 @@
 use std::time::Instant;
 
 use pantowatch_models::lift::dynamics::LiftModel;
-use pantowatch_models::lift::fit::{LiftFitOptions, LiftTrace};
+use pantowatch_models::lift::fit::LiftFitOptions;
 use pantowatch_models::lift::geometry::builtin_160ec;
 use pantowatch_models::lift::identify::fit_map;
 use pantowatch_models::lift::protocol::{LiftProtocol, record};
 use pantowatch_models::lift::sensors::LiftSensorNoise;
-use pantowatch_models::lift::simulate::{LiftInputs, SimOptions};
+use pantowatch_models::lift::simulate::SimOptions;
 
 fn main() {
     let lifts: usize = std::env::args()
@@ -42,15 +42,7 @@ fn main() {
             noise = noise.scaled(2.0);
         }
         let rec = noise.apply(&clean, seed * 13 + 5);
-        let trace = LiftTrace {
-            inputs: LiftInputs {
-                t_s: &rec.t_s,
-                torque_nm: &rec.torque_nm,
-                fs_n: &rec.fs_n,
-                fm_n: &rec.fm_n,
-            },
-            strip_height_m: &rec.strip_height_m,
-        };
+        let trace = rec.trace();
         let t0 = Instant::now();
         let fit = fit_map(&base, &[trace], &opts).unwrap();
         seconds += t0.elapsed().as_secs_f64();

@@ -243,19 +243,19 @@ pub fn minimize_evaluated<P: Problem>(
                 termination = Termination::DecrementConverged;
                 break 'outer;
             }
-            // A step the quadratic model says raises the cost (pred < 0: only a projected step
-            // can) is rejected whatever its evaluation shows (ρ = −1 below): raise the damping
-            // without running the model. Only the noise-floor test reads such a trial's outcome
-            // (whether it ran), so a step short enough for that test is still evaluated. Same
-            // iterates and result as evaluating it; measured on realistic-noise lifts, where
-            // steps into a friction's zero bound are common far from the optimum:
-            // `examples/lift_fleet_profile`.
             // Whether the step is within `noise_sd` standard errors (the noise-floor test below).
             let within_floor = || {
                 let quad = 0.5 * step_v.dot(&(&a * &step_v));
                 let half_s2 = (cost / m as f64).min(0.5);
                 opts.noise_sd > 0.0 && quad <= opts.noise_sd * opts.noise_sd * half_s2
             };
+            // A step the quadratic model says raises the cost (pred < 0: only a projected step
+            // can) is rejected whatever its evaluation shows (ρ = −1 below): raise the damping
+            // without running the model. Only the noise-floor test reads such a trial's outcome
+            // (whether it ran), so a step short enough for that test is still evaluated. Same
+            // iterates and result as evaluating it (`examples/lift_fit_dump`); realistic-noise
+            // lifts step into a friction's zero bound often far from the optimum
+            // (`examples/lift_fleet_profile`).
             if pred < 0.0 && !within_floor() {
                 skipped += 1;
                 if !raise_damping(&mut lambda, &mut nu) {
