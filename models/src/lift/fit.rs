@@ -218,6 +218,18 @@ impl Default for LiftFitOptions {
                 // fit without the rule (22 of 24 within 0.002 sd). Fleet: 12.5 → 11.0–11.3 min
                 // (README, "Performance"). Not in the continuation stages (below).
                 noise_sd: 3.0,
+                // A cliff within 20 sd ends the fit (`LmOptions::cliff_sd`). Near the optimum a
+                // realistic-noise lift's whole-trace cost is rough at the scale of a few sd: the
+                // lowering's end diverges open-loop (the difference between two nearby runs grows
+                // ×2.8 per 5 % of the trace over its last 30 %), so trial steps the damping hardly
+                // changes (6.53 sd at λ 3·10⁻⁷ … 3·10⁻⁴) cost 1958, 1175, 1066, 1092 and 1004
+                // against 1015 (`examples/lift_fleet_profile`, lift 1); after a cliff the LM spent
+                // 4–7 evaluations walking λ up to land one such retry. Measured (session 17):
+                // fleet-kind lifts 18.9 → 16.0 evaluations per fit; on the coverage set (seeds
+                // 0–23, the stand's noise) 284/288 covered before and after, RMS z 0.702 → 0.705,
+                // the J1+J3 level within 0.2 sd of the fit without the rule; at 100 sd one plain
+                // fit in 96 stopped at 2.7× the RMSE, at 40 sd 1.12×, at 20 sd 1.04×.
+                cliff_sd: 20.0,
             },
             inputs: InputOptions::default(),
             attribution: AttributionOptions::default(),

@@ -461,10 +461,12 @@ pub fn fit_map_in(
         // cut short they took a lift with head drag (c_a 4, seed 3) to a plain fit that
         // absorbed the drag (1.49× the noise) instead of leaving it to be named (tests/cli.rs).
         // The stages are short: without the floor the fleet still gains 12 % of the 14 %.
+        // Nor the cliff rule (`LiftFitOptions::default`), measured on whole-trace fits only.
         let lm = LmOptions {
             max_iter: opts.lm.max_iter.min(5),
             dtol: opts.lm.dtol.max(1.0),
             noise_sd: 0.0,
+            cliff_sd: 0.0,
             ..opts.lm
         };
         let rep = minimize(&mut stage, &x, &lm);

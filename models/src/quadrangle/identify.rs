@@ -104,6 +104,7 @@ impl Default for QuadFitOptions {
                 gtol: 1e-10,
                 dtol: 0.1,
                 noise_sd: 0.0,
+                cliff_sd: 0.0,
             },
         }
     }

@@ -35,6 +35,10 @@ pub enum Termination {
     /// A trial step within `noise_sd` standard errors was rejected: the objective's
     /// evaluation noise, not its minimum, ends the descent there.
     NoiseFloor,
+    /// A trial step within `cliff_sd` standard errors was rejected with the cost rising by over
+    /// [`CLIFF_RHO`] times the decrease the quadratic model predicted: at that scale the objective
+    /// is not the smooth function the model describes, and more damping retries the same step.
+    Cliff,
     /// The damping grew without finding a better point.
     NoProgress,
     MaxIterations,
@@ -70,7 +74,17 @@ pub struct LmOptions {
     /// objectives whose evaluation carries noise (an adaptive integrator's step choice) larger
     /// than what such a step changes. 0 (the default) disables the test.
     pub noise_sd: f64,
+    /// Stop when a rejected trial step at most this many standard errors long (the norm of
+    /// `noise_sd`) is a *cliff*: its cost rose by more than −[`CLIFF_RHO`] times the decrease
+    /// the quadratic model predicted (ρ < [`CLIFF_RHO`]). For objectives that are not smooth at
+    /// that scale (a lift's open-loop divergence at the end of the lowering amplifies the
+    /// integrator's tolerance-level differences: `lift::fit`). 0 (the default) disables it.
+    pub cliff_sd: f64,
 }
+
+/// The gain ratio ρ = actual / predicted decrease below which a rejected trial is a cliff
+/// (`LmOptions::cliff_sd`): the cost rose by over 5× what the quadratic model said it would drop.
+pub const CLIFF_RHO: f64 = -5.0;
 
 impl Default for LmOptions {
     fn default() -> Self {
@@ -81,6 +95,7 @@ impl Default for LmOptions {
             gtol: 1e-10,
             dtol: 0.0,
             noise_sd: 0.0,
+            cliff_sd: 0.0,
         }
     }
 }
@@ -243,12 +258,13 @@ pub fn minimize_evaluated<P: Problem>(
                 termination = Termination::DecrementConverged;
                 break 'outer;
             }
-            // Whether the step is within `noise_sd` standard errors (the noise-floor test below).
-            let within_floor = || {
+            // Whether the step is within `sd` standard errors (the noise-floor and cliff tests).
+            let within = |sd: f64| {
                 let quad = 0.5 * step_v.dot(&(&a * &step_v));
                 let half_s2 = (cost / m as f64).min(0.5);
-                opts.noise_sd > 0.0 && quad <= opts.noise_sd * opts.noise_sd * half_s2
+                sd > 0.0 && quad <= sd * sd * half_s2
             };
+            let within_floor = || within(opts.noise_sd);
             // A step the quadratic model says raises the cost (pred < 0: only a projected step
             // can) is rejected whatever its evaluation shows (ρ = −1 below): raise the damping
             // without running the model. Only the noise-floor test reads such a trial's outcome
@@ -326,6 +342,12 @@ pub fn minimize_evaluated<P: Problem>(
                 termination = Termination::NoiseFloor;
                 break 'outer;
             }
+            // A cliff within `cliff_sd`: the damping would walk up ×2, ×4, ×8 retrying nearly
+            // the same step, whose cost is decided by the objective's roughness, not its slope.
+            if ok && rho < CLIFF_RHO && within(opts.cliff_sd) {
+                termination = Termination::Cliff;
+                break 'outer;
+            }
             if !raise_damping(&mut lambda, &mut nu) {
                 termination = Termination::NoProgress;
                 break 'outer;
@@ -390,6 +412,7 @@ mod tests {
                 gtol: 1e-15,
                 dtol: 0.0,
                 noise_sd: 0.0,
+                cliff_sd: 0.0,
                 max_iter: 500,
             },
         );
@@ -529,6 +552,7 @@ mod tests {
             gtol: 1e-12,
             dtol: 0.0,
             noise_sd,
+            cliff_sd: 0.0,
         };
         let quiet = minimize(
             &mut NoisyLine {
@@ -611,5 +635,67 @@ mod tests {
         let x1 = -1.05 / 2.02;
         assert!((rep.x[0] - 1.0).abs() < 1e-9, "{:?}", rep.x);
         assert!((rep.x[1] - x1).abs() < 1e-6, "{:?} vs x₁ {x1}", rep.x);
+    }
+
+    /// r_i = (x − 1) + w_i with w = (½, −½, ½, −½), one parameter: the minimum is x = 1. The
+    /// evaluation numbered k (0 = the start) adds `bump[k]` to every residual — the roughness of
+    /// an objective whose evaluation is not smooth at the step's scale.
+    struct RoughLine {
+        bump: Vec<f64>,
+        calls: usize,
+    }
+    impl Problem for RoughLine {
+        fn n_params(&self) -> usize {
+            1
+        }
+        fn n_residuals(&self) -> usize {
+            4
+        }
+        fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
+            let b = self.bump.get(self.calls).copied().unwrap_or(0.0);
+            self.calls += 1;
+            for (i, ri) in r.iter_mut().enumerate() {
+                *ri = x[0] - 1.0 + if i % 2 == 0 { 0.5 } else { -0.5 } + b;
+                jac[(i, 0)] = 1.0;
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_cliff_within_cliff_sd_ends_the_fit_where_it_stood() {
+        let opts = |cliff_sd: f64| LmOptions {
+            cliff_sd,
+            ..LmOptions::default()
+        };
+        let run = |x0: f64, bump: f64, cliff_sd: f64| {
+            let mut p = RoughLine {
+                bump: vec![0.0, bump],
+                calls: 0,
+            };
+            minimize(&mut p, &[x0], &opts(cliff_sd))
+        };
+        // From x = −4 the first step is 5 long, 10 sd (½δ²·JᵀJ = 50 against s² capped at 1);
+        // a bump of 20 makes its cost ~800 against 50.5 and a predicted drop of ~50: ρ ≈ −15.
+        let cliff = run(-4.0, 20.0, 20.0);
+        assert_eq!(cliff.termination, Termination::Cliff, "{cliff:?}");
+        assert_eq!(cliff.evaluations, 2);
+        assert_eq!(
+            cliff.x,
+            vec![-4.0],
+            "the fit stays at its last accepted point"
+        );
+        // Without the rule the next trial (no bump) is taken and the fit reaches the minimum.
+        let off = run(-4.0, 20.0, 0.0);
+        assert_ne!(off.termination, Termination::Cliff);
+        assert!((off.x[0] - 1.0).abs() < 1e-6, "{off:?}");
+        // A cliff beyond `cliff_sd` (a 50-long step: 100 sd) does not end the fit.
+        let far = run(-49.0, 200.0, 20.0);
+        assert_ne!(far.termination, Termination::Cliff, "{far:?}");
+        assert!((far.x[0] - 1.0).abs() < 1e-6, "{far:?}");
+        // Nor does a plain rejection within it: a bump of 6 gives ρ ≈ −0.4, above CLIFF_RHO.
+        let mild = run(-4.0, 6.0, 20.0);
+        assert_ne!(mild.termination, Termination::Cliff, "{mild:?}");
+        assert!((mild.x[0] - 1.0).abs() < 1e-6, "{mild:?}");
     }
 }

@@ -152,6 +152,7 @@ impl Default for FitOptions {
                 // changes a 95 % interval's coverage by < 0.1 %).
                 dtol: 0.05,
                 noise_sd: 0.0,
+                cliff_sd: 0.0,
             },
         }
     }

@@ -153,6 +153,7 @@ impl Default for GaugeFitOptions {
                 gtol: 1e-10,
                 dtol: 0.0,
                 noise_sd: 0.0,
+                cliff_sd: 0.0,
             },
             attribution: lift.attribution,
         }
