@@ -28,7 +28,7 @@ fn main() {
     let j3 = LiftParam::named("J3", "dry").unwrap();
     let th = DriftThresholds::default();
     let (mut times, mut looped) = (Vec::new(), Vec::new());
-    let (mut evals, mut iters) = (0usize, 0usize);
+    let (mut evals, mut iters, mut rejected, mut cliffs) = (0usize, 0usize, 0usize, 0usize);
     for i in 0..lifts {
         let (p, month) = (i / 12, i % 12);
         let factor = if p % 6 == 1 {
@@ -56,6 +56,8 @@ fn main() {
         times.push(dt);
         evals += rep.fit.evaluations;
         iters += rep.fit.iterations;
+        rejected += rep.fit.rejected;
+        cliffs += rep.fit.cliffs;
         looped.push(tried);
         if tried {
             println!(
@@ -87,8 +89,10 @@ fn main() {
         100.0 * in_loop / total
     );
     println!(
-        "LM of the plain fits: {:.1} evaluations and {:.1} iterations per lift",
+        "LM of the plain fits: {:.1} evaluations and {:.1} iterations per lift; {:.1} evaluated trials rejected, {:.1} of them cliffs",
         evals as f64 / lifts as f64,
-        iters as f64 / lifts as f64
+        iters as f64 / lifts as f64,
+        rejected as f64 / lifts as f64,
+        cliffs as f64 / lifts as f64
     );
 }

@@ -325,6 +325,10 @@ pub struct LiftFit {
     pub noise_m: f64,
     pub iterations: usize,
     pub evaluations: usize,
+    /// The LM's evaluated trials it rejected, and the cliffs among them (ρ below
+    /// `lm::CLIFF_RHO`), continuation stages included: where a fit's evaluations went.
+    pub rejected: usize,
+    pub cliffs: usize,
     pub termination: Termination,
     /// Each trace's input reconstruction (noise sd per channel, cutoff, steps kept), in trace
     /// order: the inputs the fit was run on (`lift::inputs`).

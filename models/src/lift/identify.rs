@@ -386,8 +386,7 @@ pub fn fit_map_in(
     // output error over the whole trace is far from quadratic around the baseline (J3 ×1.8
     // seen from ×1: H off by 0.3–1 m, with a bump in between). Over the first part of the
     // motion it is nearly linear; each longer stretch starts from the last one's estimate.
-    let mut evaluations = 0;
-    let mut iterations = 0;
+    let (mut evaluations, mut iterations, mut rejected, mut cliffs) = (0, 0, 0, 0);
     // A trace the starting model already follows (H RMS within 5 σ_H: a joint near its
     // baseline) needs no continuation: the whole-trace problem is already nearly quadratic.
     // The whole-trace evaluation at the start tells, and is the LM's first when it is close.
@@ -472,6 +471,7 @@ pub fn fit_map_in(
         let rep = minimize(&mut stage, &x, &lm);
         evaluations += rep.evaluations;
         iterations += rep.iterations;
+        (rejected, cliffs) = (rejected + rep.rejected, cliffs + rep.cliffs);
         if let Termination::EvaluationFailed(e) = &rep.termination {
             return Err(LiftFitError::Failed(e.clone()));
         }
@@ -489,6 +489,7 @@ pub fn fit_map_in(
     }
     rep.evaluations += evaluations;
     rep.iterations += iterations;
+    (rep.rejected, rep.cliffs) = (rep.rejected + rejected, rep.cliffs + cliffs);
     let e0 = pf + traces.len();
     let z0 = e0 + ne;
     let u0 = z0 + opts.gauge_records.len();
@@ -784,6 +785,8 @@ pub fn fit_map_in(
         noise_m: opts.h_noise_m * kappa2.sqrt(),
         iterations: rep.iterations,
         evaluations: rep.evaluations,
+        rejected: rep.rejected,
+        cliffs: rep.cliffs,
         termination: rep.termination,
         inputs: rebuilt.iter().map(|r| r.info).collect(),
         combinations: attribution.combinations,

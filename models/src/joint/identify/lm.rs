@@ -112,6 +112,10 @@ pub struct LmReport {
     pub evaluations: usize,
     /// Trial steps rejected without an evaluation (their predicted change was an increase).
     pub skipped: usize,
+    /// Evaluated trial steps that were rejected (the start's and accepted ones are the rest).
+    pub rejected: usize,
+    /// Of the rejected, the cliffs: ρ < [`CLIFF_RHO`], whether or not `cliff_sd` ended the fit.
+    pub cliffs: usize,
     pub termination: Termination,
 }
 
@@ -148,6 +152,8 @@ pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport
             iterations: 0,
             evaluations: 0,
             skipped: 0,
+            rejected: 0,
+            cliffs: 0,
             termination: Termination::EvaluationFailed(e.to_string()),
         };
     }
@@ -160,6 +166,8 @@ pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport
             iterations: 0,
             evaluations: 1,
             skipped: 0,
+            rejected: 0,
+            cliffs: 0,
             termination: Termination::EvaluationFailed(e),
         };
     }
@@ -179,7 +187,7 @@ pub fn minimize_evaluated<P: Problem>(
     let (n, m) = (p.n_params(), p.n_residuals());
     let (lb, ub) = (p.lower_bounds(), p.upper_bounds());
     let mut evaluations = 1;
-    let mut skipped = 0;
+    let (mut skipped, mut rejected, mut cliffs) = (0, 0, 0);
     let mut cost = 0.5 * r.iter().map(|v| v * v).sum::<f64>();
     let mut r_try = vec![0.0; m];
     let mut jac_try = DMatrix::zeros(m, n);
@@ -327,6 +335,10 @@ pub fn minimize_evaluated<P: Problem>(
                 }
                 break;
             }
+            rejected += 1;
+            if ok && rho < CLIFF_RHO {
+                cliffs += 1;
+            }
             // Rejected. If even the quadratic model promises no relative reduction above ftol,
             // we are at the minimum to working precision (MINPACK's test on the prediction).
             if ok && pred >= 0.0 && pred <= opts.ftol * cost {
@@ -362,6 +374,8 @@ pub fn minimize_evaluated<P: Problem>(
         iterations,
         evaluations,
         skipped,
+        rejected,
+        cliffs,
         termination,
     }
 }
@@ -680,6 +694,7 @@ mod tests {
         let cliff = run(-4.0, 20.0, 20.0);
         assert_eq!(cliff.termination, Termination::Cliff, "{cliff:?}");
         assert_eq!(cliff.evaluations, 2);
+        assert_eq!((cliff.rejected, cliff.cliffs), (1, 1));
         assert_eq!(
             cliff.x,
             vec![-4.0],
@@ -692,10 +707,15 @@ mod tests {
         // A cliff beyond `cliff_sd` (a 50-long step: 100 sd) does not end the fit.
         let far = run(-49.0, 200.0, 20.0);
         assert_ne!(far.termination, Termination::Cliff, "{far:?}");
+        assert_eq!(
+            far.cliffs, 1,
+            "the cliff is counted though it did not stop the fit"
+        );
         assert!((far.x[0] - 1.0).abs() < 1e-6, "{far:?}");
         // Nor does a plain rejection within it: a bump of 6 gives ρ ≈ −0.4, above CLIFF_RHO.
         let mild = run(-4.0, 6.0, 20.0);
         assert_ne!(mild.termination, Termination::Cliff, "{mild:?}");
+        assert_eq!((mild.rejected, mild.cliffs), (1, 0));
         assert!((mild.x[0] - 1.0).abs() < 1e-6, "{mild:?}");
     }
 }
