@@ -256,8 +256,10 @@ pub fn minimize_evaluated<P: Problem>(
             }
             let step: Vec<f64> = (0..n).map(|i| x_try[i] - x[i]).collect();
             let step_v = DVector::from_column_slice(&step);
-            // Predicted reduction of the quadratic model for the projected step.
-            let pred = -(step_v.dot(&g) + 0.5 * step_v.dot(&(&a * &step_v)));
+            // The quadratic model's curvature term ½δᵀAδ and predicted reduction for the
+            // projected step.
+            let quad = 0.5 * step_v.dot(&(&a * &step_v));
+            let pred = -(step_v.dot(&g) + quad);
             if opts.dtol > 0.0
                 && lambda <= 1e-4
                 && pred >= 0.0
@@ -267,11 +269,7 @@ pub fn minimize_evaluated<P: Problem>(
                 break 'outer;
             }
             // Whether the step is within `sd` standard errors (the noise-floor and cliff tests).
-            let within = |sd: f64| {
-                let quad = 0.5 * step_v.dot(&(&a * &step_v));
-                let half_s2 = (cost / m as f64).min(0.5);
-                sd > 0.0 && quad <= sd * sd * half_s2
-            };
+            let within = |sd: f64| sd > 0.0 && quad <= sd * sd * (cost / m as f64).min(0.5);
             let within_floor = || within(opts.noise_sd);
             // A step the quadratic model says raises the cost (pred < 0: only a projected step
             // can) is rejected whatever its evaluation shows (ρ = −1 below): raise the damping
@@ -336,9 +334,8 @@ pub fn minimize_evaluated<P: Problem>(
                 break;
             }
             rejected += 1;
-            if ok && rho < CLIFF_RHO {
-                cliffs += 1;
-            }
+            let cliff = ok && rho < CLIFF_RHO;
+            cliffs += usize::from(cliff);
             // Rejected. If even the quadratic model promises no relative reduction above ftol,
             // we are at the minimum to working precision (MINPACK's test on the prediction).
             if ok && pred >= 0.0 && pred <= opts.ftol * cost {
@@ -356,7 +353,7 @@ pub fn minimize_evaluated<P: Problem>(
             }
             // A cliff within `cliff_sd`: the damping would walk up ×2, ×4, ×8 retrying nearly
             // the same step, whose cost is decided by the objective's roughness, not its slope.
-            if ok && rho < CLIFF_RHO && within(opts.cliff_sd) {
+            if cliff && within(opts.cliff_sd) {
                 termination = Termination::Cliff;
                 break 'outer;
             }
