@@ -7,11 +7,11 @@
 //! J1 ×3 pantograph fitted as the service fits them (seeds 5000..).
 //!
 //! `cargo run --release -p pantowatch-models --example lift_long_protocols -- [N]`
-use pantowatch_models::lift::design::{INPUT_DRAWS, ProtocolLimits, holding_torque_nm, predict};
+use pantowatch_models::lift::design::{INPUT_DRAWS, ProtocolLimits, predict, rounds_of_moves};
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::geometry::builtin_160ec;
 use pantowatch_models::lift::identify::{LiftFitOptions, fit_map};
-use pantowatch_models::lift::protocol::{LiftProtocol, Move, record};
+use pantowatch_models::lift::protocol::record;
 use pantowatch_models::lift::sensitivity::LiftParam;
 use pantowatch_models::lift::sensors::LiftSensorNoise;
 
@@ -36,14 +36,6 @@ fn main() {
     let heights = env_list("PW_HEIGHTS", "1.424,1.216");
     let tau_s = env_list("PW_TAU", "1.0")[0];
     let dwell_s = env_list("PW_DWELL", "2.0")[0];
-    let base = LiftProtocol {
-        t_end_s: 3.5,
-        ..LiftProtocol::reference(g)
-    };
-    let torques: Vec<f64> = heights
-        .iter()
-        .map(|&h| holding_torque_nm(&m, g, &base, h).expect("a height in range"))
-        .collect();
     let name = |q: LiftParam| format!("{} {}", q.joint(), q.kind());
     let (j1, j2, j3) = (
         LiftParam::named("J1", "dry").unwrap(),
@@ -51,20 +43,8 @@ fn main() {
         LiftParam::named("J3", "dry").unwrap(),
     );
     for reps in env_list("PW_REPS", "1,2,4,6") {
-        let mut p = base.clone();
-        let mut t_s = p.t_end_s;
-        for _ in 0..reps as usize {
-            for (&h, &torque_nm) in heights.iter().zip(&torques) {
-                p.moves.push(Move {
-                    t_s,
-                    torque_nm,
-                    tau_s,
-                    height_m: Some(h),
-                });
-                t_s += dwell_s;
-            }
-        }
-        p.t_end_s = t_s;
+        let p = rounds_of_moves(&m, g, &heights, tau_s, dwell_s, reps as usize)
+            .expect("heights in range");
         if let Err(e) = lim.check(&p) {
             println!("{reps} rounds: outside the stand's limits ({e:?})");
             continue;

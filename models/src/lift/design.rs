@@ -175,6 +175,42 @@ pub fn holding_torque_nm(
         .drive_torque_nm)
 }
 
+/// The paper's raise (0–3.5 s), then `rounds` rounds of moves to each of `heights_m` in turn,
+/// each a pressure step to the height's frictionless holding torque at time constant `tau_s`,
+/// held `dwell_s`: a hand-made protocol beside [`design`]'s (`examples/lift_long_protocols`).
+/// Not checked against the stand's limits ([`ProtocolLimits::check`]).
+pub fn rounds_of_moves(
+    model: &LiftModel,
+    g: &Geometry,
+    heights_m: &[f64],
+    tau_s: f64,
+    dwell_s: f64,
+    rounds: usize,
+) -> Result<LiftProtocol, DesignError> {
+    let mut p = LiftProtocol {
+        t_end_s: 3.5,
+        ..LiftProtocol::reference(g)
+    };
+    let torques: Vec<f64> = heights_m
+        .iter()
+        .map(|&h| holding_torque_nm(model, g, &p, h))
+        .collect::<Result<_, _>>()?;
+    let mut t_s = p.t_end_s;
+    for _ in 0..rounds {
+        for (&h, &torque_nm) in heights_m.iter().zip(&torques) {
+            p.moves.push(Move {
+                t_s,
+                torque_nm,
+                tau_s,
+                height_m: Some(h),
+            });
+            t_s += dwell_s;
+        }
+    }
+    p.t_end_s = t_s;
+    Ok(p)
+}
+
 /// What a protocol is predicted to tell, before any data: per parameter (friction in the
 /// order of `opts.friction_params`, then the torque offset), in scaled units (friction relative
 /// to Table 4, offset in N·m).

@@ -158,36 +158,6 @@ fn designed_protocol_realises_its_predicted_spread() {
     }
 }
 
-/// The raise, then `reps` rounds of moves to `heights_m` (τ `tau_s`, each held `dwell_s`).
-fn repeated_moves(
-    m: &LiftModel,
-    g: &Geometry,
-    heights_m: &[f64],
-    tau_s: f64,
-    dwell_s: f64,
-    reps: usize,
-) -> LiftProtocol {
-    let mut p = LiftProtocol {
-        t_end_s: 3.5,
-        ..LiftProtocol::reference(g)
-    };
-    let mut t_s = p.t_end_s;
-    for _ in 0..reps {
-        for &h in heights_m {
-            let torque_nm = holding_torque_nm(m, g, &p, h).unwrap();
-            p.moves.push(Move {
-                t_s,
-                torque_nm,
-                tau_s,
-                height_m: Some(h),
-            });
-            t_s += dwell_s;
-        }
-    }
-    p.t_end_s = t_s;
-    p
-}
-
 /// Why no designed test separates J1's dry friction (README, "A designed lift test"): it is
 /// not the test's length or the noise but J2's dry friction, whose friction torque enters H
 /// with nearly J1's shape on every move the drive can make. With the H noise alone and the
@@ -210,19 +180,19 @@ fn j1_dry_is_held_by_j2_dry_on_every_protocol_tried() {
         ),
         (
             "designed moves",
-            repeated_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, 1),
+            rounds_of_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, 1).unwrap(),
         ),
         (
             "designed moves ×6",
-            repeated_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, 6),
+            rounds_of_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, 6).unwrap(),
         ),
         (
             "full range, fastest",
-            repeated_moves(&m, g, &[0.8, 1.84], 0.4, 2.0, 1),
+            rounds_of_moves(&m, g, &[0.8, 1.84], 0.4, 2.0, 1).unwrap(),
         ),
         (
             "full range ×3",
-            repeated_moves(&m, g, &[0.8, 1.84], 1.0, 2.0, 3),
+            rounds_of_moves(&m, g, &[0.8, 1.84], 1.0, 2.0, 3).unwrap(),
         ),
     ];
     for (name, p) in &protocols {
@@ -268,7 +238,7 @@ fn a_j1_drift_on_the_designed_moves_shows_in_the_level_not_in_j1() {
     let opts = LiftFitOptions::default();
     let j1 = LiftParam::named("J1", "dry").unwrap();
     let j3 = LiftParam::named("J3", "dry").unwrap();
-    let p = repeated_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, 1);
+    let p = rounds_of_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, 1).unwrap();
     let mut worn = m.clone();
     let mut off = 0.0;
     j1.set(&mut worn, &mut off, 3.0 * j1.get(&m, 0.0));
