@@ -146,13 +146,7 @@ fn main() {
                 }
                 _ => {}
             }
-            let ch = LiftChannels {
-                t_s: &rec.t_s,
-                strip_height_m: &rec.strip_height_m,
-                torque_nm: &rec.torque_nm,
-                fs_n: &rec.fs_n,
-                fm_n: &rec.fm_n,
-            };
+            let ch = LiftChannels::from(&rec);
             let t0 = std::time::Instant::now();
             let rep = fit_lift_trace(&ch, &DriftThresholds::default(), "probe").unwrap();
             let secs = t0.elapsed().as_secs_f64();

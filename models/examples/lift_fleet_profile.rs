@@ -41,13 +41,7 @@ fn main() {
         j3.set(&mut m, &mut off, j3.get(&base, 0.0) * factor);
         let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
         let rec = LiftSensorNoise::realistic().apply(&clean, (i as u64) * 7 + 3);
-        let ch = LiftChannels {
-            t_s: &rec.t_s,
-            strip_height_m: &rec.strip_height_m,
-            torque_nm: &rec.torque_nm,
-            fs_n: &rec.fs_n,
-            fm_n: &rec.fm_n,
-        };
+        let ch = LiftChannels::from(&rec);
         let t0 = Instant::now();
         let rep = fit_lift_trace(&ch, &th, "x").unwrap();
         let dt = t0.elapsed().as_secs_f64();

@@ -597,13 +597,7 @@ fn one_lift_and_one_gauge_record_pool_in_the_report() {
     let g = builtin_160ec();
     let clean = lift_record(&base, &LiftProtocol::reference(g), &SimOptions::default()).unwrap();
     let rec = LiftSensorNoise::realistic().apply(&clean, 5);
-    let lift = LiftChannels {
-        t_s: &rec.t_s,
-        strip_height_m: &rec.strip_height_m,
-        torque_nm: &rec.torque_nm,
-        fs_n: &rec.fs_n,
-        fm_n: &rec.fm_n,
-    };
+    let lift = LiftChannels::from(&rec);
     let gauge = record(&base, 5, 0.0, 1.0);
     let gch = GaugeChannels {
         strip_height_m: &gauge.heights_m,

@@ -14,13 +14,7 @@ fn baseline_lift_maps_to_every_joint_ok_or_unknown() {
         &crate::lift::simulate::SimOptions::default(),
     )
     .unwrap();
-    let ch = LiftChannels {
-        t_s: &rec.t_s,
-        strip_height_m: &rec.strip_height_m,
-        torque_nm: &rec.torque_nm,
-        fs_n: &rec.fs_n,
-        fm_n: &rec.fm_n,
-    };
+    let ch = LiftChannels::from(&rec);
     let rep = fit_lift_trace(&ch, &DriftThresholds::default(), "ref").unwrap();
     let r = &rep.result;
     let names: Vec<&str> = r.joints.iter().map(|j| j.joint.as_str()).collect();
@@ -74,13 +68,7 @@ fn absurd_lift_channels_are_refused_naming_the_sample() {
         &crate::lift::simulate::SimOptions::default(),
     )
     .unwrap();
-    let ch = LiftChannels {
-        t_s: &rec.t_s,
-        strip_height_m: &rec.strip_height_m,
-        torque_nm: &rec.torque_nm,
-        fs_n: &rec.fs_n,
-        fm_n: &rec.fm_n,
-    };
+    let ch = LiftChannels::from(&rec);
     ch.check_limits().expect("the reference lift is plausible");
     let n = rec.t_s.len();
     let spoil = |v: &[f64], x: f64| {

@@ -476,13 +476,7 @@ fn a_record_too_short_for_the_held_out_test_says_so() {
         }
     }
     let r = fit_lift_trace(
-        &LiftChannels {
-            t_s: &rec.t_s,
-            strip_height_m: &rec.strip_height_m,
-            torque_nm: &rec.torque_nm,
-            fs_n: &rec.fs_n,
-            fm_n: &rec.fm_n,
-        },
+        &LiftChannels::from(&rec),
         &crate::contract::drift::DriftThresholds::default(),
         "t",
     )
