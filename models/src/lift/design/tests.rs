@@ -228,7 +228,9 @@ fn j1_dry_is_held_by_j2_dry_on_every_protocol_tried() {
 
 /// A J1 ×3 drift on the designed moves reads in the J1+J3 level, never in J1 or J3 alone:
 /// fitted alone, J1 read 0.9–2.5 × Table 4 over six seeds with a linearised sd of 0.12 (truth
-/// 3; `examples/lift_long_protocols`), the level 1.26–1.30 (truth 1.26).
+/// 3; `examples/lift_long_protocols`), the level 1.26–1.30 (truth 1.26). The same on four
+/// rounds of them (19.5 s), whose fits failed before the time continuation (`lift::identify`:
+/// every such lift stopped with the integrator's step underflow at 11–13.5 s).
 #[test]
 fn a_j1_drift_on_the_designed_moves_shows_in_the_level_not_in_j1() {
     use crate::lift::identify::fit_map;
@@ -238,32 +240,36 @@ fn a_j1_drift_on_the_designed_moves_shows_in_the_level_not_in_j1() {
     let opts = LiftFitOptions::default();
     let j1 = LiftParam::named("J1", "dry").unwrap();
     let j3 = LiftParam::named("J3", "dry").unwrap();
-    let p = rounds_of_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, 1).unwrap();
     let mut worn = m.clone();
     let mut off = 0.0;
     j1.set(&mut worn, &mut off, 3.0 * j1.get(&m, 0.0));
-    let clean = record(&worn, &p, &SimOptions::default()).unwrap();
-    for seed in 0..4u64 {
-        let rec = noise.apply(&clean, 5000 + seed);
-        let fit = fit_map(&m, &[rec.trace()], &opts).unwrap();
-        let e = |q: LiftParam| fit.params.iter().find(|e| e.param == q).unwrap();
-        assert!(!e(j1).informed && !e(j3).informed, "seed {seed}");
-        let c = &fit.combinations[e(j1).combination.expect("J1 in a combination")];
-        assert_eq!(e(j3).combination, e(j1).combination);
-        let truth: f64 = c
-            .params
-            .iter()
-            .zip(&c.weights)
-            .map(|(q, w)| if *q == j1 { 3.0 * w } else { *w })
-            .sum();
-        assert!(c.informed, "seed {seed}");
-        assert!(
-            (c.ci95[0]..=c.ci95[1]).contains(&truth),
-            "seed {seed}: level {} {:?}, truth {truth}",
-            c.value,
-            c.ci95
-        );
-        // The drift shows: the level's interval lies above baseline.
-        assert!(c.ci95[0] > 1.0, "seed {seed}: {:?}", c.ci95);
+    for (rounds, seeds) in [(1, 5000..5004u64), (4, 5000..5002)] {
+        let p = rounds_of_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, rounds).unwrap();
+        ProtocolLimits::stand(g).check(&p).unwrap();
+        let clean = record(&worn, &p, &SimOptions::default()).unwrap();
+        for seed in seeds {
+            let rec = noise.apply(&clean, seed);
+            let fit = fit_map(&m, &[rec.trace()], &opts).unwrap();
+            let e = |q: LiftParam| fit.params.iter().find(|e| e.param == q).unwrap();
+            let at = format!("{rounds} rounds, seed {seed}");
+            assert!(!e(j1).informed && !e(j3).informed, "{at}");
+            let c = &fit.combinations[e(j1).combination.expect("J1 in a combination")];
+            assert_eq!(e(j3).combination, e(j1).combination);
+            let truth: f64 = c
+                .params
+                .iter()
+                .zip(&c.weights)
+                .map(|(q, w)| if *q == j1 { 3.0 * w } else { *w })
+                .sum();
+            assert!(c.informed, "{at}");
+            assert!(
+                (c.ci95[0]..=c.ci95[1]).contains(&truth),
+                "{at}: level {} {:?}, truth {truth}",
+                c.value,
+                c.ci95
+            );
+            // The drift shows: the level's interval lies above baseline.
+            assert!(c.ci95[0] > 1.0, "{at}: {:?}", c.ci95);
+        }
     }
 }
