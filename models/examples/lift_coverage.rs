@@ -5,7 +5,8 @@
 //! `cargo run --release -p pantowatch-models --example lift_coverage -- [SEEDS] [K] [FIRST]`
 //! (seeds FIRST..FIRST+SEEDS, FIRST 0 by default: the README's set; 100 and up are fresh); the fit's
 //! settings can be varied by `PW_DRAWS` (input-noise draws), `PW_ROBUST=1` (sandwich) and
-//! `PW_SIGMA_H_M` (the σ_H floor), `PW_SCATTER` (undrifted joints spread about Table 4): how the README's coverage table was measured. Prints the
+//! `PW_SIGMA_H_M` (the σ_H floor), `PW_SCATTER` (undrifted joints spread about Table 4),
+//! `PW_ROUNDS` (rounds of the designed moves instead of the raise and lower): how the README's coverage table was measured. Prints the
 //! RMS of z = ln(estimate/truth)/relative sd (1 when calibrated).
 
 use pantowatch_models::drift::Status;
@@ -25,7 +26,15 @@ fn main() {
     let first: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(0);
     let g = builtin_160ec();
     let base = LiftModel::new(g);
-    let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
+    // `PW_ROUNDS=N`: the designed moves (1.424 ↔ 1.216 m) repeated N rounds instead of the
+    // raise and lower (`design::rounds_of_moves`; README, "Long protocols fit").
+    let protocol = match std::env::var("PW_ROUNDS").ok().and_then(|s| s.parse().ok()) {
+        Some(n) => {
+            pantowatch_models::lift::design::rounds_of_moves(&base, g, &[1.424, 1.216], 1.0, 2.0, n)
+                .unwrap()
+        }
+        None => LiftProtocol::raise_and_lower(&base, g).unwrap(),
+    };
     let drifts = pantowatch_models::lift::input_noise::COVERAGE_DRIFTS;
     let (mut n, mut hit, mut false_flags) = (0, 0, 0);
     // z = ln(estimate / truth) / relative sd: sd(z) ≈ 1 when the intervals are calibrated.

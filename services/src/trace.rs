@@ -274,6 +274,26 @@ fn lift_gaps(t_s: &[f64]) -> Result<(), TraceError> {
     }
 }
 
+/// A lift record lasts at most the stated test duration (`[stand] duration_max_s` of the
+/// 160EC geometry, `lift::design::ProtocolLimits::stand`), protocol stated or not: it is the
+/// longest lift whose fit was validated, not the stand's own limit (README, "Long protocols
+/// fit": on 19.5 s lifts a viscous combination read in a wrong basin and raised a false alarm).
+fn lift_duration(t_s: &[f64]) -> Result<(), TraceError> {
+    let g = pantowatch_models::lift::geometry::builtin_160ec();
+    let max_s = pantowatch_models::lift::design::ProtocolLimits::stand(g).duration_max_s;
+    match (t_s.first(), t_s.last()) {
+        (Some(first), Some(last)) if last - first > max_s => Err(bad(
+            "channels.t_s",
+            format!(
+                "the lift lasts {:.1} s, over the {max_s} s its fit is validated for \
+                 (models/data/160ec-geometry.toml, `[stand] duration_max_s`)",
+                last - first
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
 fn channel(v: &Value, field: &str) -> Result<Vec<f64>, TraceError> {
     let a = v
         .as_array()

@@ -26,7 +26,8 @@ use super::statics::{StaticFriction, alpha_at_height, static_point};
 /// - τ ≥ 0.4 s: the pneumatic drive's pressure response, half the 0.8 s the reference trace's
 ///   raise shows (`lift-example.meta.json`) — bellows fill no faster; τ ≤ 4 s (slow ramps);
 /// - dwell ≥ 1 s between moves (the head settles, ~0.2 s bounce period on J9);
-/// - a test lasts at most 30 s (a depot's lift check, 8 s in the paper);
+/// - a test lasts at most 12 s (8 s in the paper): the longest whose fit was validated, not
+///   the stand's own limit (`[stand] duration_max_s` of the geometry file states why);
 /// - set torque within the drive's range (`[drive] torque_range_Nm` of the geometry file).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProtocolLimits {

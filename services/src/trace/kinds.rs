@@ -18,7 +18,8 @@ impl TraceDoc {
         )?;
         let get = |name: &str| self.channel(name).unwrap_or_default();
         lift_gaps(get("t_s"))?;
-        let protocol = self.lift_protocol(get("t_s"))?;
+        lift_duration(get("t_s"))?;
+        let protocol = self.lift_protocol()?;
         // T within the drive's range, H within the working heights, Fs and Fm within the
         // strip loads the drive can hold (models' data files).
         self.lift_view()
@@ -48,9 +49,9 @@ impl TraceDoc {
 
     /// The drive protocol a lift states it ran (`test.protocol`, optional: as `pantowatch
     /// design-test` writes it), checked against the stand's limits
-    /// (`lift::design::ProtocolLimits::stand`, issue 15 point 7): a field outside them, or a
-    /// record longer than the limit's duration, is refused naming it. `None`: not stated.
-    fn lift_protocol(&self, t_s: &[f64]) -> Result<Option<LiftProtocol>, TraceError> {
+    /// (`lift::design::ProtocolLimits::stand`, issue 15 point 7): a field outside them is
+    /// refused naming it. `None`: not stated.
+    fn lift_protocol(&self) -> Result<Option<LiftProtocol>, TraceError> {
         use pantowatch_models::lift::design::ProtocolLimits;
         let Some(v) = self.test.get("protocol") else {
             return Ok(None);
@@ -60,18 +61,6 @@ impl TraceDoc {
         let lim = ProtocolLimits::stand(pantowatch_models::lift::geometry::builtin_160ec());
         lim.check(&p)
             .map_err(|e| bad(format!("test.protocol.{}", e.field), e.message))?;
-        if let (Some(first), Some(last)) = (t_s.first(), t_s.last())
-            && last - first > lim.duration_max_s
-        {
-            return Err(bad(
-                "channels.t_s",
-                format!(
-                    "the record lasts {:.1} s, over the stated protocol limit of {} s",
-                    last - first,
-                    lim.duration_max_s
-                ),
-            ));
-        }
         Ok(Some(p))
     }
 

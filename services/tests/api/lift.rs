@@ -82,8 +82,9 @@ pub async fn lift_trace_is_fitted_with_every_joint(b: Backend) {
     app.stop().await;
 }
 
-/// Issue 15, point 7: a lift whose inputs carry a non-finite value, a gap of missing samples
-/// or a torque the drive cannot make is refused 422 naming the sample; nothing is stored.
+/// Issue 15, point 7: a lift whose inputs carry a non-finite value, a gap of missing samples,
+/// a torque the drive cannot make, a protocol outside the stand's limits or a record longer
+/// than its fit is validated for is refused 422 naming the field; nothing is stored.
 pub async fn bad_lift_inputs_are_refused_naming_the_sample(b: Backend) {
     let app = spawn_app(b).await;
     let base: Value = serde_json::from_slice(&shared("reference/lift-example.json")).expect("lift");
@@ -145,6 +146,40 @@ pub async fn bad_lift_inputs_are_refused_naming_the_sample(b: Backend) {
                 d["test"]["protocol"] = p;
             }),
             "test.protocol".into(),
+        ),
+        // Longer than the 12 s a lift's fit is validated for (`[stand] duration_max_s`): a
+        // stated protocol of 19.5 s, and a record of 16 s with no protocol stated (the
+        // reference lift twice over).
+        (
+            edit(&|d| {
+                let mut p = stated_protocol();
+                p["t_end_s"] = json!(19.5);
+                d["test"]["protocol"] = p;
+            }),
+            "test.protocol.t_end_s".into(),
+        ),
+        (
+            edit(&|d| {
+                let t: Vec<f64> = d["channels"]["t_s"]
+                    .as_array()
+                    .expect("t_s")
+                    .iter()
+                    .map(|v| v.as_f64().expect("a time"))
+                    .collect();
+                let shift = t[t.len() - 1] - t[0] + (t[1] - t[0]);
+                let later: Vec<Value> = t.iter().map(|v| json!(v + shift)).collect();
+                d["channels"]["t_s"]
+                    .as_array_mut()
+                    .expect("t_s")
+                    .extend(later);
+                for c in ["H_m", "T_Nm", "Fs_N", "Fm_N"] {
+                    if let Some(a) = d["channels"][c].as_array_mut() {
+                        let again = a.clone();
+                        a.extend(again);
+                    }
+                }
+            }),
+            "channels.t_s".into(),
         ),
     ];
     for (body, field) in cases {

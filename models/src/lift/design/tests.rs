@@ -168,7 +168,13 @@ fn designed_protocol_realises_its_predicted_spread() {
 fn j1_dry_is_held_by_j2_dry_on_every_protocol_tried() {
     let g = builtin_160ec();
     let m = LiftModel::new(g);
-    let lim = ProtocolLimits::stand(g);
+    // The stand could run 30 s between duties; the service takes 12 s (`[stand]
+    // duration_max_s`, what the fit is validated for). The longer tests are asked here of
+    // the information, which needs no fit.
+    let lim = ProtocolLimits {
+        duration_max_s: 30.0,
+        ..ProtocolLimits::stand(g)
+    };
     let noise = LiftSensorNoise::realistic();
     let opts = LiftFitOptions::default();
     let j1 = LiftParam::named("J1", "dry").unwrap();
@@ -228,9 +234,9 @@ fn j1_dry_is_held_by_j2_dry_on_every_protocol_tried() {
 
 /// A J1 ×3 drift on the designed moves reads in the J1+J3 level, never in J1 or J3 alone:
 /// fitted alone, J1 read 0.9–2.5 × Table 4 over six seeds with a linearised sd of 0.12 (truth
-/// 3; `examples/lift_long_protocols`), the level 1.26–1.30 (truth 1.26). The same on four
-/// rounds of them (19.5 s), whose fits failed before the time continuation (`lift::identify`:
-/// every such lift stopped with the integrator's step underflow at 11–13.5 s).
+/// 3; `examples/lift_long_protocols`), the level 1.26–1.30 (truth 1.26). The same on two
+/// rounds of them (11.5 s) on seeds whose fits failed before the time continuation
+/// (`lift::identify`: the integrator's step underflow at 11.3–11.4 s).
 #[test]
 fn a_j1_drift_on_the_designed_moves_shows_in_the_level_not_in_j1() {
     use crate::lift::identify::fit_map;
@@ -243,7 +249,7 @@ fn a_j1_drift_on_the_designed_moves_shows_in_the_level_not_in_j1() {
     let mut worn = m.clone();
     let mut off = 0.0;
     j1.set(&mut worn, &mut off, 3.0 * j1.get(&m, 0.0));
-    for (rounds, seeds) in [(1, 5000..5004u64), (4, 5000..5002)] {
+    for (rounds, seeds) in [(1, 5000..5004u64), (2, 6000..6002)] {
         let p = rounds_of_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, rounds).unwrap();
         ProtocolLimits::stand(g).check(&p).unwrap();
         let clean = record(&worn, &p, &SimOptions::default()).unwrap();
