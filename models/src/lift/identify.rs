@@ -466,7 +466,7 @@ pub fn fit_map_in(
     // The excursion's stages end within the raise. Where the record goes on to further moves
     // (a protocol of several, `lift::design::rounds_of_moves`), their estimate can drive the
     // whole record into a stiff stop the integrator cannot pass; continue in time from there
-    // instead. Measured on 18 lifts of 2–6 rounds (README, "A designed lift test"): 11 failed
+    // instead. Measured on 18 lifts of 2–6 rounds (README, "Long protocols fit"): 11 failed
     // before, none after. Only a fit that could not start takes this path. Not for a fit that
     // ran but stopped far from its data (3 of those 18, 40–78 mm: withheld as `unexplained`):
     // refitted in time they came within the noise, but one then flagged a viscous combination

@@ -45,9 +45,7 @@ impl MapProblem<'_, '_> {
         }
         m
     }
-}
 
-impl MapProblem<'_, '_> {
     /// One continuation stage (`fit_map_in`): the fit over each trace's first `ends[i]`
     /// samples from `x`. A stage only has to bring the next one into its quadratic region: a
     /// few iterations, stopping once a step would move the parameters by less than one standard
