@@ -25,6 +25,7 @@ impl LiftModel {
         loads: &Loads,
         f_axial: f64,
     ) -> Reactions {
+        use RevJoint as J;
         let g = self.gravity;
         // m(a − g) and Iθ̈ of each body.
         let mut need = [V2::ZERO; 7];
@@ -38,76 +39,61 @@ impl LiftModel {
         let si = BodyId::Suspension.index();
         need[hi] = self.mass_kg[hi] * (head.com_d_alpha * add + head.u * hdd + head.com_acc0 - g);
         iacc[hi] = self.inertia_kgm2[hi] * (pose.bodies[si].w1 * add + pose.bodies[si].w2 * ad2);
+        let t = |j: J| torque[j.index()];
+        let p = |j: J| pose.joints[j.index()].p;
+        let com = |b: BodyId| {
+            if b == BodyId::Head {
+                head.com
+            } else {
+                pose.bodies[b.index()].com.p
+            }
+        };
         let strip_force = V2::new(0.0, -loads.strip_load_n);
+
         // Head on the slide: the constraint force is what the head's own loads leave over.
         let j8_force = need[hi] - strip_force - f_axial * head.u;
-        let (force_n, j6_couple_nm) = chain(pose, head, &need, &iacc, strip_force, torque);
+        // Suspension + head on the shaft (J6): their internal forces cancel.
+        let j6 = p(J::J6);
+        let f6 = need[si] + need[hi] - strip_force;
+        let m6 = iacc[si]
+            + (com(BodyId::Suspension) - j6).cross(need[si])
+            + iacc[hi]
+            + (head.com - j6).cross(need[hi])
+            - (head.strip - j6).cross(strip_force);
+        // Shaft (moment about J5) and balance rod (moment about J4) → J7.
+        let (sh, br) = (BodyId::Shaft.index(), BodyId::BalanceRod.index());
+        let (j4, j5, j7) = (p(J::J4), p(J::J5), p(J::J7));
+        let a1 = iacc[sh]
+            + (com(BodyId::Shaft) - j5).cross(need[sh])
+            + (j6 - j5).cross(f6)
+            + m6
+            + t(J::J5)
+            + t(J::J7);
+        let a2 = -(iacc[br] + (com(BodyId::BalanceRod) - j4).cross(need[br]) + t(J::J4) - t(J::J7));
+        let f7 = solve_moments(j7 - j5, a1, j7 - j4, a2);
+        let f5 = need[sh] - f7 + f6;
+        let f4 = need[br] + f7;
+        // Upper arm (moment about J3) and coupling rod (moment about J2) → J2′.
+        let (ua, cr) = (BodyId::UpperArm.index(), BodyId::CouplingRod.index());
+        let (j2, j2p, j3) = (p(J::J2), p(J::J2p), p(J::J3));
+        let b1 = iacc[ua]
+            + (com(BodyId::UpperArm) - j3).cross(need[ua])
+            + (j5 - j3).cross(f5)
+            + t(J::J3)
+            + t(J::J2p)
+            - t(J::J5);
+        let b2 =
+            -(iacc[cr] + (com(BodyId::CouplingRod) - j2).cross(need[cr]) + t(J::J2) - t(J::J2p));
+        let f2p = solve_moments(j2p - j3, b1, j2p - j2, b2);
+        let f3 = need[ua] - f2p + f5;
+        let f2 = need[cr] + f2p;
+        let f1 = need[BodyId::LowerArm.index()] + f3 + f4;
         Reactions {
-            force_n,
-            j6_couple_nm,
+            force_n: [f1, f2, f2p, f3, f4, f5, f6, f7],
+            j6_couple_nm: m6,
             j8_force_n: j8_force,
         }
     }
-}
-
-/// The moment balances from the bodies' needs `need` (m(a − g)) and `iacc` (Iθ̈), the strip's
-/// load and the friction torques: the revolute joints' forces ([`RevJoint`] order) and J6's
-/// couple ([`LiftModel::reactions`]).
-fn chain(
-    pose: &LinkagePose,
-    head: &HeadKin,
-    need: &[V2; 7],
-    iacc: &[f64; 7],
-    strip_force: V2,
-    torque: &[f64; N_REV],
-) -> ([V2; N_REV], f64) {
-    use RevJoint as J;
-    let t = |j: J| torque[j.index()];
-    let p = |j: J| pose.joints[j.index()].p;
-    let com = |b: BodyId| {
-        if b == BodyId::Head {
-            head.com
-        } else {
-            pose.bodies[b.index()].com.p
-        }
-    };
-    let (hi, si) = (BodyId::Head.index(), BodyId::Suspension.index());
-    // Suspension + head on the shaft (J6): their internal forces cancel.
-    let j6 = p(J::J6);
-    let f6 = need[si] + need[hi] - strip_force;
-    let m6 = iacc[si]
-        + (com(BodyId::Suspension) - j6).cross(need[si])
-        + iacc[hi]
-        + (head.com - j6).cross(need[hi])
-        - (head.strip - j6).cross(strip_force);
-    // Shaft (moment about J5) and balance rod (moment about J4) → J7.
-    let (sh, br) = (BodyId::Shaft.index(), BodyId::BalanceRod.index());
-    let (j4, j5, j7) = (p(J::J4), p(J::J5), p(J::J7));
-    let a1 = iacc[sh]
-        + (com(BodyId::Shaft) - j5).cross(need[sh])
-        + (j6 - j5).cross(f6)
-        + m6
-        + t(J::J5)
-        + t(J::J7);
-    let a2 = -(iacc[br] + (com(BodyId::BalanceRod) - j4).cross(need[br]) + t(J::J4) - t(J::J7));
-    let f7 = solve_moments(j7 - j5, a1, j7 - j4, a2);
-    let f5 = need[sh] - f7 + f6;
-    let f4 = need[br] + f7;
-    // Upper arm (moment about J3) and coupling rod (moment about J2) → J2′.
-    let (ua, cr) = (BodyId::UpperArm.index(), BodyId::CouplingRod.index());
-    let (j2, j2p, j3) = (p(J::J2), p(J::J2p), p(J::J3));
-    let b1 = iacc[ua]
-        + (com(BodyId::UpperArm) - j3).cross(need[ua])
-        + (j5 - j3).cross(f5)
-        + t(J::J3)
-        + t(J::J2p)
-        - t(J::J5);
-    let b2 = -(iacc[cr] + (com(BodyId::CouplingRod) - j2).cross(need[cr]) + t(J::J2) - t(J::J2p));
-    let f2p = solve_moments(j2p - j3, b1, j2p - j2, b2);
-    let f3 = need[ua] - f2p + f5;
-    let f2 = need[cr] + f2p;
-    let f1 = need[BodyId::LowerArm.index()] + f3 + f4;
-    ([f1, f2, f2p, f3, f4, f5, f6, f7], m6)
 }
 
 /// The force f with r1 × f = m1 and r2 × f = m2.
