@@ -153,6 +153,59 @@ pub struct ResidualResult {
     pub autocorrelation_before: Vec<(f64, f64)>,
 }
 
+/// A release that was not free (`joint::identify::release::disturbed`): the part of the record
+/// left out of the fit and the evidence, per half-swing left out.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct ReleaseDisturbance {
+    /// The release first found, s: the left-out part runs from here to `until_s`.
+    pub from_s: f64,
+    pub until_s: f64,
+    /// One sentence: why.
+    pub reason: String,
+    pub half_swings: Vec<DisturbedSwing>,
+    /// Set when even the start used is not known to be free.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warning: Option<String>,
+}
+
+/// One half-swing left out: its loss per unit path and its duration against a free one's.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct DisturbedSwing {
+    pub from_s: f64,
+    pub to_s: f64,
+    /// Loss per unit path over the later half-swings' trend at its energy (free: ≤ the bound).
+    pub energy_ratio: f64,
+    pub energy_ratio_bound: f64,
+    /// Its duration's T₀/2 over the later half-swings' median (free: ≤ the bound).
+    pub period_ratio: f64,
+    pub period_ratio_bound: f64,
+}
+
+impl ReleaseDisturbance {
+    pub fn of(d: &crate::joint::identify::release::Disturbance) -> Self {
+        use crate::joint::identify::release::disturbed::{ENERGY_RATIO, PERIOD_RATIO};
+        let finite = |x: f64| if x.is_finite() { x } else { f64::MAX };
+        ReleaseDisturbance {
+            from_s: d.from_t_s,
+            until_s: d.until_t_s,
+            reason: d.reason(),
+            half_swings: d
+                .left_out
+                .iter()
+                .map(|c| DisturbedSwing {
+                    from_s: c.from_t_s,
+                    to_s: c.to_t_s,
+                    energy_ratio: finite(c.energy_ratio),
+                    energy_ratio_bound: ENERGY_RATIO,
+                    period_ratio: finite(c.period_ratio),
+                    period_ratio_bound: PERIOD_RATIO,
+                })
+                .collect(),
+            warning: d.warning.clone(),
+        }
+    }
+}
+
 /// How the fit was made: the release, the fitted start and sensor zero, the optimiser's end.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct FitDetails {
@@ -166,6 +219,13 @@ pub struct FitDetails {
     /// Why the release may be wrong, when the data do not decide it clearly.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub release_warning: Option<String>,
+    /// With `release_rule` `disturbed` (issue 36, point 4): the end of the part left out, s —
+    /// the first motion was not a free swing, the fit starts here.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub release_disturbed_until_s: Option<f64>,
+    /// What the left-out half-swings did against a free one's bounds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub release_disturbance: Option<ReleaseDisturbance>,
     pub release_position: Quantity,
     pub release_rate: Quantity,
     pub sensor_offset: Quantity,
@@ -434,6 +494,8 @@ pub fn details(
         release_t_s: t_release,
         release_rule: release.rule.as_str().to_owned(),
         release_warning: release.warning.clone(),
+        release_disturbed_until_s: release.disturbance.as_ref().map(|d| d.until_t_s),
+        release_disturbance: release.disturbance.as_ref().map(ReleaseDisturbance::of),
         release_position: Quantity {
             value: fit.q0,
             unit: model_unit.0.into(),

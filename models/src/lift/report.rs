@@ -706,6 +706,8 @@ fn build_result(
             release_t_s: trace.inputs.t_s.first().copied().unwrap_or(0.0),
             release_rule: crate::joint::identify::release::ReleaseRule::FirstSample.as_str().to_owned(),
             release_warning: None,
+            release_disturbed_until_s: None,
+            release_disturbance: None,
             release_position: Quantity {
                 value: trace.strip_height_m.first().copied().unwrap_or(f64::NAN),
                 unit: "m".into(),

@@ -243,6 +243,8 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
                 .as_str()
                 .to_owned(),
             release_warning: None,
+            release_disturbed_until_s: None,
+            release_disturbance: None,
             release_position: Quantity {
                 value: deg(fit.release_alpha_rad.value),
                 unit: "deg".into(),

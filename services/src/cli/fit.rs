@@ -74,6 +74,12 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
             r.fit.release_rule.replace('_', " "),
             r.fit.samples_fitted
         );
+        if let Some(d) = &r.fit.release_disturbance {
+            s += &format!(
+                "left out {:.3}–{:.3} s: {}\n",
+                d.from_s, d.until_s, d.reason
+            );
+        }
         if let Some(w) = &r.fit.release_warning {
             s += &format!("warning: {w}\n");
         }

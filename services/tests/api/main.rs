@@ -62,6 +62,7 @@ suite!(
     edge_dates_never_break_their_vehicle,
     hostile_requests_answer_problems_naming_their_field,
     a_release_is_found_or_stated_and_reported,
+    a_disturbed_release_is_left_out_and_said,
     static_force_is_predicted_and_judged_against_the_limits,
     a_gauge_measurement_is_stored_refused_and_drawn,
     a_gauge_record_pools_with_the_next_lift,

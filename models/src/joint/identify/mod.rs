@@ -644,27 +644,23 @@ pub fn release_of(test: &JointTest) -> Result<release::Release, FitError> {
     use release::{Release, ReleaseRule};
     if let Some(t) = test.release_t_s {
         let index = release::stated_release(&test.t_s, t, 20).ok_or(FitError::Release(t))?;
-        return Ok(Release {
-            index,
-            rule: ReleaseRule::Stated,
-            warning: None,
-        });
+        return Ok(Release::at(index, ReleaseRule::Stated));
     }
     // A declared initial rate, or a measured input driving the model (issue 17, point 3: the
     // model follows the whole record, held part included): the first sample.
     if test.initial_rate.is_some() || test.dof.input.is_some() || test.t_s.is_empty() {
-        return Ok(Release {
-            index: 0,
-            rule: ReleaseRule::FirstSample,
-            warning: None,
-        });
+        return Ok(Release::at(0, ReleaseRule::FirstSample));
     }
     let span = test.t_s[test.t_s.len() - 1] - test.t_s[0];
-    Ok(release::find_release(
-        &test.t_s,
-        &test.y,
-        test.dof.period_s(span),
-    ))
+    let period_s = test.dof.period_s(span);
+    // A found release is checked for a first half-swing that is not free (issue 36, point 4); a
+    // stated one is the user's word and is not.
+    let restoring = match test.dof.mech {
+        crate::joint::dynamics::Mechanism::Pendulum(_) => release::Restoring::Gravity,
+        crate::joint::dynamics::Mechanism::Slider(_) => release::Restoring::Spring,
+    };
+    Ok(release::find_release(&test.t_s, &test.y, period_s)
+        .checked(&test.t_s, &test.y, test.scale, period_s, restoring))
 }
 
 /// Release detection + first estimate + base fit on all free motion.

@@ -7,6 +7,9 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::numerics::signal::{half_window, local_cubic_at};
 
+pub mod disturbed;
+pub use disturbed::{Disturbance, Restoring, SwingCheck};
+
 /// How the release was decided ([`Release::rule`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ReleaseRule {
@@ -20,6 +23,9 @@ pub enum ReleaseRule {
     /// Carried by hand into a turning point and let go there (or after a pause there): the
     /// first motion was not free, the swing out of the first turning point is.
     TurningPoint,
+    /// Found by one of the rules above, but the swing out of it was not free (held back, issue
+    /// 36 point 4: [`disturbed`]): the fit starts at a later turning point.
+    Disturbed,
 }
 
 impl ReleaseRule {
@@ -29,6 +35,7 @@ impl ReleaseRule {
             ReleaseRule::FirstSample => "first_sample",
             ReleaseRule::AfterHold => "after_hold",
             ReleaseRule::TurningPoint => "turning_point",
+            ReleaseRule::Disturbed => "disturbed",
         }
     }
 }
@@ -41,14 +48,44 @@ pub struct Release {
     /// A sentence when the data do not decide the release clearly (the fit then starts where
     /// the rule says, and the user can state `test.release_t_s`).
     pub warning: Option<String>,
+    /// With [`ReleaseRule::Disturbed`]: the part left out and why.
+    pub disturbance: Option<Disturbance>,
 }
 
 impl Release {
-    fn at(index: usize, rule: ReleaseRule) -> Self {
+    pub fn at(index: usize, rule: ReleaseRule) -> Self {
         Release {
             index,
             rule,
             warning: None,
+            disturbance: None,
+        }
+    }
+
+    /// This release checked for a first half-swing that is not free ([`disturbed`]); when one
+    /// is found, the release moves to the free motion's start and says what was left out.
+    pub fn checked(
+        self,
+        t: &[f64],
+        y: &[f64],
+        scale: f64,
+        period_s: f64,
+        restoring: Restoring,
+    ) -> Release {
+        match disturbed::find_disturbance(t, y, scale, self.index, period_s, restoring) {
+            None => self,
+            Some(d) => {
+                let warning = match (&self.warning, &d.warning) {
+                    (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+                    (a, b) => a.clone().or_else(|| b.clone()),
+                };
+                Release {
+                    index: d.until_index,
+                    rule: ReleaseRule::Disturbed,
+                    warning,
+                    disturbance: Some(d),
+                }
+            }
         }
     }
 }
@@ -167,6 +204,7 @@ fn coarse(t: &[f64], y: &[f64], period_s: f64) -> Release {
                 Some(k) if t[idx[k]] - t[0] > 0.02 * period_s => Release {
                     index: idx[k],
                     rule: ReleaseRule::AfterHold,
+                    disturbance: None,
                     warning: Some(format!(
                         "fewer than two turning points in the first {:.1} s: the release is \
                          taken where the first motion starts ({:.3} s), unchecked; state \
@@ -229,6 +267,7 @@ fn coarse(t: &[f64], y: &[f64], period_s: f64) -> Release {
     Release {
         index,
         rule,
+        disturbance: None,
         warning: ambiguous.then(|| {
             format!(
                 "ambiguous release: {what}; taken where the first motion starts ({:.3} s); state \

@@ -214,6 +214,8 @@ pub fn gauge_result(
                 .as_str()
                 .to_owned(),
             release_warning: None,
+            release_disturbed_until_s: None,
+            release_disturbance: None,
             release_position: Quantity {
                 value: record.heights_m.first().copied().unwrap_or(f64::NAN),
                 unit: "m".into(),

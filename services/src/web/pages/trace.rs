@@ -84,9 +84,28 @@ async fn trace(st: &AppState, id: &str) -> Result<Markup, AppError> {
                 }
             }
         }
+        (release_note(&result))
         (residual_finding(&result))
         (charts)
     })
+}
+
+/// The release the fit started from, and what it left out when the first motion was not a
+/// free swing (issue 36, point 4).
+fn release_note(result: &FitResult) -> Markup {
+    let f = &result.fit;
+    html! {
+        @if let Some(d) = &f.release_disturbance {
+            p #release.watch {
+                b { "Release not free: " }
+                (fmt_num(d.from_s)) "–" (fmt_num(d.until_s)) " s left out of the fit. "
+                (d.reason) "."
+                @if let Some(w) = &d.warning { " " (w) "." }
+            }
+        } @else if let Some(w) = &f.release_warning {
+            p #release { "Release at " (fmt_num(f.release_t_s)) " s (" (f.release_rule) "): " (w) "." }
+        }
+    }
 }
 
 /// A number for people: `—` where the fit has none (not finite; `null` in the result).
