@@ -1,5 +1,7 @@
-//! The trace document (`pantograph-trace/1`, `../shared/contract/TRACE_FORMAT.md`): parsed,
-//! checked against every rule of the contract, and turned into the models' test description.
+//! The trace document (`pantograph-trace/1`, `../shared/contract/TRACE_FORMAT.md`): read by
+//! serde into typed structs ([`wire`]: JSON, and a CSV's rows through `trace_csv`), checked
+//! against every rule of the contract ([`TraceDoc::from_wire`]), and its test turned into the
+//! models' test description ([`TraceDoc::typed`] → [`TestSpec`]).
 //!
 //! Every rejection names the offending field (`channels.alpha_deg[17]`, `test.joint`, …).
 
