@@ -10,10 +10,12 @@
 
 use chrono::{DateTime, Utc};
 use pantowatch_models::report::{EffectResult, FitResult};
-use serde_json::json;
 
 use crate::health::{self, Param, ParamTrend};
 use crate::store::{NewAlert, RaiseOutcome, Severity, Status, Store, StoreError};
+
+mod evidence;
+pub use evidence::{EffectEvidence, Evidence, JointEvidence, StaticForceEvidence};
 
 /// What the alert rules need.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -119,20 +121,21 @@ pub async fn after_fit(
                 ),
                 _ => reason,
             };
-            let evidence = json!({
-                "model_version": last.model_version,
-                "fit_id": fit_id,
-                "trace_id": trace_id,
-                "recorded_at": last.recorded_at,
-                "status": status,
-                "viscous": j.viscous,
-                "dry": j.dry,
-                "residual": result.residual,
-                "rmse": result.rmse,
-                "trends": trends,
-                "horizon_days": opts.horizon_days,
-                "tests": history.len(),
-            });
+            let evidence = Evidence::Joint(Box::new(JointEvidence {
+                model_version: last.model_version.clone(),
+                fit_id,
+                trace_id: trace_id.to_owned(),
+                recorded_at: last.recorded_at,
+                status,
+                viscous: j.viscous.clone(),
+                dry: j.dry.clone(),
+                residual: result.residual.clone(),
+                rmse: result.rmse.clone(),
+                trends,
+                horizon_days: opts.horizon_days,
+                tests: history.len(),
+            }))
+            .to_json();
             let new = NewAlert {
                 serial: serial.to_owned(),
                 joint: joint.to_owned(),
@@ -198,14 +201,15 @@ async fn static_force_finding(
             first.value_n,
             first.limit_n
         );
-        let evidence = json!({
-            "fit_id": fit_id,
-            "trace_id": trace_id,
-            "recorded_at": meta.recorded_at,
-            "findings": v.findings,
-            "parameters": v.parameters,
-            "limits": v.limits,
-        });
+        let evidence = Evidence::StaticForce(Box::new(StaticForceEvidence {
+            fit_id,
+            trace_id: trace_id.to_owned(),
+            recorded_at: meta.recorded_at,
+            findings: v.findings,
+            parameters: v.parameters,
+            limits: v.limits,
+        }))
+        .to_json();
         let new = finding_alert(serial, STATIC_FORCE_ALERT, meta, trace_id, reason, evidence);
         return Ok(vec![raise_logged(store, &new).await?]);
     }
@@ -240,6 +244,25 @@ fn finding_alert(
         evidence,
         trace_id: trace_id.to_owned(),
     }
+}
+
+/// The evidence of a finding named by `result`'s residual loop (effect `e`).
+fn effect_evidence(
+    result: &FitResult,
+    fit_id: i64,
+    trace_id: &str,
+    meta: &crate::store::TraceMeta,
+    e: &EffectResult,
+) -> serde_json::Value {
+    Evidence::Effect(Box::new(EffectEvidence {
+        model_version: result.fit.model_version.clone(),
+        fit_id,
+        trace_id: trace_id.to_owned(),
+        recorded_at: meta.recorded_at,
+        effect: e.clone(),
+        residual: result.residual.clone(),
+    }))
+    .to_json()
 }
 
 async fn raise_logged(store: &Store, new: &NewAlert) -> Result<AlertAction, StoreError> {
@@ -292,14 +315,7 @@ async fn gauge_findings(
                      joint finding"
                 };
                 let reason = format!("{effect}{value}: {what}");
-                let evidence = json!({
-                    "model_version": result.fit.model_version,
-                    "fit_id": fit_id,
-                    "trace_id": trace_id,
-                    "recorded_at": meta.recorded_at,
-                    "effect": e,
-                    "residual": residual,
-                });
+                let evidence = effect_evidence(result, fit_id, trace_id, meta, e);
                 let new = finding_alert(serial, finding, meta, trace_id, reason, evidence);
                 actions.push(raise_logged(store, &new).await?);
             }
@@ -368,14 +384,7 @@ async fn lift_sensor_finding(
                   not a joint finding"
                 .to_owned(),
         };
-        let evidence = json!({
-            "model_version": result.fit.model_version,
-            "fit_id": fit_id,
-            "trace_id": trace_id,
-            "recorded_at": meta.recorded_at,
-            "effect": e,
-            "residual": residual,
-        });
+        let evidence = effect_evidence(result, fit_id, trace_id, meta, e);
         let new = finding_alert(serial, LIFT_H_SENSOR, meta, trace_id, reason, evidence);
         return Ok(vec![raise_logged(store, &new).await?]);
     }

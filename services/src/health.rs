@@ -7,13 +7,13 @@
 use chrono::{DateTime, TimeDelta, Utc};
 use pantowatch_models::report::{FitResult, JointResult, ParamResult};
 use pantowatch_models::trend::{self, Point};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::store::JointPoint;
 
 /// Which friction parameter.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum Param {
     Viscous,
@@ -48,7 +48,7 @@ impl Param {
 }
 
 /// The fitted trend of one parameter.
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct TrendView {
     /// Change per day.
     pub slope_per_day: f64,
@@ -62,7 +62,7 @@ pub struct TrendView {
 }
 
 /// When the trend reaches the alarm band.
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct ForecastView {
     /// The band edge crossed (a value of the parameter).
     pub threshold: f64,
@@ -73,7 +73,7 @@ pub struct ForecastView {
 }
 
 /// One parameter's trend and forecast.
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct ParamTrend {
     pub param: Param,
     /// Table 4 baseline (from the latest fit result).

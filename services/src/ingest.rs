@@ -11,7 +11,7 @@ use sha2::{Digest, Sha256};
 use tokio::sync::Notify;
 
 use crate::store::{InsertOutcome, JobState, NewTrace, Store, StoreError, TraceMeta};
-use crate::trace::{Kind, TraceDoc, TraceError};
+use crate::trace::{JsonError, Kind, TraceDoc, TraceError};
 use crate::trace_csv::{self, CsvError};
 
 /// The media types an upload may have.
@@ -85,22 +85,10 @@ pub async fn parse_body(format: BodyFormat, body: Bytes) -> Result<Parsed, Inges
 /// [`parse_body`] on the calling thread.
 pub fn parse_body_blocking(format: BodyFormat, body: &[u8]) -> Result<Parsed, IngestError> {
     let doc = match format {
-        BodyFormat::Json => {
-            let v: Value = serde_json::from_slice(body).map_err(|e| {
-                IngestError::Malformed(TraceError {
-                    field: "body".into(),
-                    message: format!("not valid JSON: {e}"),
-                })
-            })?;
-            // Valid JSON whose objects repeat a key: refused naming it, not last-wins.
-            if let Ok(Some(key)) = crate::json_keys::first_duplicate_key(body) {
-                return Err(IngestError::Invalid(TraceError {
-                    message: format!("`{key}` appears twice in its object"),
-                    field: key,
-                }));
-            }
-            TraceDoc::from_value(&v).map_err(IngestError::Invalid)?
-        }
+        BodyFormat::Json => TraceDoc::parse_json(body).map_err(|e| match e {
+            JsonError::Malformed(e) => IngestError::Malformed(e),
+            JsonError::Invalid(e) => IngestError::Invalid(e),
+        })?,
         BodyFormat::Csv => trace_csv::parse(body).map_err(|e| match e {
             CsvError::Malformed(e) => IngestError::Malformed(e),
             CsvError::Invalid(e) => IngestError::Invalid(e),
@@ -280,5 +268,44 @@ mod tests {
             parse_body_blocking(BodyFormat::Json, b"{"),
             Err(IngestError::Malformed(e)) if e.field == "body"
         ));
+    }
+
+    /// Lossless storage did not change when the parser became typed (issue 39, point 3): the
+    /// canonical SHA-256 of these documents, as JSON and as CSV, is the one the parser over
+    /// `serde_json::Value` gave (computed with it, commit 119290c, before the change).
+    #[test]
+    fn the_canonical_hash_is_the_one_the_value_parser_gave() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        for (file, format, sha256) in [
+            (
+                "../shared/data/examples/J1_baseline.json",
+                BodyFormat::Json,
+                "e7ed2490c0f43adef997a39b966443dfe17a1d5a25ce9668e11e2e096f2045f7",
+            ),
+            (
+                "fuzz/seeds/trace_json/J5_baseline.json",
+                BodyFormat::Json,
+                "9f813886797292a8595ae9c37224a150b7441fc64a4a5c52f2c2f0517e68ecef",
+            ),
+            (
+                "fuzz/seeds/trace_json/lift-example.json",
+                BodyFormat::Json,
+                "1c3168aed257d5a98ac462ead8dcf0ff60b53fd285adfc998df269dbc58032ea",
+            ),
+            (
+                "fuzz/seeds/trace_csv/lift-example.csv",
+                BodyFormat::Csv,
+                "1c3168aed257d5a98ac462ead8dcf0ff60b53fd285adfc998df269dbc58032ea",
+            ),
+            (
+                "fuzz/seeds/trace_csv/slider_baseline.csv",
+                BodyFormat::Csv,
+                "5573fb436fbec3d37af16298351c40a3e1a466332eb54c764f2e98ad206cdbef",
+            ),
+        ] {
+            let body = std::fs::read(root.join(file)).expect(file);
+            let parsed = parse_body_blocking(format, &body).expect(file);
+            assert_eq!(parsed.sha256, sha256, "{file}");
+        }
     }
 }

@@ -11,7 +11,8 @@ use serde::de::{DeserializeSeed, Deserializer, IgnoredAny, MapAccess, SeqAccess,
 
 /// The first key that appears twice in one object, as a field path (`test.rig.body`,
 /// `channels.t_s`, `attachments[1].mass_kg`); `Ok(None)` when every object's keys are unique.
-/// Malformed JSON is `Err` — the caller's own parse names that.
+/// Malformed JSON (trailing characters included) is `Err`: the walk is also the upload's check
+/// that the body is JSON at all, before it is read as a document.
 pub fn first_duplicate_key(bytes: &[u8]) -> Result<Option<String>, serde_json::Error> {
     let mut found = None;
     let mut de = serde_json::Deserializer::from_slice(bytes);
@@ -20,6 +21,7 @@ pub fn first_duplicate_key(bytes: &[u8]) -> Result<Option<String>, serde_json::E
         found: &mut found,
     }
     .deserialize(&mut de)?;
+    de.end()?;
     Ok(found)
 }
 
@@ -123,5 +125,9 @@ mod tests {
         // The same key in two different objects is no duplicate.
         assert_eq!(dup(r#"{"p": {"k": 1}, "q": {"k": 1}}"#), None);
         assert!(first_duplicate_key(b"{\"a\": ").is_err());
+        // Trailing characters, a NaN and an overflowing number are not JSON.
+        for bad in [&b"{\"a\": 1} x"[..], b"{\"a\": NaN}", b"{\"a\": 1e400}"] {
+            assert!(first_duplicate_key(bad).is_err(), "{bad:?}");
+        }
     }
 }

@@ -21,7 +21,7 @@ use crate::store::{JointPoint, Store, StoreError};
 pub const STATIC_FORCE_ALERT: &str = "static force";
 
 /// Where one joint's dry friction coefficient came from.
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize, ToSchema)]
 pub struct MuSource {
     pub joint: String,
     pub dry_mu: f64,
@@ -62,7 +62,7 @@ pub struct StaticForceView {
 }
 
 /// The type's limits (`[static_force]` of its data file), evaluated at `heights_m`.
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize, ToSchema)]
 pub struct LimitsView {
     pub nominal_n: Vec<f64>,
     pub min_n: Vec<f64>,
@@ -72,7 +72,7 @@ pub struct LimitsView {
 }
 
 /// A band leaving a limit.
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize, ToSchema)]
 pub struct FindingView {
     pub height_m: f64,
     /// `raise_below_min`, `lower_below_min`, `raise_above_max`, `lower_above_max`,

@@ -1,5 +1,7 @@
-//! The trace document (`pantograph-trace/1`, `../shared/contract/TRACE_FORMAT.md`): parsed,
-//! checked against every rule of the contract, and turned into the models' test description.
+//! The trace document (`pantograph-trace/1`, `../shared/contract/TRACE_FORMAT.md`): read by
+//! serde into typed structs ([`wire`]: JSON, and a CSV's rows through `trace_csv`), checked
+//! against every rule of the contract ([`TraceDoc::from_wire`]), and its test turned into the
+//! models' test description ([`TraceDoc::typed`] → [`TestSpec`]).
 //!
 //! Every rejection names the offending field (`channels.alpha_deg[17]`, `test.joint`, …).
 
@@ -37,6 +39,16 @@ pub struct TraceError {
     pub message: String,
 }
 
+/// Why a JSON body was refused: not JSON (`Malformed`, naming `body`) or a contract rule
+/// (`Invalid`).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum JsonError {
+    #[error("{0}")]
+    Malformed(TraceError),
+    #[error("{0}")]
+    Invalid(TraceError),
+}
+
 fn bad(field: impl Into<String>, message: impl Into<String>) -> TraceError {
     TraceError {
         field: field.into(),
@@ -44,8 +56,9 @@ fn bad(field: impl Into<String>, message: impl Into<String>) -> TraceError {
     }
 }
 
-/// The test kinds of the contract.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// The test kinds of the contract (`test.kind`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Kind {
     Pendulum,
     Slider,
@@ -166,57 +179,27 @@ pub struct TraceDoc {
     pub channels: Vec<(String, Vec<f64>)>,
 }
 
-fn obj<'a>(v: &'a Value, field: &str) -> Result<&'a Map<String, Value>, TraceError> {
-    v.as_object().ok_or_else(|| bad(field, "must be an object"))
-}
-
-fn string(
-    m: &Map<String, Value>,
-    key: &str,
-    field: &str,
-    required: bool,
-) -> Result<Option<String>, TraceError> {
-    match m.get(key) {
-        None | Some(Value::Null) if !required => Ok(None),
-        None | Some(Value::Null) => Err(bad(field, "is required")),
-        Some(Value::String(s)) if s.trim().is_empty() => Err(bad(field, "must not be empty")),
-        Some(Value::String(s)) if s.chars().count() > MAX_STRING => {
+/// A string of the document by the rules of every text field: `field` names it; `required`
+/// turns a missing (or `null`) one into "is required". Not empty, at most [`MAX_STRING`]
+/// characters, no control characters.
+fn text(v: Option<String>, field: &str, required: bool) -> Result<Option<String>, TraceError> {
+    match v {
+        None if !required => Ok(None),
+        None => Err(bad(field, "is required")),
+        Some(s) if s.trim().is_empty() => Err(bad(field, "must not be empty")),
+        Some(s) if s.chars().count() > MAX_STRING => {
             Err(bad(field, format!("longer than {MAX_STRING} characters")))
         }
-        Some(Value::String(s)) if s.chars().any(char::is_control) => {
+        Some(s) if s.chars().any(char::is_control) => {
             Err(bad(field, "contains control characters"))
         }
-        Some(Value::String(s)) => Ok(Some(s.clone())),
-        Some(_) => Err(bad(field, "must be a string")),
+        Some(s) => Ok(Some(s)),
     }
 }
 
-fn number(m: &Map<String, Value>, key: &str, field: &str) -> Result<Option<f64>, TraceError> {
-    match m.get(key) {
-        None | Some(Value::Null) => Ok(None),
-        Some(Value::Number(n)) => match n.as_f64() {
-            Some(x) if x.is_finite() => Ok(Some(x)),
-            _ => Err(bad(field, "must be a finite number")),
-        },
-        Some(_) => Err(bad(field, "must be a number")),
-    }
-}
-
-fn only_keys(m: &Map<String, Value>, allowed: &[&str], field: &str) -> Result<(), TraceError> {
-    for k in m.keys() {
-        if !allowed.contains(&k.as_str()) {
-            let at = if field.is_empty() {
-                k.clone()
-            } else {
-                format!("{field}.{k}")
-            };
-            return Err(bad(
-                at,
-                format!("unknown key (allowed: {})", allowed.join(", ")),
-            ));
-        }
-    }
-    Ok(())
+/// A required value of the document: `field` "is required" when it is missing.
+fn required<T>(v: Option<T>, field: &str) -> Result<T, TraceError> {
+    v.ok_or_else(|| bad(field, "is required"))
 }
 
 /// Why a `recorded_at` is refused: not RFC 3339, or outside the years every backend stores.
@@ -294,144 +277,103 @@ fn lift_duration(t_s: &[f64]) -> Result<(), TraceError> {
     }
 }
 
-fn channel(v: &Value, field: &str) -> Result<Vec<f64>, TraceError> {
-    let a = v
-        .as_array()
-        .ok_or_else(|| bad(field, "must be an array of numbers"))?;
-    if a.len() > MAX_SAMPLES {
-        return Err(bad(
-            field,
-            format!("{} samples, more than the limit of {MAX_SAMPLES}", a.len()),
-        ));
-    }
-    a.iter()
-        .enumerate()
-        .map(|(i, x)| match x.as_f64() {
-            Some(f) if f.is_finite() => Ok(f),
-            Some(_) => Err(bad(format!("{field}[{i}]"), "must be finite")),
-            None => Err(bad(format!("{field}[{i}]"), "must be a number")),
-        })
-        .collect()
-}
-
 impl TraceDoc {
-    /// Parse and validate a document from JSON bytes.
+    /// Parse and validate a document from JSON bytes ([`TraceDoc::parse_json`]).
     pub fn from_json(bytes: &[u8]) -> Result<Self, TraceError> {
-        let v: Value = serde_json::from_slice(bytes)
-            .map_err(|e| bad("body", format!("not valid JSON: {e}")))?;
-        if let Ok(Some(key)) = crate::json_keys::first_duplicate_key(bytes) {
-            return Err(bad(
-                key.clone(),
-                format!("`{key}` appears twice in its object"),
-            ));
+        Self::parse_json(bytes).map_err(|e| match e {
+            JsonError::Malformed(e) | JsonError::Invalid(e) => e,
+        })
+    }
+
+    /// Parse and validate a document from JSON bytes: well-formed JSON (else `Malformed`,
+    /// naming `body`), no key repeated in an object (else that key's path), then the typed
+    /// document ([`wire::WireDoc`]: a value of the wrong shape or an unknown key named by its
+    /// path) and the contract's rules ([`TraceDoc::from_wire`]).
+    pub fn parse_json(bytes: &[u8]) -> Result<Self, JsonError> {
+        match crate::json_keys::first_duplicate_key(bytes) {
+            Err(e) => {
+                return Err(JsonError::Malformed(bad(
+                    "body",
+                    format!("not valid JSON: {e}"),
+                )));
+            }
+            // Valid JSON whose objects repeat a key: refused naming it, not last-wins.
+            Ok(Some(key)) => {
+                return Err(JsonError::Invalid(bad(
+                    key.clone(),
+                    format!("`{key}` appears twice in its object"),
+                )));
+            }
+            Ok(None) => {}
         }
-        Self::from_value(&v)
+        wire::WireDoc::from_json(bytes)
+            .and_then(Self::from_wire)
+            .map_err(JsonError::Invalid)
     }
 
     /// Validate a parsed JSON document against the contract.
     pub fn from_value(v: &Value) -> Result<Self, TraceError> {
-        let root = obj(v, "body")?;
-        only_keys(
-            root,
-            &[
-                "format",
-                "trace_id",
-                "vehicle_id",
-                "pantograph",
-                "recorded_at",
-                "test",
-                "channels",
-            ],
-            "",
-        )?;
-        match string(root, "format", "format", true)?.as_deref() {
+        Self::from_wire(wire::WireDoc::from_value(v)?)
+    }
+
+    /// The typed document (from JSON or CSV) checked against every rule of the contract, its
+    /// test typed ([`TraceDoc::typed`]).
+    pub fn from_wire(w: wire::WireDoc) -> Result<Self, TraceError> {
+        match text(w.format, "format", true)?.as_deref() {
             Some(FORMAT) => {}
-            Some(other) => {
-                return Err(bad("format", format!("expected `{FORMAT}`, got `{other}`")));
+            other => {
+                return Err(bad(
+                    "format",
+                    format!("expected `{FORMAT}`, got `{}`", other.unwrap_or_default()),
+                ));
             }
-            None => unreachable!("required"),
         }
         // Ids by the rules of `ids` (issue 18): stored in NFC, no invisible characters.
         let id_rule = |e: crate::ids::IdError| bad(e.field, e.message);
-        let trace_id = string(root, "trace_id", "trace_id", false)?
+        let trace_id = text(w.trace_id, "trace_id", false)?
             .map(|id| crate::ids::check_trace_id("trace_id", &id).map_err(id_rule))
             .transpose()?;
-        let vehicle_id = string(root, "vehicle_id", "vehicle_id", true)?.unwrap_or_default();
+        let vehicle_id = text(w.vehicle_id, "vehicle_id", true)?.unwrap_or_default();
         let vehicle_id = crate::ids::normalise_text("vehicle_id", &vehicle_id).map_err(id_rule)?;
-        let panto = obj(
-            root.get("pantograph")
-                .ok_or_else(|| bad("pantograph", "is required"))?,
-            "pantograph",
-        )?;
-        only_keys(panto, &["model", "serial"], "pantograph")?;
-        let pantograph_model =
-            string(panto, "model", "pantograph.model", true)?.unwrap_or_default();
-        let pantograph_serial = string(panto, "serial", "pantograph.serial", false)?
+        let panto = required(w.pantograph, "pantograph")?;
+        let pantograph_model = text(panto.model, "pantograph.model", true)?.unwrap_or_default();
+        let pantograph_serial = text(panto.serial, "pantograph.serial", false)?
             .map(|v| crate::ids::normalise_text("pantograph.serial", &v).map_err(id_rule))
             .transpose()?;
-        let recorded_at = string(root, "recorded_at", "recorded_at", true)?.unwrap_or_default();
+        let recorded_at = text(w.recorded_at, "recorded_at", true)?.unwrap_or_default();
         if let Some(why) = rfc3339_problem(&recorded_at) {
             return Err(bad("recorded_at", why));
         }
-        let test_v = root.get("test").ok_or_else(|| bad("test", "is required"))?;
-        let test = obj(test_v, "test")?;
-        only_keys(
-            test,
-            &[
-                "kind",
-                "joint",
-                "rig",
-                "protocol",
-                "release_t_s",
-                "gauge_resolution_n",
-            ],
-            "test",
-        )?;
-        let kind = match string(test, "kind", "test.kind", true)?.as_deref() {
-            Some(k) => Kind::parse(k).ok_or_else(|| {
-                let all: Vec<&str> = Kind::ALL.iter().map(|k| k.as_str()).collect();
-                bad(
-                    "test.kind",
-                    format!("unknown kind `{k}` ({})", all.join(", ")),
-                )
-            })?,
-            None => unreachable!("required"),
-        };
-        if kind != Kind::Pendulum && test.get("release_t_s").is_some_and(|v| !v.is_null()) {
+        let test = Value::Object(required(w.test, "test")?);
+        let wt: wire::WireTest = wire::read(&test, "test")?;
+        let kind = required(wt.kind, "test.kind")?;
+        if kind != Kind::Pendulum && wt.release_t_s.is_some() {
             return Err(bad(
                 "test.release_t_s",
                 "only a pendulum test states its release",
             ));
         }
-        if kind != Kind::StaticForce && test.contains_key("gauge_resolution_n") {
+        if kind != Kind::StaticForce && wt.gauge_resolution_n.is_some() {
             return Err(bad(
                 "test.gauge_resolution_n",
                 "only a static_force test states a gauge resolution",
             ));
         }
-        let joint = string(test, "joint", "test.joint", false)?;
-        if let Some(r) = test.get("rig")
-            && !r.is_object()
-        {
-            return Err(bad("test.rig", "must be an object"));
-        }
-        let chans = obj(
-            root.get("channels")
-                .ok_or_else(|| bad("channels", "is required"))?,
-            "channels",
-        )?;
+        let joint = text(wt.joint, "test.joint", false)?;
+        let wire::Channels(mut chans) = required(w.channels, "channels")?;
         if chans.len() > MAX_CHANNELS {
             return Err(bad(
                 "channels",
                 format!("{} channels, more than {MAX_CHANNELS}", chans.len()),
             ));
         }
-        let t = channel(
-            chans
-                .get("t_s")
-                .ok_or_else(|| bad("channels.t_s", "is required"))?,
-            "channels.t_s",
-        )?;
+        let t = required(chans.remove("t_s"), "channels.t_s")?;
+        if t.len() > MAX_SAMPLES {
+            return Err(bad(
+                "channels.t_s",
+                format!("{} samples, more than the limit of {MAX_SAMPLES}", t.len()),
+            ));
+        }
         if t.len() < 2 {
             return Err(bad("channels.t_s", "needs at least 2 samples"));
         }
@@ -460,7 +402,7 @@ impl TraceDoc {
             _ => limits.check_sampling(&t),
         }
         .map_err(|(field, message)| bad(field, message))?;
-        let (needed, optional) = kind.channels();
+        let (needed, _optional) = kind.channels();
         for name in needed {
             if !chans.contains_key(*name) {
                 return Err(bad(
@@ -469,11 +411,9 @@ impl TraceDoc {
                 ));
             }
         }
+        let n = t.len();
         let mut channels = vec![("t_s".to_string(), t)];
-        for (name, v) in chans {
-            if name == "t_s" {
-                continue;
-            }
+        for (name, x) in chans {
             if name.is_empty()
                 || name.len() > 64
                 || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
@@ -486,20 +426,19 @@ impl TraceDoc {
                     ),
                 ));
             }
-            let field = format!("channels.{name}");
-            let x = channel(v, &field)?;
-            if x.len() != channels[0].1.len() {
+            if x.len() > MAX_SAMPLES {
                 return Err(bad(
-                    field,
-                    format!(
-                        "has {} samples but t_s has {}",
-                        x.len(),
-                        channels[0].1.len()
-                    ),
+                    format!("channels.{name}"),
+                    format!("{} samples, more than the limit of {MAX_SAMPLES}", x.len()),
                 ));
             }
-            let _ = optional;
-            channels.push((name.clone(), x));
+            if x.len() != n {
+                return Err(bad(
+                    format!("channels.{name}"),
+                    format!("has {} samples but t_s has {n}", x.len()),
+                ));
+            }
+            channels.push((name, x));
         }
         let doc = TraceDoc {
             trace_id,
@@ -509,7 +448,7 @@ impl TraceDoc {
             recorded_at,
             kind,
             joint,
-            test: test_v.clone(),
+            test,
             spec: TestSpec::Unchecked,
             channels,
         };
@@ -560,3 +499,4 @@ impl TraceDoc {
 mod tests;
 
 mod kinds;
+pub mod wire;

@@ -22,13 +22,16 @@
 //! by `;` with a decimal comma or point (`0,002;74,19` — what European spreadsheet tools write);
 //! fields may be quoted; `nan`/`inf` are rejected like any non-finite value. Blank lines are
 //! ignored; `\r\n` line ends are accepted. A refusal names the channel and sample
-//! (`channels.alpha_deg[2]`) or the line, and says the row, the column and why. The document
-//! built from the file is validated by [`TraceDoc::from_value`], exactly like a JSON upload.
+//! (`channels.alpha_deg[2]`) or the line, and says the row, the column and why. The rows go
+//! straight into the typed document a JSON upload is read into ([`WireDoc`]: the samples as
+//! `f64`s, the metadata as its fields) and it is validated by [`TraceDoc::from_wire`], exactly
+//! like a JSON upload.
 
 use std::fmt::Write as _;
 
 use serde_json::{Map, Value};
 
+use crate::trace::wire::{Channels, WireDoc, WirePantograph};
 use crate::trace::{MAX_CHANNELS, MAX_SAMPLES, TraceDoc, TraceError};
 
 /// Metadata keys accepted in the `# key: value` header.
@@ -64,8 +67,7 @@ fn malformed(field: impl Into<String>, message: impl Into<String>) -> CsvError {
 
 /// Parses a CSV trace into a validated document.
 pub fn parse(bytes: &[u8]) -> Result<TraceDoc, CsvError> {
-    let v = to_value(bytes)?;
-    TraceDoc::from_value(&v).map_err(CsvError::Invalid)
+    TraceDoc::from_wire(to_wire(bytes)?).map_err(CsvError::Invalid)
 }
 
 /// The separator of the data rows, read from the header row: `;` when the header holds one
@@ -91,13 +93,15 @@ fn number(field: &str, sep: u8) -> Option<f64> {
     text.parse::<f64>().ok().filter(|x| x.is_finite())
 }
 
-/// The CSV as the contract's JSON document (not yet validated).
-pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
+/// The CSV as the typed document (not yet validated).
+pub fn to_wire(bytes: &[u8]) -> Result<WireDoc, CsvError> {
     let text = std::str::from_utf8(bytes)
         .map_err(|e| malformed("body", format!("not UTF-8 text: {e}")))?;
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let mut root = Map::new();
-    let mut panto = Map::new();
+    let mut doc = WireDoc::default();
+    let mut panto: Option<WirePantograph> = None;
+    // The test object as a JSON upload sends it (stored verbatim): `test.rig`,
+    // `test.protocol` and `test.gauge_resolution_n` are JSON values, the rest strings.
     let mut test = Map::new();
     // The `# key: value` head, up to the header row; the rest is the csv crate's.
     let mut offset = 0;
@@ -127,20 +131,27 @@ pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
                 format!("unknown metadata key (allowed: {})", META_KEYS.join(", ")),
             ));
         }
-        let value =
-            if key == "test.rig" || key == "test.protocol" || key == "test.gauge_resolution_n" {
-                serde_json::from_str::<Value>(value)
-                    .map_err(|e| malformed(key, format!("not valid JSON: {e}")))?
-            } else {
-                Value::String(value.to_owned())
-            };
-        let slot = match key.split_once('.') {
-            Some(("pantograph", k)) => panto.insert(k.to_owned(), value),
-            Some(("test", k)) => test.insert(k.to_owned(), value),
-            _ => root.insert(key.to_owned(), value),
+        let set = |slot: &mut Option<String>| slot.replace(value.to_owned()).is_some();
+        let twice = match key {
+            "format" => set(&mut doc.format),
+            "trace_id" => set(&mut doc.trace_id),
+            "vehicle_id" => set(&mut doc.vehicle_id),
+            "recorded_at" => set(&mut doc.recorded_at),
+            "pantograph.model" => set(&mut panto.get_or_insert_default().model),
+            "pantograph.serial" => set(&mut panto.get_or_insert_default().serial),
+            _ => {
+                let name = key.strip_prefix("test.").unwrap_or(key);
+                let value = if matches!(name, "rig" | "protocol" | "gauge_resolution_n") {
+                    serde_json::from_str::<Value>(value)
+                        .map_err(|e| malformed(key, format!("not valid JSON: {e}")))?
+                } else {
+                    Value::String(value.to_owned())
+                };
+                test.insert(name.to_owned(), value).is_some()
+            }
         };
         // A key given twice is the same rule as a key repeated in a JSON object: 422 naming it.
-        if slot.is_some() {
+        if twice {
             return Err(CsvError::Invalid(TraceError {
                 field: key.to_owned(),
                 message: format!("`{key}` is given twice in the metadata"),
@@ -217,7 +228,7 @@ pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
         }
     }
     let sep_name = if sep == b';' { "`;`" } else { "`,`" };
-    let mut columns: Vec<Vec<Value>> = vec![Vec::new(); names.len()];
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
     for (row, record) in reader.records().enumerate() {
         let record = record.map_err(|e| {
             let line = line_of(e.position());
@@ -237,7 +248,7 @@ pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
             ));
         }
         for ((col, name), f) in columns.iter_mut().zip(&names).zip(record.iter()) {
-            let n = number(f, sep).and_then(serde_json::Number::from_f64).ok_or_else(|| {
+            let x = number(f, sep).ok_or_else(|| {
                 let why = if sep == b',' && f.contains(';') {
                     " — the header row is `,`-separated but this row uses `;`"
                 } else if sep == b',' && f.is_empty() {
@@ -256,22 +267,15 @@ pub fn to_value(bytes: &[u8]) -> Result<Value, CsvError> {
                     ),
                 })
             })?;
-            col.push(Value::Number(n));
+            col.push(x);
         }
     }
-    if !panto.is_empty() {
-        root.insert("pantograph".into(), panto.into());
-    }
+    doc.pantograph = panto;
     if !test.is_empty() {
-        root.insert("test".into(), test.into());
+        doc.test = Some(test);
     }
-    let channels: Map<String, Value> = names
-        .into_iter()
-        .zip(columns)
-        .map(|(n, c)| (n, Value::Array(c)))
-        .collect();
-    root.insert("channels".into(), channels.into());
-    Ok(root.into())
+    doc.channels = Some(Channels(names.into_iter().zip(columns).collect()));
+    Ok(doc)
 }
 
 /// Writes a document in the CSV shape that [`parse`] reads (numbers in Rust's shortest

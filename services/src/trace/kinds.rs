@@ -1,8 +1,22 @@
 //! Each test kind's view of a parsed document: a lift's channels and protocol, a quadrangle
 //! swing's, a force gauge's readings, a single joint's test and baseline.
 
+use super::wire::{
+    self, Finite, PendulumAttachment, PendulumRig, QuadrangleRig, SliderRig, WireBody, WireTest,
+};
 use super::*;
 use pantowatch_models::lift::protocol::LiftProtocol;
+
+/// A value the rules require: `field` "is required" when it is missing.
+fn req(v: Option<Finite>, field: &str) -> Result<f64, TraceError> {
+    v.map(|Finite(x)| x)
+        .ok_or_else(|| bad(field, "is required"))
+}
+
+/// An optional number's value.
+fn num(v: Option<Finite>) -> Option<f64> {
+    v.map(|Finite(x)| x)
+}
 
 impl TraceDoc {
     /// The channels of a `lift` test for the complete-pantograph model (built-in 160EC
@@ -10,16 +24,17 @@ impl TraceDoc {
     ///
     /// The contract allows `test.rig` overrides of that geometry; none is supported yet, so a
     /// non-empty `test.rig` is refused rather than silently ignored.
-    fn check_lift(&self) -> Result<Option<LiftProtocol>, TraceError> {
+    fn check_lift(&self, test: &WireTest) -> Result<Option<LiftProtocol>, TraceError> {
         self.geometry_160ec_only("lift tests")?;
         self.whole_pantograph(
+            test,
             "a lift test",
             "overrides of the 160EC lift geometry are not supported yet (send an empty rig)",
         )?;
         let get = |name: &str| self.channel(name).unwrap_or_default();
         lift_gaps(get("t_s"))?;
         lift_duration(get("t_s"))?;
-        let protocol = self.lift_protocol()?;
+        let protocol = Self::lift_protocol(test)?;
         // T within the drive's range, H within the working heights, Fs and Fm within the
         // strip loads the drive can hold (models' data files).
         self.lift_view()
@@ -51,13 +66,16 @@ impl TraceDoc {
     /// design-test` writes it), checked against the stand's limits
     /// (`lift::design::ProtocolLimits::stand`, issue 15 point 7): a field outside them is
     /// refused naming it. `None`: not stated.
-    fn lift_protocol(&self) -> Result<Option<LiftProtocol>, TraceError> {
+    ///
+    /// A protocol that does not read as one (a key no protocol has, a value of the wrong
+    /// shape) is refused naming `test.protocol`, the path inside it in the message.
+    fn lift_protocol(test: &WireTest) -> Result<Option<LiftProtocol>, TraceError> {
         use pantowatch_models::lift::design::ProtocolLimits;
-        let Some(v) = self.test.get("protocol") else {
+        let Some(v) = &test.protocol else {
             return Ok(None);
         };
-        let p: pantowatch_models::lift::protocol::LiftProtocol =
-            serde_json::from_value(v.clone()).map_err(|e| bad("test.protocol", e.to_string()))?;
+        let p: LiftProtocol = wire::read(v, "test.protocol")
+            .map_err(|e| bad("test.protocol", format!("`{}`: {}", e.field, e.message)))?;
         let lim = ProtocolLimits::stand(pantowatch_models::lift::geometry::builtin_160ec());
         lim.check(&p)
             .map_err(|e| bad(format!("test.protocol.{}", e.field), e.message))?;
@@ -67,7 +85,7 @@ impl TraceDoc {
     /// The channels and stand of a `quadrangle_swing` test for the lower-quadrangle model
     /// (built-in 160EC geometry). `test.rig`: `incline_deg` (default 70), `gravity_m_s2`
     /// (default 9.81), `attachments` (point masses fixed to a body, at body coordinates).
-    fn check_quadrangle(&self) -> Result<QuadRig, TraceError> {
+    fn check_quadrangle(&self, test: &WireTest) -> Result<QuadRig, TraceError> {
         self.geometry_160ec_only("quadrangle swings")?;
         if let Some(j) = &self.joint {
             return Err(bad(
@@ -77,67 +95,41 @@ impl TraceDoc {
                 ),
             ));
         }
-        let rig = self
-            .test
-            .get("rig")
-            .and_then(Value::as_object)
-            .cloned()
-            .unwrap_or_default();
-        only_keys(
-            &rig,
-            &["incline_deg", "gravity_m_s2", "attachments"],
-            "test.rig",
-        )?;
+        let rig: QuadrangleRig = match &test.rig {
+            Some(m) => wire::read_map(m, "test.rig")?,
+            None => QuadrangleRig::default(),
+        };
         let mut q = QuadRig::default();
-        if let Some(v) = number(&rig, "incline_deg", "test.rig.incline_deg")? {
+        if let Some(v) = num(rig.incline_deg) {
             q.incline_deg = v;
         }
-        if let Some(v) = number(&rig, "gravity_m_s2", "test.rig.gravity_m_s2")? {
+        if let Some(v) = num(rig.gravity_m_s2) {
             q.gravity_m_s2 = v;
         }
-        match rig.get("attachments") {
-            None | Some(Value::Null) => {}
-            Some(a) => {
-                let arr = a
-                    .as_array()
-                    .ok_or_else(|| bad("test.rig.attachments", "must be an array"))?;
-                if arr.len() > 16 {
-                    return Err(bad("test.rig.attachments", "more than 16 attachments"));
-                }
-                for (i, x) in arr.iter().enumerate() {
-                    let f = format!("test.rig.attachments[{i}]");
-                    let m = obj(x, &f)?;
-                    only_keys(m, &["kind", "mass_kg", "body", "position_m"], &f)?;
-                    if m.get("kind").and_then(Value::as_str) != Some("point") {
-                        return Err(bad(format!("{f}.kind"), "must be `point`"));
-                    }
-                    let mass_kg = number(m, "mass_kg", &format!("{f}.mass_kg"))?
-                        .ok_or_else(|| bad(format!("{f}.mass_kg"), "is required"))?;
-                    let body = match m.get("body").and_then(Value::as_str) {
-                        Some(k) => QBody::named(k),
-                        None => None,
-                    }
-                    .ok_or_else(|| {
-                        bad(
-                            format!("{f}.body"),
-                            "must be `lower_arm`, `coupling_rod` or `upper_arm`",
-                        )
-                    })?;
-                    let pos = m
-                        .get("position_m")
-                        .and_then(Value::as_array)
-                        .filter(|a| a.len() == 2)
-                        .and_then(|a| Some([a[0].as_f64()?, a[1].as_f64()?]))
-                        .ok_or_else(|| {
-                            bad(format!("{f}.position_m"), "must be two numbers [x, y], m")
-                        })?;
-                    q.attachments.push(PointMass {
-                        body,
-                        mass_kg,
-                        position_m: V2::from_array(pos),
-                    });
-                }
+        let attachments = rig.attachments.unwrap_or_default();
+        if attachments.len() > 16 {
+            return Err(bad("test.rig.attachments", "more than 16 attachments"));
+        }
+        for (i, wire::Obj(a)) in attachments.into_iter().enumerate() {
+            let f = format!("test.rig.attachments[{i}]");
+            if a.kind.is_none() {
+                return Err(bad(format!("{f}.kind"), "must be `point`"));
             }
+            let mass_kg = req(a.mass_kg, &format!("{f}.mass_kg"))?;
+            let body = a.body.as_deref().and_then(QBody::named).ok_or_else(|| {
+                bad(
+                    format!("{f}.body"),
+                    "must be `lower_arm`, `coupling_rod` or `upper_arm`",
+                )
+            })?;
+            let wire::Pair([x, y]) = a
+                .position_m
+                .ok_or_else(|| bad(format!("{f}.position_m"), "must be two numbers [x, y], m"))?;
+            q.attachments.push(PointMass {
+                body,
+                mass_kg,
+                position_m: V2::from_array([x, y]),
+            });
         }
         q.model().map_err(|e| bad(e.field, e.message))?;
         self.quadrangle_view()
@@ -170,7 +162,7 @@ impl TraceDoc {
     /// within `working_height_m`, every `F_N` within `[rig_limits] lift_strip_force_n`, a raising
     /// branch (H never decreasing up to the first highest reading) then a lowering branch (H
     /// never increasing after it), each of at least `min_points_per_branch` readings.
-    fn check_static_force(&self) -> Result<(f64, usize), TraceError> {
+    fn check_static_force(&self, test: &WireTest) -> Result<(f64, usize), TraceError> {
         let sf = self
             .pantograph_data()
             .and_then(|d| d.static_force.as_ref())
@@ -186,18 +178,18 @@ impl TraceDoc {
                 )
             })?;
         self.whole_pantograph(
+            test,
             "a static_force test",
             "a static_force test has no rig to state (send an empty rig or none)",
         )?;
-        if self.test.get("protocol").is_some_and(|v| !v.is_null()) {
+        if test.protocol.as_ref().is_some_and(|v| !v.is_null()) {
             return Err(bad(
                 "test.protocol",
                 "only a lift test states a drive protocol",
             ));
         }
         const RES: &str = "test.gauge_resolution_n";
-        let test = self.test.as_object().cloned().unwrap_or_default();
-        let gauge_resolution_n = match number(&test, "gauge_resolution_n", RES)? {
+        let gauge_resolution_n = match test.gauge_resolution_n.flatten().map(|Finite(r)| r) {
             None => {
                 return Err(bad(
                     RES,
@@ -265,19 +257,19 @@ impl TraceDoc {
 
     /// A test of the whole pantograph (`what`: "a lift test") names no joint and states no
     /// rig: the first rig key is refused with `rig_message`.
-    fn whole_pantograph(&self, what: &str, rig_message: &str) -> Result<(), TraceError> {
+    fn whole_pantograph(
+        &self,
+        test: &WireTest,
+        what: &str,
+        rig_message: &str,
+    ) -> Result<(), TraceError> {
         if let Some(j) = &self.joint {
             return Err(bad(
                 "test.joint",
                 format!("{what} is of the whole pantograph, got joint `{j}`"),
             ));
         }
-        if let Some((k, _)) = self
-            .test
-            .get("rig")
-            .and_then(Value::as_object)
-            .and_then(|r| r.iter().next())
-        {
+        if let Some(k) = test.rig.as_ref().and_then(|r| r.keys().next()) {
             return Err(bad(format!("test.rig.{k}"), rig_message));
         }
         Ok(())
@@ -291,12 +283,9 @@ impl TraceDoc {
     /// `test.release_t_s` (issue 17, point 2): when the body was let go, s, on the trace's
     /// clock; only a pendulum states it. It must lie within `t` and leave at least 20 samples of
     /// free motion (what a fit needs).
-    fn release_t_s(&self, t: &[f64]) -> Result<Option<f64>, TraceError> {
+    fn release_t_s(test: &WireTest, t: &[f64]) -> Result<Option<f64>, TraceError> {
         const FIELD: &str = "test.release_t_s";
-        let Some(test) = self.test.as_object() else {
-            return Ok(None);
-        };
-        let Some(r) = number(test, "release_t_s", FIELD)? else {
+        let Some(r) = num(test.release_t_s) else {
             return Ok(None);
         };
         match pantowatch_models::identify::release::stated_release(t, r, 20) {
@@ -325,29 +314,26 @@ impl TraceDoc {
     /// The typed test of the document's kind: every check of the test and its channels that
     /// the models' inputs need, run once, where the document is parsed.
     pub(super) fn typed_spec(&self) -> Result<TestSpec, TraceError> {
+        let test: WireTest = wire::read(&self.test, "test")?;
         Ok(match self.kind {
             Kind::Lift => TestSpec::Lift {
-                protocol: self.check_lift()?,
+                protocol: self.check_lift(&test)?,
             },
-            Kind::QuadrangleSwing => TestSpec::Quadrangle(Box::new(self.check_quadrangle()?)),
+            Kind::QuadrangleSwing => TestSpec::Quadrangle(Box::new(self.check_quadrangle(&test)?)),
             Kind::StaticForce => {
-                let (gauge_resolution_n, raise_len) = self.check_static_force()?;
+                let (gauge_resolution_n, raise_len) = self.check_static_force(&test)?;
                 TestSpec::StaticForce {
                     gauge_resolution_n,
                     raise_len,
                 }
             }
-            Kind::Pendulum | Kind::Slider => TestSpec::Joint(Box::new(self.build_joint_test()?)),
+            Kind::Pendulum | Kind::Slider => {
+                TestSpec::Joint(Box::new(self.build_joint_test(&test)?))
+            }
         })
     }
 
-    fn build_joint_test(&self) -> Result<(JointTest, Baseline), TraceError> {
-        let rig = self
-            .test
-            .get("rig")
-            .and_then(Value::as_object)
-            .cloned()
-            .unwrap_or_default();
+    fn build_joint_test(&self, test: &WireTest) -> Result<(JointTest, Baseline), TraceError> {
         let t = self.channel("t_s").unwrap_or_default().to_vec();
         let data = self.pantograph_data();
         let rig_err = |e: pantowatch_models::rig::RigError| bad(e.field, e.message);
@@ -365,110 +351,61 @@ impl TraceDoc {
                         format!("unknown joint `{joint}` (J1 J2 J2' J3 J4 J5 J6 J7 custom)"),
                     ));
                 }
-                only_keys(
-                    &rig,
-                    &[
-                        "body",
-                        "attachments",
-                        "pin_radius_m",
-                        "gravity_m_s2",
-                        "initial_rate_deg_s",
-                        "body_uncertainty",
-                    ],
-                    "test.rig",
-                )?;
+                let rig: PendulumRig = match &test.rig {
+                    Some(m) => wire::read_map(m, "test.rig")?,
+                    None => PendulumRig::default(),
+                };
                 // Issue 17, point 1: the body's stated 1 σ errors, each optional; numbers
                 // here, their range against the value each qualifies is the models' rule
                 // (`rig::check_uncertainty`, once, with the rig).
-                let body_uncertainty = match rig.get("body_uncertainty") {
-                    None | Some(Value::Null) => None,
-                    Some(u) => {
-                        const F: &str = "test.rig.body_uncertainty";
-                        let u = obj(u, F)?;
-                        only_keys(u, &["mass_kg", "inertia_kgm2", "com_distance_m"], F)?;
-                        let get = |k: &str| number(u, k, &format!("{F}.{k}"));
-                        Some(BodyUncertainty {
-                            mass_sd_kg: get("mass_kg")?,
-                            inertia_sd_kgm2: get("inertia_kgm2")?,
-                            com_distance_sd_m: get("com_distance_m")?,
+                let body_uncertainty = rig.body_uncertainty.map(|u| BodyUncertainty {
+                    mass_sd_kg: num(u.mass_kg),
+                    inertia_sd_kgm2: num(u.inertia_kgm2),
+                    com_distance_sd_m: num(u.com_distance_m),
+                });
+                let body = rig
+                    .body
+                    .map(|b: WireBody| {
+                        const F: &str = "test.rig.body";
+                        Ok::<_, TraceError>(BodySpec {
+                            mass_kg: req(b.mass_kg, &format!("{F}.mass_kg"))?,
+                            inertia_kgm2: req(b.inertia_kgm2, &format!("{F}.inertia_kgm2"))?,
+                            com_distance_m: req(b.com_distance_m, &format!("{F}.com_distance_m"))?,
                         })
-                    }
-                };
-                let body = match rig.get("body") {
-                    None | Some(Value::Null) => None,
-                    Some(b) => {
-                        let b = obj(b, "test.rig.body")?;
-                        only_keys(
-                            b,
-                            &["mass_kg", "inertia_kgm2", "com_distance_m"],
-                            "test.rig.body",
-                        )?;
-                        let get = |k: &str| {
-                            number(b, k, &format!("test.rig.body.{k}"))?
-                                .ok_or_else(|| bad(format!("test.rig.body.{k}"), "is required"))
-                        };
-                        Some(BodySpec {
-                            mass_kg: get("mass_kg")?,
-                            inertia_kgm2: get("inertia_kgm2")?,
-                            com_distance_m: get("com_distance_m")?,
-                        })
-                    }
-                };
-                let attachments = match rig.get("attachments") {
-                    None | Some(Value::Null) => None,
-                    Some(a) => {
-                        let arr = a
-                            .as_array()
-                            .ok_or_else(|| bad("test.rig.attachments", "must be an array"))?;
-                        let mut out = Vec::new();
-                        for (i, x) in arr.iter().enumerate() {
-                            let f = format!("test.rig.attachments[{i}]");
-                            let m = obj(x, &f)?;
-                            let req = |k: &str| {
-                                number(m, k, &format!("{f}.{k}"))?
-                                    .ok_or_else(|| bad(format!("{f}.{k}"), "is required"))
-                            };
-                            out.push(match m.get("kind").and_then(Value::as_str) {
-                                Some("point") => {
-                                    only_keys(m, &["kind", "mass_kg", "distance_m"], &f)?;
-                                    Attachment::Point {
-                                        mass_kg: req("mass_kg")?,
-                                        distance_m: req("distance_m")?,
-                                    }
-                                }
-                                Some("rod") => {
-                                    only_keys(m, &["kind", "mass_kg", "length_m"], &f)?;
-                                    Attachment::Rod {
-                                        mass_kg: req("mass_kg")?,
-                                        length_m: req("length_m")?,
-                                    }
-                                }
-                                _ => {
-                                    return Err(bad(
-                                        format!("{f}.kind"),
-                                        "must be `point` or `rod`",
-                                    ));
-                                }
-                            });
-                        }
-                        Some(out)
-                    }
-                };
+                    })
+                    .transpose()?;
+                let attachments = rig
+                    .attachments
+                    .map(|list| {
+                        list.iter()
+                            .enumerate()
+                            .map(|(i, m)| {
+                                let f = format!("test.rig.attachments[{i}]");
+                                Ok(match PendulumAttachment::read(m, &f)? {
+                                    PendulumAttachment::Point(p) => Attachment::Point {
+                                        mass_kg: req(p.mass_kg, &format!("{f}.mass_kg"))?,
+                                        distance_m: req(p.distance_m, &format!("{f}.distance_m"))?,
+                                    },
+                                    PendulumAttachment::Rod(r) => Attachment::Rod {
+                                        mass_kg: req(r.mass_kg, &format!("{f}.mass_kg"))?,
+                                        length_m: req(r.length_m, &format!("{f}.length_m"))?,
+                                    },
+                                })
+                            })
+                            .collect::<Result<Vec<_>, TraceError>>()
+                    })
+                    .transpose()?;
                 let spec = PendulumSpec {
                     joint,
                     body,
                     attachments,
-                    pin_radius_m: number(&rig, "pin_radius_m", "test.rig.pin_radius_m")?,
-                    gravity_m_s2: number(&rig, "gravity_m_s2", "test.rig.gravity_m_s2")?,
-                    initial_rate_deg_s: number(
-                        &rig,
-                        "initial_rate_deg_s",
-                        "test.rig.initial_rate_deg_s",
-                    )?,
+                    pin_radius_m: num(rig.pin_radius_m),
+                    gravity_m_s2: num(rig.gravity_m_s2),
+                    initial_rate_deg_s: num(rig.initial_rate_deg_s),
                     body_uncertainty,
                 };
                 let y = self.channel("alpha_deg").unwrap_or_default().to_vec();
-                let release_t_s = self.release_t_s(&t)?;
+                let release_t_s = Self::release_t_s(test, &t)?;
                 spec.joint_test(data, t, y)
                     .map(|(test, baseline)| {
                         (
@@ -491,47 +428,20 @@ impl TraceDoc {
                         format!("a slider test is of joint J8 (or `custom`), got `{j}`"),
                     ));
                 }
-                only_keys(
-                    &rig,
-                    &[
-                        "moving_mass_kg",
-                        "springs",
-                        "spring_stiffness_n_per_mm",
-                        "normal_force_n",
-                        "moving_mass_uncertainty_kg",
-                    ],
-                    "test.rig",
-                )?;
+                let rig: SliderRig = match &test.rig {
+                    Some(m) => wire::read_map(m, "test.rig")?,
+                    None => SliderRig::default(),
+                };
                 // A whole number here; its span (`[rig_limits] springs`, 0 = none) is the
                 // models' one rule, checked with the rest of the rig.
-                let springs = match rig.get("springs") {
-                    None | Some(Value::Null) => None,
-                    Some(v) => Some(
-                        v.as_u64()
-                            .map(|n| u32::try_from(n).unwrap_or(u32::MAX))
-                            .ok_or_else(|| {
-                                bad(
-                                    "test.rig.springs",
-                                    "must be a whole number of springs (0 for none)",
-                                )
-                            })?,
-                    ),
-                };
+                let springs = rig.springs.map(|n| u32::try_from(n).unwrap_or(u32::MAX));
                 let spec = SliderSpec {
                     custom: self.joint.as_deref() == Some("custom"),
-                    moving_mass_kg: number(&rig, "moving_mass_kg", "test.rig.moving_mass_kg")?,
+                    moving_mass_kg: num(rig.moving_mass_kg),
                     springs,
-                    spring_stiffness_n_per_mm: number(
-                        &rig,
-                        "spring_stiffness_n_per_mm",
-                        "test.rig.spring_stiffness_n_per_mm",
-                    )?,
-                    normal_force_n: number(&rig, "normal_force_n", "test.rig.normal_force_n")?,
-                    moving_mass_sd_kg: number(
-                        &rig,
-                        "moving_mass_uncertainty_kg",
-                        "test.rig.moving_mass_uncertainty_kg",
-                    )?,
+                    spring_stiffness_n_per_mm: num(rig.spring_stiffness_n_per_mm),
+                    normal_force_n: num(rig.normal_force_n),
+                    moving_mass_sd_kg: num(rig.moving_mass_uncertainty_kg),
                 };
                 let y = self.channel("h_mm").unwrap_or_default().to_vec();
                 let f = self.channel("F_N").map(<[f64]>::to_vec);

@@ -585,3 +585,116 @@ fn the_test_is_typed_once_where_the_document_is_parsed() {
     // Typing again from the (now bad) JSON is where it would be checked.
     assert_eq!(d.typed().unwrap_err().field, "test.rig.pin_radius_m");
 }
+
+/// Issue 39, point 3: the document is read by serde into typed structs, closed where the
+/// contract lists the keys; a value of the wrong shape or a key the object does not have is
+/// named by its path, the same from JSON bytes as from a parsed value. An array where the
+/// contract has an object is refused (a struct serde derives would read it by position).
+#[test]
+fn the_typed_document_names_a_wrong_shape_or_an_unknown_key_by_its_path() {
+    let quad = |attachment: Value| {
+        let mut d = doc();
+        d["test"] = json!({"kind": "quadrangle_swing", "rig": {"attachments": [attachment]}});
+        d["channels"]["beta_deg"] = json!([1.0, 2.0, 3.0]);
+        d
+    };
+    // `path` as `/a/b/1`: objects keyed by name (a missing key added), arrays by index.
+    let with = |path: &str, v: Value| {
+        let mut d = doc();
+        let mut at = &mut d;
+        for k in path.trim_start_matches('/').split('/') {
+            at = match k.parse::<usize>() {
+                Ok(i) => &mut at[i],
+                Err(_) => &mut at[k],
+            };
+        }
+        *at = v;
+        d
+    };
+    let mut cases = vec![
+        (with("/pantograph", json!(["160EC"])), "pantograph"),
+        (with("/pantograph/serial", json!(42)), "pantograph.serial"),
+        (with("/test/kind", json!(5)), "test.kind"),
+        (with("/test/rig", json!([])), "test.rig"),
+        (
+            with("/test/rig/body", json!([18.8, 5.61, 0.272])),
+            "test.rig.body",
+        ),
+        (
+            with("/test/rig/body_uncertainty", json!([0.1])),
+            "test.rig.body_uncertainty",
+        ),
+        (
+            with(
+                "/test/rig/attachments",
+                json!([{"kind": "rod", "mass_kg": 1.0, "length_m": 0.5, "distance_m": 0.1}]),
+            ),
+            "test.rig.attachments[0].distance_m",
+        ),
+        (
+            with(
+                "/test/rig/attachments",
+                json!([{"kind": "disc", "mass_kg": 1.0}]),
+            ),
+            "test.rig.attachments[0].kind",
+        ),
+        (
+            with(
+                "/test/rig/attachments",
+                json!([{"mass_kg": 1.0, "length_m": 0.5}]),
+            ),
+            "test.rig.attachments[0].kind",
+        ),
+        (
+            with(
+                "/test/rig/attachments",
+                json!([{"kind": "rod", "mass_kg": 1.0}]),
+            ),
+            "test.rig.attachments[0].length_m",
+        ),
+        (
+            with("/channels/alpha_deg/1", json!("74.19")),
+            "channels.alpha_deg[1]",
+        ),
+        (
+            with("/channels/alpha_deg", json!({"0": 74.2})),
+            "channels.alpha_deg",
+        ),
+        (with("/channels", json!([[0.0, 0.002]])), "channels"),
+        (
+            quad(
+                json!({"kind": "point", "mass_kg": 1.0, "body": "upper_arm", "position_m": [0.5, "0"]}),
+            ),
+            "test.rig.attachments[0].position_m",
+        ),
+        (
+            quad(
+                json!({"kind": "point", "mass_kg": 1.0, "body": "upper_arm", "position_m": {"x": 0.5}}),
+            ),
+            "test.rig.attachments[0].position_m",
+        ),
+        (quad(json!([1.0])), "test.rig.attachments[0]"),
+    ];
+    let mut d = doc();
+    d["test"]["rig"]["body"] = json!({"mass_kg": 18.8, "inertia_kgm2": 5.6, "com_m": 0.27});
+    cases.push((d, "test.rig.body.com_m"));
+    for (v, field) in cases {
+        assert_eq!(field_of(v.clone()), field, "from a value: {v}");
+        let bytes = serde_json::to_vec(&v).unwrap();
+        match TraceDoc::parse_json(&bytes) {
+            Err(JsonError::Invalid(e)) => assert_eq!(e.field, field, "from JSON: {v}: {e}"),
+            other => panic!("{v}: {other:?}"),
+        }
+    }
+    // The root must be an object: JSON that is not one is a contract error naming `body`;
+    // text that is not JSON (trailing characters included) is malformed.
+    assert!(
+        matches!(TraceDoc::parse_json(b"[1, 2]"), Err(JsonError::Invalid(e)) if e.field == "body")
+    );
+    for text in [&b"{} {}"[..], b"{\"format\": 1e999}", b"[1,"] {
+        assert!(
+            matches!(TraceDoc::parse_json(text), Err(JsonError::Malformed(e)) if e.field == "body"),
+            "{text:?}"
+        );
+    }
+}

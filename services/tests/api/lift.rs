@@ -267,10 +267,7 @@ pub async fn a_designed_lift_is_accepted_and_fitted(b: Backend) {
     let _ = std::fs::remove_file(&file);
     assert_eq!(doc.test["protocol"]["moves"][1]["height_m"], json!(1.216));
     let csv = pantowatch::trace_csv::write(&doc);
-    let back = pantowatch::trace::TraceDoc::from_value(
-        &pantowatch::trace_csv::to_value(csv.as_bytes()).expect("csv"),
-    )
-    .expect("csv doc");
+    let back = pantowatch::trace_csv::parse(csv.as_bytes()).expect("csv doc");
     assert_eq!(back.test["protocol"], doc.test["protocol"]);
     let r = app
         .upload_json(&serde_json::to_vec(&doc.to_value()).expect("json"))

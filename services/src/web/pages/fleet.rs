@@ -7,6 +7,7 @@ use axum::extract::State;
 use chrono::{DateTime, Utc};
 use maud::{Markup, html};
 
+use crate::alerts::Evidence;
 use crate::api::auth::WebUser;
 use crate::api::error::AppError;
 use crate::api::state::AppState;
@@ -14,16 +15,10 @@ use crate::store::{Alert, AlertFilter, FleetFilter, Page, Status};
 use crate::web::layout::badge;
 use crate::web::{PageResult, day, seg, signed_in_page};
 
-/// Earliest forecast crossing in a live alert's evidence.
+/// Earliest forecast crossing in a live alert's evidence (typed: `alerts::Evidence`); none
+/// when the evidence has no forecast or does not read.
 fn alert_forecast(a: &Alert) -> Option<DateTime<Utc>> {
-    a.evidence
-        .get("trends")?
-        .as_array()?
-        .iter()
-        .filter_map(|t| t.pointer("/forecast/date")?.as_str())
-        .filter_map(|d| DateTime::parse_from_rfc3339(d).ok())
-        .map(|d| d.with_timezone(&Utc))
-        .min()
+    Evidence::of(a).ok()?.earliest_forecast()
 }
 
 pub async fn fleet_page(State(st): State<AppState>, user: WebUser) -> PageResult {
