@@ -86,6 +86,8 @@ fn simulated_j1_drift_swing_is_recovered_and_flagged_alone() {
     pantowatch::cli::fit::run(
         FitArgs {
             trace: file,
+            more: Vec::new(),
+            pooled: false,
             json: true,
             plot: Some(svg.clone()),
             report: None,

@@ -16,6 +16,13 @@ use crate::trace::{Kind, TraceDoc};
 pub struct FitArgs {
     /// Trace document (pantograph-trace/1 JSON).
     pub trace: PathBuf,
+    /// More recordings of the same rig, with `--pooled`.
+    pub more: Vec<PathBuf>,
+    /// Fit every recording given with one set of physical parameters (issue 36, point 5): the
+    /// same pantograph serial, joint and rig; the residual loop names an effect only if it
+    /// explains every recording.
+    #[arg(long)]
+    pub pooled: bool,
     /// Print the fit result of the trace format as JSON.
     #[arg(long)]
     pub json: bool,
@@ -375,6 +382,14 @@ fn run_lift(args: &FitArgs, doc: &TraceDoc, thresholds: &DriftThresholds) -> any
 }
 
 pub fn run(args: FitArgs, thresholds: &DriftThresholds) -> anyhow::Result<()> {
+    if args.pooled {
+        let mut paths = vec![args.trace.clone()];
+        paths.extend(args.more.iter().cloned());
+        return super::pooled::run(&paths, args.json);
+    }
+    if !args.more.is_empty() {
+        anyhow::bail!("several trace files are fitted together only with --pooled");
+    }
     let doc = super::read_trace(&args.trace)?;
     if doc.kind == Kind::Lift {
         return run_lift(&args, &doc, thresholds);

@@ -7,6 +7,7 @@ pub mod examples;
 pub mod fit;
 pub mod keys;
 pub mod migrate;
+pub mod pooled;
 pub mod refit;
 pub mod report;
 pub mod serve;

@@ -10,6 +10,7 @@ pub mod covariance;
 pub mod initial;
 pub mod input_noise;
 pub mod lm;
+pub mod pooled;
 pub mod readout;
 pub mod release;
 

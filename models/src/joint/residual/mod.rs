@@ -23,6 +23,7 @@
 
 mod diagnose;
 mod effects;
+pub mod pooled;
 
 pub use crate::numerics::stats::{corr, is_white, ljung_box, noise_sigma};
 pub use diagnose::{Diagnosis, diagnose};
