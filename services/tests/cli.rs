@@ -765,6 +765,7 @@ async fn demo_serves_at_once_and_its_fleet_fills_in() {
     let http = reqwest::Client::builder()
         .redirect(reqwest::redirect::Policy::none())
         .timeout(Duration::from_secs(10))
+        .no_proxy()
         .build()
         .unwrap();
     // `pantowatch_jobs{state}` of /metrics: (done, failed, queued + running).
