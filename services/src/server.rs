@@ -15,7 +15,7 @@ use crate::api::AppState;
 use crate::config::Settings;
 use crate::store::{BackendKind, Store};
 use crate::webhooks::{self, DeliveryOptions};
-use crate::worker::{WorkerOptions, WorkerPool};
+use crate::worker::{OnJob, WorkerOptions, WorkerPool};
 
 /// The workers' options from the settings, with `workers` tasks.
 pub fn worker_options(settings: &Settings, workers: usize) -> WorkerOptions {
@@ -63,16 +63,42 @@ pub async fn run(
     settings: &Settings,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> anyhow::Result<()> {
+    run_with(listener, store, settings, shutdown, Hooks::default()).await
+}
+
+/// What a command running the service in its own process adds to it (`pantowatch demo`): the
+/// wake-up its own uploads share with the workers, and a call after every job (its progress
+/// bar; only the CLI knows about terminals).
+#[derive(Default)]
+pub struct Hooks {
+    pub wake: Option<Arc<Notify>>,
+    pub on_job: Option<OnJob>,
+}
+
+/// [`run`] with the [`Hooks`] of an in-process caller.
+pub async fn run_with(
+    listener: TcpListener,
+    store: Store,
+    settings: &Settings,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+    hooks: Hooks,
+) -> anyhow::Result<()> {
     let (stop_tx, stop_rx) = watch::channel(false);
     tokio::spawn(async move {
         shutdown.await;
         let _ = stop_tx.send(true);
     });
-    let wake = Arc::new(Notify::new());
+    let wake = hooks.wake.unwrap_or_default();
     let alert_wake = Arc::new(Notify::new());
     let mut opts = worker_options(settings, settings.workers);
     opts.alert_wake = Some(alert_wake.clone());
-    let pool = WorkerPool::spawn(store.clone(), opts, wake.clone(), stop_rx.clone(), None);
+    let pool = WorkerPool::spawn(
+        store.clone(),
+        opts,
+        wake.clone(),
+        stop_rx.clone(),
+        hooks.on_job,
+    );
     let deliverer = tokio::spawn(webhooks::run(
         store.clone(),
         delivery_options(settings),

@@ -671,3 +671,217 @@ fn simulate_static_force_writes_a_gauge_measurement() {
         "{table}"
     );
 }
+
+/// The `demo` process of [`demo_serves_at_once_and_its_fleet_fills_in`]: killed if the test
+/// fails before it is stopped; its stdout lines as they come.
+struct Demo {
+    child: std::process::Child,
+    lines: std::sync::mpsc::Receiver<String>,
+    seen: Vec<String>,
+}
+
+impl Demo {
+    /// The next stdout line holding `needle` (the lines before it kept in `seen`).
+    fn wait_line(&mut self, needle: &str, within: std::time::Duration) -> String {
+        let end = std::time::Instant::now() + within;
+        loop {
+            let left = end.saturating_duration_since(std::time::Instant::now());
+            match self.lines.recv_timeout(left) {
+                Ok(l) => {
+                    self.seen.push(l.clone());
+                    if l.contains(needle) {
+                        return l;
+                    }
+                }
+                Err(e) => panic!(
+                    "no line with {needle:?} ({e}); stdout:\n{}",
+                    self.seen.join("\n")
+                ),
+            }
+        }
+    }
+}
+
+impl Drop for Demo {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// `pantowatch demo` answers at once (issue 39): `/readyz` and the fleet page answer within
+/// 10 s of the start while the fleet's fits are still to come; the page says how many are done
+/// and reloads itself; the count of fits done grows to the plan's total, then the tables are
+/// printed, the banner is gone and SIGTERM stops the process cleanly.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn demo_serves_at_once_and_its_fleet_fills_in() {
+    use std::io::BufRead;
+    use std::time::{Duration, Instant};
+
+    let db = tmp("demo-serve.db");
+    let t0 = Instant::now();
+    let mut child = bin()
+        .args(["demo", "--vehicles", "1", "--months", "2", "--workers", "1"])
+        .args(["--listen", "127.0.0.1:0", "--database"])
+        .arg(&db)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let (tx, lines) = std::sync::mpsc::channel();
+    let stdout = child.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        for l in std::io::BufReader::new(stdout)
+            .lines()
+            .map_while(Result::ok)
+        {
+            if tx.send(l).is_err() {
+                break;
+            }
+        }
+    });
+    let mut demo = Demo {
+        child,
+        lines,
+        seen: Vec::new(),
+    };
+    let plan = demo.wait_line(" tests, database", Duration::from_secs(10));
+    let total: i64 = plan
+        .split("= ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{plan}"));
+    assert!(total >= 10, "{plan}");
+    let serving = demo.wait_line("Serving the API on ", Duration::from_secs(10));
+    let url = serving
+        .split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap()
+        .to_owned();
+    let reader = demo.wait_line("reader key: ", Duration::from_secs(5));
+    let reader = reader.rsplit(' ').next().unwrap().to_owned();
+
+    let http = reqwest::Client::builder()
+        .redirect(reqwest::redirect::Policy::none())
+        .timeout(Duration::from_secs(10))
+        .no_proxy()
+        .build()
+        .unwrap();
+    // `pantowatch_jobs{state}` of /metrics: (done, failed, queued + running).
+    let jobs = || async {
+        let text = http
+            .get(format!("{url}/metrics"))
+            .send()
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        let n = |state: &str| -> i64 {
+            let key = format!("pantowatch_jobs{{state=\"{state}\"}} ");
+            text.lines()
+                .find_map(|l| l.strip_prefix(&key)?.trim().parse::<f64>().ok())
+                .map_or(0, |v| v as i64)
+        };
+        (n("done"), n("failed"), n("queued") + n("running"))
+    };
+    loop {
+        let ready = http.get(format!("{url}/readyz")).send().await;
+        if ready.is_ok_and(|r| r.status() == 200) {
+            break;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(10), "no /readyz in 10 s");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let first_answer = t0.elapsed();
+    let (done, failed, _) = jobs().await;
+    assert!(
+        done + failed < total,
+        "the API answered only once {done} of {total} fits were done"
+    );
+    let login = http
+        .post(format!("{url}/login"))
+        .header("content-type", "application/x-www-form-urlencoded")
+        .body(format!("key={reader}"))
+        .send()
+        .await
+        .unwrap();
+    let cookie = login.headers()["set-cookie"].to_str().unwrap();
+    let cookie = cookie.split(';').next().unwrap().to_owned();
+    let fleet = || async {
+        let r = http
+            .get(format!("{url}/fleet"))
+            .header("cookie", &cookie)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 200);
+        let refresh = r.headers().get("refresh").is_some();
+        (refresh, r.text().await.unwrap())
+    };
+    let (_, page) = fleet().await;
+    assert!(
+        t0.elapsed() < Duration::from_secs(10),
+        "fleet page at {:?}",
+        t0.elapsed()
+    );
+    assert!(page.contains("<h1>Fleet</h1>"), "{page}");
+
+    // The fleet fills in: the count of fits done only grows, to the total; while fits are to
+    // come the page says how many are done (of the jobs queued so far) and reloads itself.
+    let mut counts = vec![done];
+    let mut banners = 0;
+    let until = Instant::now() + Duration::from_secs(600);
+    loop {
+        let (done, failed, pending) = jobs().await;
+        assert_eq!(failed, 0);
+        assert!(done >= *counts.last().unwrap(), "{counts:?} then {done}");
+        counts.push(done);
+        if done == total && pending == 0 {
+            break;
+        }
+        let (refresh, page) = fleet().await;
+        if let Some(at) = page.find("Fitting: ") {
+            let words: Vec<&str> = page[at..].split_whitespace().collect();
+            let (n, m): (i64, i64) = (words[1].parse().unwrap(), words[3].parse().unwrap());
+            assert_eq!(words[4..6], ["fits", "done"], "{}", &page[at..]);
+            assert!(n < m && m <= total, "{n} of {m} of {total}");
+            assert!(refresh, "a page with fits to come reloads itself");
+            banners += 1;
+        }
+        assert!(Instant::now() < until, "fits done: {counts:?}");
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    }
+    assert!(banners > 0, "the fleet page never showed the fits to come");
+    let fitted = t0.elapsed();
+    // Then the tables, as `--no-serve` prints them, and the service still answers.
+    let table = demo.wait_line("Fleet health: ", Duration::from_secs(60));
+    assert!(table.starts_with("Fleet health: 2 pantographs"), "{table}");
+    demo.wait_line("demo prepared in", Duration::from_secs(60));
+    let (refresh, page) = fleet().await;
+    assert!(!refresh && !page.contains("Fitting: "), "{page}");
+    for serial in ["160EC-0101", "160EC-0102"] {
+        assert!(page.contains(serial), "{serial}: {page}");
+    }
+    let st = std::process::Command::new("kill")
+        .args(["-TERM", &demo.child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let end = Instant::now() + Duration::from_secs(30);
+    let exit = loop {
+        if let Some(st) = demo.child.try_wait().unwrap() {
+            break st;
+        }
+        assert!(Instant::now() < end, "the demo did not stop on SIGTERM");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    assert!(exit.success(), "{exit}");
+    eprintln!(
+        "demo (1 vehicle, 2 months, 1 worker): first answer {:.2} s, {total} fits done {:.1} s after the start, {} polls",
+        first_answer.as_secs_f64(),
+        fitted.as_secs_f64(),
+        counts.len()
+    );
+}

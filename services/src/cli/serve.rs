@@ -91,7 +91,7 @@ pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
 }
 
 /// How long the exit waits for blocking work left running after the shutdown grace period.
-const ABANDONED_FIT_WAIT: std::time::Duration = std::time::Duration::from_millis(200);
+pub const ABANDONED_FIT_WAIT: std::time::Duration = std::time::Duration::from_millis(200);
 
 #[derive(Debug, clap::Args)]
 pub struct WorkerArgs {

@@ -144,6 +144,12 @@ pub fn baseline(joint: &str) -> anyhow::Result<(f64, f64)> {
 
 /// Every test of the year, in time order within each pantograph.
 pub fn plan(vehicles: usize) -> anyhow::Result<Vec<PlannedTest>> {
+    plan_months(vehicles, MONTHS)
+}
+
+/// The tests of the year's first `months` months (at most [`MONTHS`]): `demo --months`, a
+/// shorter look at the same fleet — each test as in the whole year's plan.
+pub fn plan_months(vehicles: usize, months: usize) -> anyhow::Result<Vec<PlannedTest>> {
     let mut baselines = std::collections::HashMap::new();
     for j in PENDULUM_JOINTS.iter().chain(&["J8"]) {
         baselines.insert(*j, baseline(j)?);
@@ -160,7 +166,7 @@ pub fn plan(vehicles: usize) -> anyhow::Result<Vec<PlannedTest>> {
     let mut out = Vec::new();
     for p in pantographs(vehicles) {
         let k = p.index;
-        for m in 0..MONTHS {
+        for m in 0..months.min(MONTHS) {
             let (y, mo) = {
                 let z = START.1 as usize - 1 + m;
                 (START.0 + (z / 12) as i32, (z % 12) as u32 + 1)
@@ -340,6 +346,23 @@ mod tests {
         let ids: std::collections::HashSet<_> =
             plan.iter().map(|t| t.args.trace_id.clone()).collect();
         assert_eq!(ids.len(), plan.len(), "trace ids are unique");
+        // A shorter demo is the year's first months, test for test.
+        let two = plan_months(30, 2).expect("plan");
+        let first: Vec<_> = plan
+            .iter()
+            .filter(|t| {
+                let month = t.args.recorded_at.get(..7);
+                month == Some("2025-05") || month == Some("2025-06")
+            })
+            .map(|t| t.args.trace_id.clone())
+            .collect();
+        assert!(!two.is_empty());
+        assert_eq!(
+            two.iter()
+                .map(|t| t.args.trace_id.clone())
+                .collect::<Vec<_>>(),
+            first
+        );
         // Every pendulum joint is tested on every pantograph during the year.
         for p in &ps {
             for j in PENDULUM_JOINTS {

@@ -1,51 +1,58 @@
 //! `pantowatch demo`: a year of a synthetic fleet on a fresh SQLite database — synthesised,
 //! uploaded through the same path as `POST /v1/traces`, fitted by the worker pool on every core
-//! — then the fleet health table, the worst joints, and the API served on it.
+//! — with the fleet health table and the worst joints printed when every fit is done.
+//!
+//! Served (the default), the API and the web pages answer at once: the database is migrated,
+//! the service started on it and its URL and keys printed before the first trace is
+//! synthesised; the fleet is then uploaded in the background and fitted by the service's own
+//! workers, so the pages fill in as the fits complete (the fleet page shows how many are done,
+//! the terminal a bar). `--no-serve` fits the fleet with a worker pool of its own, prints the
+//! tables and exits.
 
 pub mod fleet;
+mod progress;
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use indicatif::MultiProgress;
 use tokio::sync::{Notify, Semaphore, watch};
 use tokio::task::JoinSet;
 
-use super::serve::runtime;
+use super::serve::{ABANDONED_FIT_WAIT, runtime};
 use super::simulate::simulate_doc;
-use crate::config::{LogFormat, LogSettings, SecretString, Settings, init_logging};
+use crate::config::{SecretString, Settings};
 use crate::ingest::{BodyFormat, Intake};
 use crate::server;
 use crate::store::{FleetFilter, Page, Role, Status, Store};
-use crate::worker::{JobEvent, OnJob, WorkerPool};
-use fleet::Param;
+use crate::worker::WorkerPool;
+use fleet::{Param, PlannedTest};
+use progress::Progress;
 
 #[derive(Debug, clap::Args)]
 pub struct DemoArgs {
     /// SQLite file to create (removed first if it exists).
     #[arg(long, default_value = "pantowatch-demo.db")]
     pub database: PathBuf,
-    /// Address the API is served on afterwards.
+    /// Address the API and the web pages are served on, from the start.
     #[arg(long, default_value = "127.0.0.1:8080")]
     pub listen: SocketAddr,
-    /// Stop after printing the tables (tests and CI).
+    /// Fit the fleet, print the tables and stop, serving nothing (tests and CI).
     #[arg(long)]
     pub no_serve: bool,
     /// Vehicles in the fleet (two pantographs each).
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u16).range(1..=1000))]
     pub vehicles: u16,
+    /// Months of tests, from the first of the year (a shorter look at the same fleet).
+    #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u8).range(1..=12))]
+    pub months: u8,
     /// Fitting workers while the fleet is fitted (default: every core).
     #[arg(long)]
     pub workers: Option<usize>,
-}
-
-fn style(template: &str) -> ProgressStyle {
-    ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_bar())
 }
 
 /// Removes a SQLite database and its WAL files.
@@ -65,21 +72,36 @@ fn remove_database(path: &Path) -> anyhow::Result<()> {
 }
 
 pub fn run(a: DemoArgs) -> anyhow::Result<()> {
-    init_logging(&LogSettings {
-        format: LogFormat::Text,
-        filter: "warn,pantowatch::http=info,pantowatch::server=info".into(),
-    });
-    runtime()?.block_on(demo(a))
+    let bars = MultiProgress::new();
+    progress::init_logging_above(&bars, "warn,pantowatch::http=info,pantowatch::server=info");
+    let rt = runtime()?;
+    let res = rt.block_on(demo(a, bars));
+    // A fit abandoned after the shutdown grace (its job released) must not hold the exit.
+    rt.shutdown_timeout(ABANDONED_FIT_WAIT);
+    res
 }
 
-async fn demo(a: DemoArgs) -> anyhow::Result<()> {
+/// The fleet to fit and what it was given, on its fresh store.
+struct Fleet {
+    store: Store,
+    plan: Vec<PlannedTest>,
+    /// A worn joint's true factor by trace id.
+    truth: HashMap<String, (Param, f64)>,
+    vehicles: usize,
+    workers: usize,
+    /// The demo's service settings: its database, `workers` fitting workers.
+    settings: Settings,
+}
+
+async fn demo(a: DemoArgs, bars: MultiProgress) -> anyhow::Result<()> {
     let t_all = Instant::now();
     let vehicles = usize::from(a.vehicles);
+    let months = usize::from(a.months);
     let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
     let workers = a.workers.unwrap_or(cores).max(1);
-    let plan = fleet::plan(vehicles)?;
+    let plan = fleet::plan_months(vehicles, months)?;
     let n = plan.len();
-    let truth: HashMap<String, (Param, f64)> = plan
+    let truth = plan
         .iter()
         .filter_map(|t| Some((t.args.trace_id.clone()?, t.true_factor?)))
         .collect();
@@ -93,73 +115,173 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
         .await
         .with_context(|| format!("creating {db}"))?;
     println!(
-        "pantowatch demo: {vehicles} vehicles × 2 pantographs × {} months (monthly lift, quarterly workshop, force gauge twice on every fourth pantograph) = {n} tests, \
-         database {db}, {workers} fitting workers",
-        fleet::MONTHS
+        "pantowatch demo: {vehicles} vehicles × 2 pantographs × {months} months (monthly lift, quarterly workshop, force gauge twice on every fourth pantograph) = {n} tests, \
+         database {db}, {workers} fitting workers"
     );
-
-    // Fitting runs while the fleet is uploaded: the workers wake on each upload.
-    let bars = MultiProgress::new();
-    let up_bar = bars.add(ProgressBar::new(n as u64));
-    up_bar.set_style(style(
-        "{prefix:>9} [{bar:40}] {pos}/{len} {per_sec:>10} {elapsed}",
-    ));
-    up_bar.set_prefix("upload");
-    let fit_bar = bars.add(ProgressBar::new(n as u64));
-    fit_bar.set_style(style(
-        "{prefix:>9} [{bar:40}] {pos}/{len} {per_sec:>10} {elapsed} {msg}",
-    ));
-    fit_bar.set_prefix("fit");
-    let failed = Arc::new(AtomicUsize::new(0));
-    let on_job: OnJob = {
-        let (bar, failed) = (fit_bar.clone(), failed.clone());
-        Arc::new(move |ev: &JobEvent| {
-            match ev {
-                JobEvent::Failed { .. } => {
-                    failed.fetch_add(1, Ordering::Relaxed);
-                    bar.set_message(format!("{} failed", failed.load(Ordering::Relaxed)));
-                }
-                JobEvent::LeaseLost { .. } | JobEvent::Released { .. } => return,
-                JobEvent::Done { .. } => {}
-            }
-            bar.inc(1);
-        })
-    };
     let settings = Settings {
         listen: a.listen,
-        workers: 2,
+        workers,
         database: crate::config::DatabaseSettings {
-            url: SecretString::new(db.clone()),
+            url: SecretString::new(db),
             ..Default::default()
         },
         ..Settings::default()
     };
-    let mut pool_opts = server::worker_options(&settings, workers);
+    let f = Fleet {
+        store: store.clone(),
+        plan,
+        truth,
+        vehicles,
+        workers,
+        settings,
+    };
+    let res = if a.no_serve {
+        fit_then_exit(f, &bars, t_all).await
+    } else {
+        serve_while_fitting(f, &bars, t_all).await
+    };
+    store.close().await;
+    res
+}
+
+/// `--no-serve`: the fleet fitted by a worker pool of the demo's own, the tables, the end.
+async fn fit_then_exit(f: Fleet, bars: &MultiProgress, t_all: Instant) -> anyhow::Result<()> {
+    let progress = Progress::new(bars, f.plan.len());
+    let mut pool_opts = server::worker_options(&f.settings, f.workers);
     pool_opts.poll = Duration::from_millis(100);
     let wake = Arc::new(Notify::new());
     let (stop_tx, stop_rx) = watch::channel(false);
     let pool = WorkerPool::spawn(
-        store.clone(),
+        f.store.clone(),
         pool_opts,
         wake.clone(),
         stop_rx,
-        Some(on_job),
+        Some(progress.on_job()),
     );
+    let intake = Intake::new(f.store.clone(), wake);
+    let filled = fill(&f, &intake, &progress).await;
+    let _ = stop_tx.send(true);
+    pool.join().await;
+    report(&f, &progress, filled?).await?;
+    println!("demo prepared in {:.1} s", t_all.elapsed().as_secs_f64());
+    Ok(())
+}
 
-    let t_fit = Instant::now();
+/// Served: the service started on the fresh store first (its URL and keys printed), then the
+/// fleet uploaded in the background and fitted by the service's workers; the tables when every
+/// fit is done; serving until Ctrl-C or SIGTERM.
+async fn serve_while_fitting(f: Fleet, bars: &MultiProgress, t_all: Instant) -> anyhow::Result<()> {
+    let store = &f.store;
+    let (_, reader) = store.create_api_key(Role::Reader, "demo reader").await?;
+    let (_, writer) = store.create_api_key(Role::Writer, "demo writer").await?;
+    let listen = f.settings.listen;
+    let listener = tokio::net::TcpListener::bind(listen)
+        .await
+        .with_context(|| format!("binding {listen} (choose another with --listen)"))?;
+    let url = format!("http://{}", listener.local_addr()?);
+
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let stop_tx = Arc::new(stop_tx);
+    tokio::spawn({
+        let stop_tx = stop_tx.clone();
+        async move {
+            server::shutdown_signal().await;
+            let _ = stop_tx.send(true);
+        }
+    });
+    let progress = Progress::new(bars, f.plan.len());
+    let wake = Arc::new(Notify::new());
+    let hooks = server::Hooks {
+        wake: Some(wake.clone()),
+        on_job: Some(progress.on_job()),
+    };
+    let mut server = tokio::spawn({
+        let (store, settings, mut stop) = (store.clone(), f.settings.clone(), stop_rx.clone());
+        let stopped = async move {
+            let _ = stop.wait_for(|s| *s).await;
+        };
+        async move { server::run_with(listener, store, &settings, stopped, hooks).await }
+    });
+    bars.suspend(|| {
+        println!(
+            "Serving the API on {url}   (OpenAPI document: {url}/openapi.json), {:.1} s after the start",
+            t_all.elapsed().as_secs_f64()
+        );
+        println!("  reader key: {reader}");
+        println!("  writer key: {writer}   (uploads)");
+        println!(
+            "  try: curl -H \"Authorization: Bearer {reader}\" '{url}/v1/fleet/health?status=alarm'"
+        );
+        println!(
+            "Web pages: {url}/  (sign in with the reader or writer key; the fleet page fills in as \
+             the fits complete)"
+        );
+        println!(
+            "Fitting the fleet in the background; the tables follow when every fit is done. \
+             Ctrl-C stops it."
+        );
+    });
+
     let intake = Intake::new(store.clone(), wake);
-    let permits = Arc::new(Semaphore::new(2 * workers));
+    let mut stopped = stop_rx.clone();
+    let fitted = tokio::select! {
+        r = async {
+            let filled = fill(&f, &intake, &progress).await?;
+            report(&f, &progress, filled).await
+        } => Some(r),
+        // Ctrl-C while the fleet is fitted: the service stops (fits in flight finish or are
+        // released), the rest of the fleet is not uploaded.
+        _ = stopped.wait_for(|s| *s) => None,
+        // The service ended by itself (it could not start): its error.
+        r = &mut server => {
+            progress.upload.abandon();
+            progress.fit.abandon();
+            return r.context("the service task")?;
+        }
+    };
+    match fitted {
+        Some(Ok(())) => {
+            crate::web::print_banner(store, &url).await?;
+            println!(
+                "demo prepared in {:.1} s; still serving on {url} — Ctrl-C stops it.",
+                t_all.elapsed().as_secs_f64()
+            );
+        }
+        Some(Err(e)) => {
+            let _ = stop_tx.send(true);
+            let _ = server.await;
+            return Err(e);
+        }
+        None => {
+            progress.upload.abandon();
+            progress.fit.abandon();
+        }
+    }
+    server.await.context("the service task")?
+}
+
+/// What [`fill`] took.
+struct Filled {
+    upload: Duration,
+    fitted: Duration,
+}
+
+/// Synthesises the fleet's tests and uploads each through `intake` (the upload path of
+/// `POST /v1/traces`: parse, validate, store, queue the fit — the workers wake on each), a few
+/// at a time; then waits until no job is queued or running.
+async fn fill(f: &Fleet, intake: &Intake, progress: &Progress) -> anyhow::Result<Filled> {
+    let t0 = Instant::now();
+    let permits = Arc::new(Semaphore::new(2 * f.workers));
     let mut uploads = JoinSet::new();
-    for test in plan {
+    for test in f.plan.iter().cloned() {
         let permit = permits.clone().acquire_owned().await?;
-        let (intake, bar) = (intake.clone(), up_bar.clone());
+        let (intake, bar) = (intake.clone(), progress.upload.clone());
         uploads.spawn(async move {
             let body = tokio::task::spawn_blocking(move || -> anyhow::Result<Vec<u8>> {
                 let doc = simulate_doc(&test.args)?;
                 Ok(serde_json::to_vec(&doc.to_value())?)
             })
             .await??;
-            // The upload path of POST /v1/traces: parse, validate, store, queue the fit.
             intake.upload(BodyFormat::Json, body.into()).await?;
             drop(permit);
             bar.inc(1);
@@ -172,57 +294,32 @@ async fn demo(a: DemoArgs) -> anyhow::Result<()> {
     while let Some(r) = uploads.join_next().await {
         r??;
     }
-    up_bar.finish();
-    let t_upload = t_fit.elapsed();
-    crate::worker::wait_until_drained(&store, Duration::from_millis(50)).await?;
-    let _ = stop_tx.send(true);
-    pool.join().await;
-    fit_bar.finish();
-    let t_fitted = t_fit.elapsed();
-    let counts = store.counts().await?;
+    progress.upload.finish();
+    let upload = t0.elapsed();
+    crate::worker::wait_until_drained(&f.store, Duration::from_millis(50)).await?;
+    progress.fit.finish();
+    Ok(Filled {
+        upload,
+        fitted: t0.elapsed(),
+    })
+}
+
+/// What was stored and fitted, then the fleet health table and the worst joints.
+async fn report(f: &Fleet, progress: &Progress, filled: Filled) -> anyhow::Result<()> {
+    let counts = f.store.counts().await?;
     println!(
         "uploaded {} traces in {:.1} s; {} fits written, {} failed, all done {:.1} s after the first \
          upload ({:.0} traces/s synthesised, stored and fitted)",
         counts.traces,
-        t_upload.as_secs_f64(),
+        filled.upload.as_secs_f64(),
         counts.fits,
-        failed.load(Ordering::Relaxed),
-        t_fitted.as_secs_f64(),
-        counts.traces as f64 / t_fitted.as_secs_f64()
+        progress.failed(),
+        filled.fitted.as_secs_f64(),
+        counts.traces as f64 / filled.fitted.as_secs_f64()
     );
-
-    print_fleet(&store, vehicles).await?;
-    print_worst(&store, &truth).await?;
-    println!("demo prepared in {:.1} s", t_all.elapsed().as_secs_f64());
-
-    if a.no_serve {
-        store.close().await;
-        return Ok(());
-    }
-    let (_, reader) = store.create_api_key(Role::Reader, "demo reader").await?;
-    let (_, writer) = store.create_api_key(Role::Writer, "demo writer").await?;
-    let listener = tokio::net::TcpListener::bind(a.listen)
-        .await
-        .with_context(|| format!("binding {} (choose another with --listen)", a.listen))?;
-    let url = format!("http://{}", listener.local_addr()?);
-    println!();
-    println!("Serving the API on {url}   (OpenAPI document: {url}/openapi.json)");
-    println!("  reader key: {reader}");
-    println!("  writer key: {writer}   (uploads)");
-    println!(
-        "  try: curl -H \"Authorization: Bearer {reader}\" '{url}/v1/fleet/health?status=alarm'"
-    );
-    crate::web::print_banner(&store, &url).await?;
-    println!("Ctrl-C stops it.");
-    let res = server::run(
-        listener,
-        store.clone(),
-        &settings,
-        server::shutdown_signal(),
-    )
-    .await;
-    store.close().await;
-    res
+    print_fleet(&f.store, f.vehicles).await?;
+    print_worst(&f.store, &f.truth).await?;
+    Ok(())
 }
 
 fn status_str(s: Option<Status>) -> &'static str {

@@ -4,6 +4,7 @@
 use std::collections::HashMap;
 
 use axum::extract::State;
+use axum::http::HeaderName;
 use chrono::{DateTime, Utc};
 use maud::{Markup, html};
 
@@ -11,7 +12,7 @@ use crate::alerts::Evidence;
 use crate::api::auth::WebUser;
 use crate::api::error::AppError;
 use crate::api::state::AppState;
-use crate::store::{Alert, AlertFilter, FleetFilter, Page, Status};
+use crate::store::{Alert, AlertFilter, FleetFilter, JobCounts, Page, Status};
 use crate::web::layout::badge;
 use crate::web::{PageResult, day, seg, signed_in_page};
 
@@ -22,10 +23,42 @@ fn alert_forecast(a: &Alert) -> Option<DateTime<Utc>> {
 }
 
 pub async fn fleet_page(State(st): State<AppState>, user: WebUser) -> PageResult {
-    signed_in_page(&user, "Fleet", fleet(&st).await)
+    let jobs = st.store.job_counts().await;
+    let fitting = matches!(&jobs, Ok(c) if c.queued + c.running > 0);
+    let body = match jobs {
+        Ok(jobs) => fleet(&st, jobs).await,
+        Err(e) => Err(e.into()),
+    };
+    let mut page = signed_in_page(&user, "Fleet", body)?;
+    if fitting {
+        // The browser reloads the page while fits are queued (the demo's fleet filling in).
+        page.headers_mut()
+            .insert(HeaderName::from_static("refresh"), RELOAD_SECS.into());
+    }
+    Ok(page)
 }
 
-async fn fleet(st: &AppState) -> Result<Markup, AppError> {
+/// How often the fleet page reloads itself while fits are queued or running.
+const RELOAD_SECS: u16 = 10;
+
+/// While fits are queued or running (the demo filling its fleet, a re-fit): how many of the
+/// queue's jobs are done, read from the store.
+fn fits_in_progress(c: JobCounts) -> Markup {
+    let total = c.queued + c.running + c.done + c.failed;
+    html! {
+        @if c.queued + c.running > 0 {
+            p.msg #fits-in-progress role="status" {
+                "Fitting: " (c.done + c.failed) " of " (total) " fits done ("
+                (c.running) " running, " (c.queued) " queued"
+                @if c.failed > 0 { ", " (c.failed) " failed" }
+                "). The fleet fills in as they complete; this page reloads every "
+                (RELOAD_SECS) " s."
+            }
+        }
+    }
+}
+
+async fn fleet(st: &AppState, jobs: JobCounts) -> Result<Markup, AppError> {
     let fleet = st
         .store
         .fleet_health(
@@ -71,6 +104,7 @@ async fn fleet(st: &AppState) -> Result<Markup, AppError> {
     let n = |s: Status| rows.iter().filter(|r| r.0.worst_status == Some(s)).count();
     Ok(html! {
         h1 { "Fleet" }
+        (fits_in_progress(jobs))
         p {
             (rows.len()) " pantographs: " (n(Status::Alarm)) " alarm, " (n(Status::Watch))
             " watch, " (n(Status::Ok)) " ok, " (n(Status::Unknown)) " unknown. "
