@@ -2,14 +2,19 @@
 # The OpenAPI document is the contract (issue 39, point 2), checked two ways:
 #  1. `openapi-spec-validator` on the committed services/openapi.json (which the test
 #     `openapi_snapshot` keeps equal to the served one) and on the document the server serves;
-#  2. Schemathesis (`st run --checks all`, every phase) against the real service — `pantowatch
+#  2. Schemathesis (`st run --checks all` but one, every phase) against the real service — `pantowatch
 #     serve` on a fresh SQLite database, an admin key from `pantowatch keys create` — with a budget
 #     of ST_MAX_EXAMPLES cases per operation (default 40: 25 operations, about 2 min on 2 busy
 #     cores). Any failure fails the script.
 #
+# The one check left out, `use_after_free`: deleting a webhook subscription tombstones it — it
+# stays in `GET /v1/admin/webhooks` with its `deleted_at` and its delivery log stays readable (why
+# its pending deliveries failed), as the operation's description states; that log is the only
+# read below a DELETE in this API (no key is read by its id), so the check has nothing else to
+# look at. What else differs from Schemathesis's defaults is in scripts/schemathesis.toml.
+#
 # The service runs as configured by default but for two settings, each stated here:
-#  - `--workers 0`: no fit runs (a generated trace that happens to be valid stays queued);
-#    fitting is not what this checks, and it would take the cores the fuzzer needs.
+#  - `--workers 1`: one fitting worker (the two example fits below run before the fuzzer starts).
 #  - the rate limit raised from 20/s (bursts of 100) to 1000/s (bursts of 5000): the fuzzer sends
 #    one key's requests far faster than 20/s, and 429s would take the place of the answers under
 #    test. The 429 itself is documented on every rate-limited operation (components.responses.
@@ -48,7 +53,7 @@ cleanup() {
 trap cleanup EXIT
 
 db="$tmp/schemathesis.db"
-export PANTOWATCH__LOG__LEVEL=warn
+export PANTOWATCH__LOG__FILTER=warn
 "$bin" migrate --database "$db" >/dev/null
 python3 - "$db" <<'EOF'
 import sqlite3, sys
@@ -61,7 +66,7 @@ key=$("$bin" keys create --database "$db" --role admin --label schemathesis 2>/d
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 url="http://127.0.0.1:$port"
 PANTOWATCH__HTTP__RATE_LIMIT_PER_S=1000 PANTOWATCH__HTTP__RATE_LIMIT_BURST=5000 \
-    "$bin" serve --database "$db" --listen "127.0.0.1:$port" --workers 0 2>"$tmp/serve.log" &
+    "$bin" serve --database "$db" --listen "127.0.0.1:$port" --workers 1 2>"$tmp/serve.log" &
 pid=$!
 for _ in $(seq 1 150); do
     curl -fsS "$url/readyz" >/dev/null 2>&1 && break
@@ -70,13 +75,29 @@ for _ in $(seq 1 150); do
 done
 curl -fsS "$url/readyz" >/dev/null || { echo "schemathesis.sh: /readyz never answered" >&2; exit 1; }
 
+# Something to find: two shipped example traces (a baseline and a joint whose dry friction is
+# ×1.8, which opens an alert), fitted before the run, so that the trace, vehicle, joint, static
+# force and alert routes answer 200 with their real bodies for the ids in schemathesis.toml.
+for example in J1_baseline J3_dry_x1.8; do
+    curl -fsS -o /dev/null -H "Authorization: Bearer $key" -H 'Content-Type: application/json' \
+        --data-binary "@../shared/data/examples/$example.json" "$url/v1/traces"
+    for _ in $(seq 1 600); do
+        code=$(curl -sS -o /dev/null -w '%{http_code}' -H "Authorization: Bearer $key" \
+            "$url/v1/traces/example-$example/fit")
+        [ "$code" = 200 ] && break
+        sleep 0.5
+    done
+    [ "$code" = 200 ] || { echo "schemathesis.sh: example-$example was not fitted" >&2; exit 1; }
+done
+
 curl -fsS "$url/openapi.json" >"$tmp/served.json"
 echo "schemathesis.sh: openapi-spec-validator (the served document)"
 openapi-spec-validator "$tmp/served.json"
 
-echo "schemathesis.sh: st run --checks all --max-examples $MAX_EXAMPLES --seed $SEED"
+echo "schemathesis.sh: st run --checks all --exclude-checks use_after_free --max-examples $MAX_EXAMPLES --seed $SEED"
 st --config-file scripts/schemathesis.toml run "$url/openapi.json" \
     --checks all \
+    --exclude-checks use_after_free \
     --max-examples "$MAX_EXAMPLES" \
     --seed "$SEED" \
     --workers 2 \

@@ -200,11 +200,19 @@ fn not_found(id: &TraceId) -> AppError {
 /// the background: follow `links.fit`. Uploading the same `trace_id` with the same content
 /// answers the same; with other content, 409.
 #[utoipa::path(post, path = "/v1/traces", tag = "traces",
-    request_body(description = "A trace document (JSON) or the CSV logger shape",
+    request_body(description = "A trace document (JSON, `application/json`) or the CSV a data \
+        logger writes (`text/csv`): `# key: value` metadata lines (the document's field paths: \
+        `format`, `trace_id`, `vehicle_id`, `pantograph.model`, `pantograph.serial`, \
+        `recorded_at`, `test.kind`, `test.joint`, `test.rig`, `test.protocol`, \
+        `test.gauge_resolution_n`), a header row of channel names with `t_s` first, then one row \
+        per sample, separated by `,` (or `;` with a decimal comma). A CSV not of this shape is \
+        400; either form breaking a rule of the trace format (../shared/contract/TRACE_FORMAT.md: \
+        `t_s` strictly increasing, channels of one length, the kind's channels, finite values, \
+        rig values within the type's limits) is 422.",
         content((TraceDocument = "application/json"), (String = "text/csv"))),
     responses(
         (status = 202, description = "Stored; its fit is queued", body = TraceAccepted),
-        (status = 400, description = "Not JSON / not CSV of the documented shape", body = Problem, content_type = "application/problem+json"),
+        (status = 400, description = "Not JSON, or not CSV of the shape the request body describes (`field` names the line or field)", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "The trace_id is stored with other content", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body larger than the limit", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "Neither application/json nor text/csv", body = Problem, content_type = "application/problem+json"),

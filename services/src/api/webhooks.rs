@@ -168,10 +168,12 @@ pub async fn delete_webhook(
 }
 
 /// The delivery log of a subscription: newest first, each with attempts, last status and error.
+/// A deleted subscription keeps its log (it is listed with its `deleted_at`, and its pending
+/// deliveries show why they failed): only an id never created is 404.
 #[utoipa::path(get, path = "/v1/admin/webhooks/{id}/deliveries", tag = "admin",
     params(("id" = i64, Path, description = "webhook id")),
     responses(
-        (status = 200, description = "The newest deliveries", body = DeliveryLog),
+        (status = 200, description = "The newest deliveries, of a live or deleted subscription", body = DeliveryLog),
     ),
     security(("bearer" = ["admin"])))]
 pub async fn list_deliveries(
