@@ -8,7 +8,10 @@ use std::borrow::Cow;
 
 use utoipa::openapi::header::HeaderBuilder;
 use utoipa::openapi::path::{Operation, ParameterIn};
-use utoipa::openapi::schema::{AllOfBuilder, ObjectBuilder, Schema, Type};
+use utoipa::openapi::schema::{
+    AllOfBuilder, ArrayBuilder, KnownFormat, ObjectBuilder, OneOfBuilder, Schema, SchemaFormat,
+    Type,
+};
 use utoipa::openapi::{ContentBuilder, OpenApi, Ref, RefOr, ResponseBuilder};
 use utoipa::{PartialSchema, ToSchema};
 
@@ -178,9 +181,17 @@ impl ToSchema for JointName {
     }
 }
 
-/// The shared answers: name in `components.responses`, status, description, and the header
-/// it carries.
-const SHARED: [(&str, &str, &str, Option<(&str, &str)>); 13] = [
+/// A shared answer: name in `components.responses`, status, description, and the header it
+/// carries (name, description).
+type Shared = (
+    &'static str,
+    &'static str,
+    &'static str,
+    Option<(&'static str, &'static str)>,
+);
+
+/// The shared answers.
+const SHARED: [Shared; 13] = [
     (
         "BadRequest",
         "400",
@@ -367,6 +378,97 @@ pub fn add_shared_answers(doc: &mut OpenApi) {
     }
 }
 
+/// The evidence an alert carries, by what raised it (`crate::alerts`): a joint's status or
+/// forecast; the static-force prediction against the type's limits; a finding a fit names on
+/// the measuring chain or the spring (`H sensor`, `force gauge`, `spring rate`). Every part is
+/// a schema of its own type (the fit result's, fleet health's, the static force's); this lists
+/// which parts each kind holds, as `crate::alerts` writes them.
+fn alert_evidence() -> Schema {
+    let r = |name: &str| RefOr::Ref(Ref::from_schema_name(name));
+    let string = || ObjectBuilder::new().schema_type(Type::String);
+    let integer = || ObjectBuilder::new().schema_type(Type::Integer);
+    let number = || ObjectBuilder::new().schema_type(Type::Number);
+    let list = |name: &str| ArrayBuilder::new().items(r(name));
+    let date_time = || string().format(Some(SchemaFormat::KnownFormat(KnownFormat::DateTime)));
+    let common = |o: ObjectBuilder| {
+        o.property("fit_id", integer())
+            .property("trace_id", r("TraceId"))
+            .property("recorded_at", date_time())
+            .required("fit_id")
+            .required("trace_id")
+            .required("recorded_at")
+    };
+    let joint = common(ObjectBuilder::new())
+        .title(Some("Joint"))
+        .description(Some(
+            "A joint's status (`watch`, `alarm`) or its forecast crossing",
+        ))
+        .property("model_version", string())
+        .property("status", r("Status"))
+        .property("viscous", r("ParamResult"))
+        .property("dry", r("ParamResult"))
+        .property("residual", r("ResidualResult"))
+        .property("rmse", r("Quantity"))
+        .property("trends", list("ParamTrend"))
+        .property("horizon_days", number())
+        .property("tests", integer().minimum(Some(0)))
+        .required("model_version")
+        .required("status")
+        .required("viscous")
+        .required("dry")
+        .required("residual")
+        .required("rmse")
+        .required("trends")
+        .required("horizon_days")
+        .required("tests");
+    let static_force = common(ObjectBuilder::new())
+        .title(Some("StaticForce"))
+        .description(Some(
+            "The predicted static contact force leaves the type's limits (`static force`)",
+        ))
+        .property("findings", list("FindingView"))
+        .property("parameters", list("MuSource"))
+        .property("limits", r("LimitsView"))
+        .required("findings")
+        .required("parameters")
+        .required("limits");
+    let finding = common(ObjectBuilder::new())
+        .title(Some("Finding"))
+        .description(Some(
+            "An effect a fit names on the measuring chain or the spring (`H sensor`, \
+             `force gauge`, `spring rate`)",
+        ))
+        .property("model_version", string())
+        .property("effect", r("EffectResult"))
+        .property("residual", r("ResidualResult"))
+        .required("model_version")
+        .required("effect")
+        .required("residual");
+    OneOfBuilder::new()
+        .item(joint)
+        .item(static_force)
+        .item(finding)
+        .description(Some(
+            "Why the alert stands: model version, fit, parameters with intervals and baseline, \
+             residual, trends and forecast — by the kind of alert",
+        ))
+        .into()
+}
+
+/// Types `Alert.evidence` (stored as JSON, `store::alerts`) by [`alert_evidence`].
+pub fn add_alert_evidence(doc: &mut OpenApi) {
+    let components = doc.components.get_or_insert_with(Default::default);
+    components
+        .schemas
+        .insert("AlertEvidence".into(), RefOr::T(alert_evidence()));
+    if let Some(RefOr::T(Schema::Object(alert))) = components.schemas.get_mut("Alert") {
+        alert.properties.insert(
+            "evidence".into(),
+            RefOr::Ref(Ref::from_schema_name("AlertEvidence")),
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -494,6 +596,66 @@ mod tests {
             );
         }
         assert!(checked > 60_000, "{checked}");
+    }
+
+    /// Every answer of every operation has its description (OpenAPI 3.1 requires one; the
+    /// validator's 39 errors were responses without), and every refusal is a problem document.
+    /// Each `/v1` operation names its scheme and least role and answers 401, 429 and 5xx; 403
+    /// exactly when the role is above reader; 404 when the path names something; the body's
+    /// 413/415/422 when it takes one.
+    #[test]
+    fn every_operation_states_its_security_and_every_answer() {
+        let doc = serde_json::to_value(crate::api::openapi()).expect("doc");
+        let shared = &doc["components"]["responses"];
+        let mut operations = 0;
+        for (path, item) in doc["paths"].as_object().expect("paths") {
+            for (method, op) in item.as_object().expect("item") {
+                operations += 1;
+                let what = format!("{method} {path}");
+                let responses = op["responses"].as_object().expect("responses");
+                for (status, r) in responses {
+                    let r = match r["$ref"].as_str() {
+                        Some(to) => &shared[to.rsplit('/').next().expect("name")],
+                        None => r,
+                    };
+                    let text = r["description"].as_str().unwrap_or("");
+                    assert!(!text.is_empty(), "{what} {status}: no description");
+                    if status.starts_with('4') || status.starts_with('5') {
+                        assert_eq!(
+                            r["content"][PROBLEM_JSON]["schema"]["$ref"],
+                            "#/components/schemas/Problem",
+                            "{what} {status}"
+                        );
+                    }
+                }
+                let has = |s: &str| responses.contains_key(s);
+                for s in ["414", "500", "503"] {
+                    assert!(has(s), "{what}: no {s}");
+                }
+                if !path.starts_with("/v1/") {
+                    assert!(op.get("security").is_none(), "{what} needs no key");
+                    continue;
+                }
+                let role = op["security"][0][BEARER][0].as_str().unwrap_or("");
+                assert!(
+                    ["reader", "writer", "admin"].contains(&role),
+                    "{what}: role {role:?}"
+                );
+                for s in ["401", "429"] {
+                    assert!(has(s), "{what}: no {s}");
+                }
+                assert_eq!(has("403"), role != "reader", "{what}: 403 and role {role}");
+                if path.contains('{') {
+                    assert!(has("400") && has("404"), "{what}: no 400/404");
+                }
+                if op.get("requestBody").is_some() {
+                    for s in ["400", "413", "415", "422", "507"] {
+                        assert!(has(s), "{what}: no {s}");
+                    }
+                }
+            }
+        }
+        assert_eq!(operations, 25);
     }
 
     #[test]

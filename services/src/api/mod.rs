@@ -75,6 +75,7 @@ pub fn routes() -> OpenApiRouter<AppState> {
         .merge(webhooks::router())
         .merge(ops::router());
     doc::add_shared_answers(router.get_openapi_mut());
+    doc::add_alert_evidence(router.get_openapi_mut());
     router
 }
 
