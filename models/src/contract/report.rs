@@ -15,10 +15,16 @@ pub const MODEL_VERSION: &str =
     "pantowatch-models/0.2 single-joint output-error LM; lift MAP (Rosenbrock-W); quadrangle MAP";
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct ParamResult {
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub value: f64,
     #[serde(deserialize_with = "nullable::pair")]
+    #[cfg_attr(
+        feature = "openapi",
+        schema(value_type = Vec<Option<f64>>, min_items = 2, max_items = 2)
+    )]
     pub ci95: [f64; 2],
     pub baseline: Option<f64>,
     pub unit: String,
@@ -35,12 +41,18 @@ pub struct ParamResult {
 /// It is also listed in `joints` under its label's joints (e.g. `J1+J3`), so health and alerts
 /// judge it like a joint.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct CombinationResult {
     pub label: String,
     pub members: Vec<CombinationMember>,
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub value: f64,
     #[serde(deserialize_with = "nullable::pair")]
+    #[cfg_attr(
+        feature = "openapi",
+        schema(value_type = Vec<Option<f64>>, min_items = 2, max_items = 2)
+    )]
     pub ci95: [f64; 2],
     pub identifiable: bool,
     pub status: Status,
@@ -48,15 +60,18 @@ pub struct CombinationResult {
 
 /// One member of a [`CombinationResult`].
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct CombinationMember {
     pub joint: String,
     /// `viscous` or `dry`.
     pub kind: String,
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub weight: f64,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct JointResult {
     pub joint: String,
     pub viscous: ParamResult,
@@ -66,13 +81,16 @@ pub struct JointResult {
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct Quantity {
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub value: f64,
     pub unit: String,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct EffectResult {
     pub name: String,
     pub params: serde_json::Map<String, serde_json::Value>,
@@ -100,15 +118,20 @@ impl EffectResult {
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct ResidualResult {
     pub effects: Vec<EffectResult>,
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub rmse_before: f64,
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub rmse_after: f64,
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub holdout_rmse_before: f64,
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub holdout_rmse_after: f64,
     /// `unexplained` when structure remains that no candidate explains; otherwise absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -119,6 +142,7 @@ pub struct ResidualResult {
         skip_serializing_if = "Vec::is_empty",
         deserialize_with = "nullable::named"
     )]
+    #[cfg_attr(feature = "openapi", schema(schema_with = schema::named_numbers))]
     pub correlates_with: Vec<(String, f64)>,
     /// Residual RMS over the sensor noise estimated from its first differences (lift fits,
     /// issue 16); absent where not computed.
@@ -143,6 +167,7 @@ pub struct ResidualResult {
         skip_serializing_if = "Vec::is_empty",
         deserialize_with = "nullable::lags"
     )]
+    #[cfg_attr(feature = "openapi", schema(schema_with = schema::number_pairs))]
     pub autocorrelation: Vec<(f64, f64)>,
     /// With a named lift effect: the plain model's residual autocorrelation, the same lags.
     #[serde(
@@ -150,6 +175,7 @@ pub struct ResidualResult {
         skip_serializing_if = "Vec::is_empty",
         deserialize_with = "nullable::lags"
     )]
+    #[cfg_attr(feature = "openapi", schema(schema_with = schema::number_pairs))]
     pub autocorrelation_before: Vec<(f64, f64)>,
 }
 
@@ -208,10 +234,12 @@ impl ReleaseDisturbance {
 
 /// How the fit was made: the release, the fitted start and sensor zero, the optimiser's end.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct FitDetails {
     pub model_version: String,
     /// Time of the first sample of free motion used in the fit.
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub release_t_s: f64,
     /// How the release was decided: `stated` (`test.release_t_s`), `first_sample`,
     /// `after_hold` or `turning_point` (`identify::release`).
@@ -230,6 +258,7 @@ pub struct FitDetails {
     pub release_rate: Quantity,
     pub sensor_offset: Quantity,
     #[serde(deserialize_with = "nullable::opt_pair")]
+    #[cfg_attr(feature = "openapi", schema(schema_with = schema::optional_interval))]
     pub sensor_offset_ci95: Option<[f64; 2]>,
     /// Input-driven tests whose position has no reference (issue 17, point 3): the measured
     /// input's zero b — the force or torque acting is the recorded one + b — with its interval.
@@ -240,17 +269,21 @@ pub struct FitDetails {
         skip_serializing_if = "Option::is_none",
         deserialize_with = "nullable::opt_pair"
     )]
+    #[cfg_attr(feature = "openapi", schema(schema_with = schema::optional_interval))]
     pub input_offset_ci95: Option<[f64; 2]>,
     pub samples_fitted: usize,
     pub termination: String,
     pub iterations: usize,
     /// Residual lag-1 autocorrelation and the interval inflation applied for it.
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub residual_rho1: f64,
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub interval_inflation: f64,
     /// Correlation of the viscous and dry estimates.
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub viscous_dry_correlation: f64,
     /// The rig's stated body uncertainties (issue 17, point 1) as the intervals carry them;
     /// absent when the rig states none (single-joint fits only).
@@ -262,6 +295,7 @@ pub struct FitDetails {
 /// keyed by the quantity it qualifies as the rig names it (`mass_kg`, `inertia_kgm2`,
 /// `com_distance_m`, `moving_mass_kg`), valued by its stated sd in that quantity's unit.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct BodyUncertaintyResult {
     /// Propagated into every parameter's interval (`identify::body_uncertainty`).
     pub propagated: std::collections::BTreeMap<String, f64>,
@@ -294,6 +328,7 @@ impl BodyUncertaintyResult {
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct FitResult {
     pub trace_id: String,
     pub joints: Vec<JointResult>,
@@ -380,12 +415,63 @@ impl FitCurve {
 /// The tests a pooled fit combined: the friction shared but for each test's own J8 dry deviation
 /// (not reported), one torque offset per test (`lift::identify::POOLED_PER_TRACE`).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct PooledTests {
     /// Trace ids, newest first (the fit's `trace_id` is the first).
     pub trace_ids: Vec<String>,
     /// The window the tests were taken from, days before the newest.
     #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
     pub window_days: f64,
+}
+
+/// Schemas of the fields whose JSON shape the derive cannot spell: pairs (`[name, number]`,
+/// `[lag, ρ]`) and an optional interval. Every number may be `null`: serde_json writes a
+/// non-finite `f64` so.
+#[cfg(feature = "openapi")]
+mod schema {
+    use utoipa::openapi::schema::{ArrayBuilder, ArrayItems, ObjectBuilder, SchemaType, Type};
+    use utoipa::openapi::{Array, Object};
+
+    fn number() -> Object {
+        ObjectBuilder::new()
+            .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
+            .build()
+    }
+
+    fn pairs(first: Object, description: &str) -> Array {
+        let pair = ArrayBuilder::new()
+            .prefix_items([first, number()])
+            .items(ArrayItems::False)
+            .min_items(Some(2))
+            .max_items(Some(2));
+        ArrayBuilder::new()
+            .items(pair)
+            .description(Some(description))
+            .build()
+    }
+
+    /// `[[name, correlation], …]`.
+    pub fn named_numbers() -> Array {
+        let name = ObjectBuilder::new().schema_type(Type::String).build();
+        pairs(name, "`[signal name, correlation]` pairs")
+    }
+
+    /// `[[lag_s, rho], …]`.
+    pub fn number_pairs() -> Array {
+        pairs(number(), "`[lag s, autocorrelation]` pairs")
+    }
+
+    /// `[low, high]` or `null`.
+    pub fn optional_interval() -> Array {
+        ArrayBuilder::new()
+            .schema_type(SchemaType::from_iter([Type::Array, Type::Null]))
+            .items(number())
+            .min_items(Some(2))
+            .max_items(Some(2))
+            .description(Some("95 % interval `[low, high]`, or `null`"))
+            .build()
+    }
 }
 
 /// Reading back what serde_json writes: a non-finite `f64` is written as `null`, so a stored

@@ -30,8 +30,9 @@ pub fn router() -> OpenApiRouter<AppState> {
 #[serde(deny_unknown_fields)]
 pub struct NewKey {
     pub role: Role,
-    /// Free text: who or what uses the key.
+    /// Free text: who or what uses the key; at most 256 characters, no control characters.
     #[serde(default)]
+    #[schema(max_length = 256, pattern = "^[^\\x00-\\x1F\\x7F-\\x9F]*$")]
     pub label: String,
 }
 
@@ -56,11 +57,10 @@ pub struct KeyList {
 #[utoipa::path(post, path = "/v1/admin/keys", tag = "admin",
     request_body = NewKey,
     responses(
-        (status = 201, body = CreatedKey),
+        (status = 201, description = "The key, shown this once", body = CreatedKey),
         (status = 400, description = "A bad role or label", body = Problem, content_type = "application/problem+json"),
-        (status = 415, body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["admin"])))]
 pub async fn create_key(
     State(st): State<AppState>,
     _auth: Admin,
@@ -89,8 +89,8 @@ pub async fn create_key(
 
 /// Every key, revoked ones included.
 #[utoipa::path(get, path = "/v1/admin/keys", tag = "admin",
-    responses((status = 200, body = KeyList)),
-    security(("bearer" = [])))]
+    responses((status = 200, description = "Every key", body = KeyList)),
+    security(("bearer" = ["admin"])))]
 pub async fn list_keys(
     State(st): State<AppState>,
     _auth: Admin,
@@ -105,10 +105,9 @@ pub async fn list_keys(
     params(("id" = i64, Path, description = "key id")),
     responses(
         (status = 204, description = "Revoked"),
-        (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such key, or already revoked", body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["admin"])))]
 pub async fn revoke_key(
     State(st): State<AppState>,
     _auth: Admin,
@@ -130,6 +129,7 @@ pub async fn revoke_key(
 #[serde(deny_unknown_fields)]
 pub struct RefitRequest {
     /// Only this vehicle's traces (default: all).
+    #[schema(value_type = Option<VehicleId>)]
     pub vehicle_id: Option<String>,
 }
 
@@ -145,11 +145,9 @@ pub struct RefitQueued {
 #[utoipa::path(post, path = "/v1/admin/refit", tag = "admin",
     request_body = RefitRequest,
     responses(
-        (status = 202, body = RefitQueued),
-        (status = 400, body = Problem, content_type = "application/problem+json"),
-        (status = 415, body = Problem, content_type = "application/problem+json"),
+        (status = 202, description = "The re-fits queued", body = RefitQueued),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["admin"])))]
 pub async fn refit(
     State(st): State<AppState>,
     _auth: Admin,

@@ -23,16 +23,19 @@ pub fn router() -> OpenApiRouter<AppState> {
         .routes(routes!(resolve_alert))
 }
 
-/// Query of `GET /v1/alerts`.
+/// Query of `GET /v1/alerts`. A key given must hold a value of its kind (an empty one is
+/// refused, not read as absent).
 #[derive(Debug, Default, Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
 pub struct AlertQuery {
     /// `open`, `acknowledged`, `resolved`, or `live` (open or acknowledged).
+    #[param(value_type = Option<String>, pattern = "^(?:open|acknowledged|resolved|live)$")]
     pub state: Option<String>,
-    /// `watch` or `alarm`.
+    #[param(value_type = Option<Severity>)]
     pub severity: Option<String>,
     /// Only alerts of this vehicle.
+    #[param(value_type = Option<VehicleId>)]
     pub vehicle: Option<String>,
 }
 
@@ -53,8 +56,12 @@ pub struct AlertDetail {
 #[derive(Debug, Default, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AlertNote {
-    /// Free text, at most 2000 characters.
+    /// Free text, at most 2000 characters; no control characters but tab, CR and LF.
     #[serde(default)]
+    #[schema(
+        max_length = 2000,
+        pattern = "^[^\\x00-\\x08\\x0B\\x0C\\x0E-\\x1F\\x7F-\\x9F]*$"
+    )]
     pub note: String,
 }
 
@@ -83,8 +90,7 @@ fn check_note(note: &str) -> Result<(), AppError> {
 
 /// Parses an alert id from the path.
 pub fn parse_id(raw: &str) -> Result<i64, AppError> {
-    raw.trim()
-        .parse::<i64>()
+    raw.parse::<i64>()
         .map_err(|_| AppError::bad_parameter("id", "an alert id is a whole number"))
 }
 
@@ -129,7 +135,7 @@ pub async fn resolve(st: &AppState, key: &ApiKey, id: i64, note: &str) -> Result
 /// Parses the filter of `GET /v1/alerts`.
 pub fn filter(q: &AlertQuery) -> Result<AlertFilter, AppError> {
     let mut f = AlertFilter::default();
-    match q.state.as_deref().map(str::trim).filter(|s| !s.is_empty()) {
+    match q.state.as_deref() {
         None => {}
         Some("live") => f.live = true,
         Some(s) => {
@@ -141,18 +147,13 @@ pub fn filter(q: &AlertQuery) -> Result<AlertFilter, AppError> {
             })?)
         }
     }
-    if let Some(s) = q
-        .severity
-        .as_deref()
-        .map(str::trim)
-        .filter(|s| !s.is_empty())
-    {
+    if let Some(s) = q.severity.as_deref() {
         f.severity = Some(
             s.parse::<Severity>()
                 .map_err(|_| AppError::bad_parameter("severity", "must be watch or alarm"))?,
         );
     }
-    if let Some(v) = q.vehicle.as_deref().filter(|s| !s.is_empty()) {
+    if let Some(v) = q.vehicle.as_deref() {
         f.vehicle_id = Some(
             VehicleId::parse("vehicle", v)
                 .map_err(AppError::parameter_id)?
@@ -166,10 +167,10 @@ pub fn filter(q: &AlertQuery) -> Result<AlertFilter, AppError> {
 #[utoipa::path(get, path = "/v1/alerts", tag = "alerts",
     params(AlertQuery),
     responses(
-        (status = 200, body = AlertList),
+        (status = 200, description = "The alerts, newest first", body = AlertList),
         (status = 400, description = "A bad filter (`field` names it)", body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["reader"])))]
 pub async fn list_alerts(
     State(st): State<AppState>,
     _auth: Reader,
@@ -185,11 +186,9 @@ pub async fn list_alerts(
 #[utoipa::path(get, path = "/v1/alerts/{id}", tag = "alerts",
     params(("id" = i64, Path, description = "alert id")),
     responses(
-        (status = 200, body = AlertDetail),
-        (status = 400, body = Problem, content_type = "application/problem+json"),
-        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 200, description = "The alert and its history", body = AlertDetail),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["reader"])))]
 pub async fn get_alert(
     State(st): State<AppState>,
     _auth: Reader,
@@ -210,13 +209,10 @@ pub async fn get_alert(
     params(("id" = i64, Path, description = "alert id")),
     request_body = AlertNote,
     responses(
-        (status = 200, body = Alert),
-        (status = 400, body = Problem, content_type = "application/problem+json"),
-        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 200, description = "The alert as it is now", body = Alert),
         (status = 409, description = "Not open (acknowledged or resolved already)", body = Problem, content_type = "application/problem+json"),
-        (status = 415, body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["writer"])))]
 pub async fn acknowledge_alert(
     State(st): State<AppState>,
     auth: Writer,
@@ -232,13 +228,10 @@ pub async fn acknowledge_alert(
     params(("id" = i64, Path, description = "alert id")),
     request_body = AlertNote,
     responses(
-        (status = 200, body = Alert),
-        (status = 400, body = Problem, content_type = "application/problem+json"),
-        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 200, description = "The alert as it is now", body = Alert),
         (status = 409, description = "Resolved already", body = Problem, content_type = "application/problem+json"),
-        (status = 415, body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["writer"])))]
 pub async fn resolve_alert(
     State(st): State<AppState>,
     auth: Writer,

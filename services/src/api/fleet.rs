@@ -35,14 +35,14 @@ pub fn router() -> OpenApiRouter<AppState> {
 /// that informed it) and the findings against the type's limits (issue 20); with the latest
 /// force-gauge measurement's readings (`measured`) when the pantograph has one.
 #[utoipa::path(get, path = "/v1/pantographs/{serial}/static-force", tag = "fleet",
-    params(("serial" = String, Path, description = "pantograph serial")),
+    params(("serial" = Serial, Path, description = "pantograph serial")),
     responses(
-        (status = 200, body = crate::static_force::StaticForceView),
+        (status = 200, description = "The prediction, its bands and findings", body = crate::static_force::StaticForceView),
         (status = 400, description = "Malformed serial", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such pantograph, or its type has no static-force model", body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "The stored parameters give no static equilibrium", body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["reader"])))]
 pub async fn static_force(
     State(st): State<AppState>,
     _auth: Reader,
@@ -64,8 +64,8 @@ pub struct VehicleList {
 
 /// Every vehicle, by id, with its pantograph and trace counts and last test.
 #[utoipa::path(get, path = "/v1/vehicles", tag = "fleet",
-    responses((status = 200, body = VehicleList)),
-    security(("bearer" = [])))]
+    responses((status = 200, description = "Every vehicle", body = VehicleList)),
+    security(("bearer" = ["reader"])))]
 pub async fn list_vehicles(
     State(st): State<AppState>,
     _auth: Reader,
@@ -77,13 +77,12 @@ pub async fn list_vehicles(
 
 /// A vehicle, its pantographs as mounted now, and each joint's latest status.
 #[utoipa::path(get, path = "/v1/vehicles/{vehicle_id}", tag = "fleet",
-    params(("vehicle_id" = String, Path, description = "vehicle id")),
+    params(("vehicle_id" = VehicleId, Path, description = "vehicle id")),
     responses(
-        (status = 200, body = VehicleDetail),
+        (status = 200, description = "The vehicle and its pantographs", body = VehicleDetail),
         (status = 400, description = "Malformed vehicle id", body = Problem, content_type = "application/problem+json"),
-        (status = 404, body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["reader"])))]
 pub async fn get_vehicle(
     State(st): State<AppState>,
     _auth: Reader,
@@ -140,15 +139,15 @@ pub async fn joint_trends(
 /// forecast of the alarm-band crossing per parameter.
 #[utoipa::path(get, path = "/v1/pantographs/{serial}/joints/{joint}/history", tag = "fleet",
     params(
-        ("serial" = String, Path, description = "pantograph serial"),
-        ("joint" = String, Path, description = "J1 … J9, J2', custom"),
+        ("serial" = Serial, Path, description = "pantograph serial"),
+        ("joint" = JointName, Path, description = "J1 … J9, J2', custom"),
     ),
     responses(
-        (status = 200, body = JointHistory),
+        (status = 200, description = "The joint's fits, trends and forecasts", body = JointHistory),
         (status = 400, description = "Malformed serial or unknown joint", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such pantograph", body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["reader"])))]
 pub async fn joint_history(
     State(st): State<AppState>,
     _auth: Reader,
@@ -172,18 +171,23 @@ pub async fn joint_history(
     }))
 }
 
-/// Query of `GET /v1/fleet/health`.
+/// Query of `GET /v1/fleet/health`. A key given must hold a value of its kind (an empty one
+/// is refused, not read as absent).
 #[derive(Debug, Default, Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
 pub struct FleetQuery {
-    /// Only pantographs whose worst status is this: `alarm`, `watch`, `ok`, `unknown`.
+    /// Only pantographs whose worst status is this.
+    #[param(value_type = Option<Status>)]
     pub status: Option<String>,
     /// Only pantographs mounted on this vehicle now.
+    #[param(value_type = Option<VehicleId>)]
     pub vehicle: Option<String>,
-    /// Page size, 1–500 (default 50).
+    /// Page size (default 50).
+    #[param(value_type = Option<u32>, minimum = 1, maximum = 500)]
     pub limit: Option<String>,
     /// Rows to skip (default 0).
+    #[param(value_type = Option<u64>, minimum = 0, maximum = 9223372036854775807_u64)]
     pub offset: Option<String>,
 }
 
@@ -199,8 +203,7 @@ pub struct FleetHealth {
 }
 
 fn parse_num<T: std::str::FromStr>(parameter: &str, v: &str) -> Result<T, AppError> {
-    v.trim()
-        .parse::<T>()
+    v.parse::<T>()
         .map_err(|_| AppError::bad_parameter(parameter, format!("`{v}` is not a whole number ≥ 0")))
 }
 
@@ -208,10 +211,10 @@ fn parse_num<T: std::str::FromStr>(parameter: &str, v: &str) -> Result<T, AppErr
 #[utoipa::path(get, path = "/v1/fleet/health", tag = "fleet",
     params(FleetQuery),
     responses(
-        (status = 200, body = FleetHealth),
+        (status = 200, description = "A page of rows", body = FleetHealth),
         (status = 400, description = "A bad filter or page (`parameter` names it)", body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["reader"])))]
 pub async fn fleet_health(
     State(st): State<AppState>,
     _auth: Reader,
@@ -220,7 +223,6 @@ pub async fn fleet_health(
     let status = q
         .status
         .as_deref()
-        .filter(|s| !s.is_empty())
         .map(|s| {
             s.parse::<Status>().map_err(|_| {
                 AppError::bad_parameter("status", "must be one of alarm, watch, ok, unknown")
@@ -230,12 +232,11 @@ pub async fn fleet_health(
     let vehicle_id = q
         .vehicle
         .as_deref()
-        .filter(|s| !s.is_empty())
         .map(|v| VehicleId::parse("vehicle", v).map_err(AppError::parameter_id))
         .transpose()?
         .map(|v| v.to_string());
     let limit = match q.limit.as_deref() {
-        None | Some("") => Page::default().limit,
+        None => Page::default().limit,
         Some(v) => parse_num::<u32>("limit", v)?,
     };
     if !(1..=MAX_LIMIT).contains(&limit) {
@@ -245,7 +246,7 @@ pub async fn fleet_health(
         ));
     }
     let offset = match q.offset.as_deref() {
-        None | Some("") => 0,
+        None => 0,
         Some(v) => parse_num::<u64>("offset", v)?,
     };
     if offset > i64::MAX as u64 {

@@ -8,6 +8,7 @@
 pub mod admin;
 pub mod alerts;
 pub mod auth;
+pub mod doc;
 pub mod error;
 pub mod extract;
 pub mod fleet;
@@ -21,11 +22,11 @@ pub mod traces;
 pub mod webhooks;
 
 use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
-use utoipa::openapi::{ContentBuilder, Ref, RefOr, ResponseBuilder};
 use utoipa::{Modify, OpenApi};
 use utoipa_axum::router::OpenApiRouter;
 
-use error::{PROBLEM_JSON, Problem};
+use crate::ids::{JointName, Serial, TraceId, VehicleId};
+use error::Problem;
 pub use state::AppState;
 
 #[derive(OpenApi)]
@@ -34,11 +35,13 @@ pub use state::AppState;
         title = "pantowatch",
         description = "Joint wear of railway pantographs: upload test traces, read each joint's \
             fitted friction, its drift status and the fleet's health. Every `/v1` route needs \
-            `Authorization: Bearer <key>` (roles: reader < writer < admin). Errors are \
-            `application/problem+json` with `type`, `title`, `status`, `detail` and `field`."
+            `Authorization: Bearer <key>`; its security requirement names the least role it \
+            needs (reader < writer < admin). Errors are `application/problem+json` with `type`, \
+            `title`, `status`, `detail` and `field` or `parameter`. Requests are rate-limited \
+            per key (429 with `Retry-After`), except `/healthz`, `/readyz` and `/metrics`."
     ),
     modifiers(&Security),
-    components(schemas(Problem)),
+    components(schemas(Problem, TraceId, VehicleId, Serial, JointName)),
     tags(
         (name = "traces", description = "Upload traces, read them and their fits"),
         (name = "fleet", description = "Vehicles, joint histories, fleet health"),
@@ -49,67 +52,31 @@ pub use state::AppState;
 )]
 struct ApiDoc;
 
-/// Adds the bearer scheme and the 401/403 answers shared by every `/v1` operation.
+/// Adds the bearer scheme.
 struct Security;
 
 impl Modify for Security {
     fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
         let components = openapi.components.get_or_insert_with(Default::default);
         components.add_security_scheme(
-            "bearer",
+            doc::BEARER,
             SecurityScheme::Http(Http::new(HttpAuthScheme::Bearer)),
         );
-        let problem = || {
-            ContentBuilder::new()
-                .schema(Some(Ref::from_schema_name("Problem")))
-                .build()
-        };
-        for (name, text) in [
-            ("Unauthorized", "No key, or an unknown or revoked key"),
-            ("Forbidden", "The key's role is too low for this route"),
-        ] {
-            components.responses.insert(
-                name.into(),
-                RefOr::T(
-                    ResponseBuilder::new()
-                        .description(text)
-                        .content(PROBLEM_JSON, problem())
-                        .build(),
-                ),
-            );
-        }
-        for (path, item) in openapi.paths.paths.iter_mut() {
-            if !path.starts_with("/v1/") {
-                continue;
-            }
-            for op in [
-                &mut item.get,
-                &mut item.post,
-                &mut item.put,
-                &mut item.delete,
-                &mut item.patch,
-            ]
-            .into_iter()
-            .flatten()
-            {
-                for (code, name) in [("401", "Unauthorized"), ("403", "Forbidden")] {
-                    op.responses
-                        .responses
-                        .insert(code.into(), RefOr::Ref(Ref::from_response_name(name)));
-                }
-            }
-        }
     }
 }
 
+/// Every route with its OpenAPI document, the answers they share included ([`doc`]).
 pub fn routes() -> OpenApiRouter<AppState> {
-    OpenApiRouter::with_openapi(ApiDoc::openapi())
+    let mut router = OpenApiRouter::with_openapi(ApiDoc::openapi())
         .merge(traces::router())
         .merge(fleet::router())
         .merge(admin::router())
         .merge(alerts::router())
         .merge(webhooks::router())
-        .merge(ops::router())
+        .merge(ops::router());
+    doc::add_shared_answers(router.get_openapi_mut());
+    doc::add_alert_evidence(router.get_openapi_mut());
+    router
 }
 
 /// The OpenAPI document of the API (what `/openapi.json` serves).

@@ -18,10 +18,13 @@ use super::auth::{Reader, Writer};
 use super::error::{AppError, JobView, Problem};
 use super::extract::{ApiPath, TraceUpload};
 use super::state::AppState;
-use crate::ids::TraceId;
+use crate::ids::{Serial, TraceId, VehicleId};
 use crate::ingest::{self, Accepted};
 use crate::store::{JobState, Status, TraceMeta};
 use crate::trace_csv;
+use pantowatch_models::report::{
+    CombinationResult, FitDetails, JointResult, PooledTests, Quantity, ResidualResult,
+};
 
 pub fn router() -> OpenApiRouter<AppState> {
     OpenApiRouter::new()
@@ -75,7 +78,10 @@ impl From<Accepted> for TraceAccepted {
 /// The pantograph of a trace.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct PantographRef {
+    /// The pantograph type (e.g. `160EC`).
+    #[schema(min_length = 1, max_length = 256)]
     pub model: String,
+    #[schema(value_type = Option<Serial>)]
     pub serial: Option<String>,
 }
 
@@ -132,41 +138,44 @@ pub struct FitView {
     /// Worst joint status.
     pub status: Option<Status>,
     /// Per joint: `viscous` and `dry` (`value`, `ci95`, `baseline`, `unit`), `identifiable`,
-    /// `status`.
-    #[schema(value_type = Vec<Object>)]
+    /// `status`. (Each part of the fit result is the models' type — `pantowatch_models::report`
+    /// — written as the store holds it: keys sorted, a non-finite number `null`.)
+    #[schema(value_type = Vec<JointResult>)]
     pub joints: Value,
-    /// `{ value, unit }`.
-    #[schema(value_type = Object)]
+    #[schema(value_type = Quantity)]
     pub rmse: Value,
     /// `effects`, `rmse_before`, `rmse_after`, `holdout_rmse_before`, `holdout_rmse_after`.
-    #[schema(value_type = Object)]
+    #[schema(value_type = ResidualResult)]
     pub residual: Value,
     /// Identification details (release, sensor zero, iterations, …).
-    #[schema(value_type = Object)]
+    #[schema(value_type = FitDetails)]
     pub fit: Value,
     /// A pooled lift fit's tests: `{ trace_ids (newest first), window_days }`; absent otherwise.
     #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Object>)]
+    #[schema(value_type = Option<PooledTests>)]
     pub pooled: Option<Value>,
     /// Parameters the test informs only together (lift fits, issue 15): `[{ label, members:
     /// [{ joint, kind, weight }], value, ci95, identifiable, status }]`; each is also an entry
     /// of `joints` (e.g. `J1+J3`). Absent when there are none.
     #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Vec<Object>>)]
+    #[schema(value_type = Option<Vec<CombinationResult>>)]
     pub combinations: Option<Value>,
 }
 
 /// The trace document (`pantograph-trace/1`) as uploaded; see the trace format.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct TraceDocument {
-    /// `pantograph-trace/1`.
+    #[schema(pattern = "^pantograph-trace/1$")]
     pub format: String,
     /// Optional client-chosen id (letters, digits, `- _ . :`); uploads with the same id are
     /// idempotent.
+    #[schema(value_type = Option<TraceId>)]
     pub trace_id: Option<String>,
+    #[schema(value_type = VehicleId)]
     pub vehicle_id: String,
     pub pantograph: PantographRef,
     /// RFC 3339.
+    #[schema(format = DateTime)]
     pub recorded_at: String,
     /// `{ kind: pendulum|slider|lift|quadrangle_swing|static_force, joint, rig, protocol, release_t_s, gauge_resolution_n }`.
     #[schema(value_type = Object)]
@@ -191,17 +200,25 @@ fn not_found(id: &TraceId) -> AppError {
 /// the background: follow `links.fit`. Uploading the same `trace_id` with the same content
 /// answers the same; with other content, 409.
 #[utoipa::path(post, path = "/v1/traces", tag = "traces",
-    request_body(description = "A trace document (JSON) or the CSV logger shape",
+    request_body(description = "A trace document (JSON, `application/json`) or the CSV a data \
+        logger writes (`text/csv`): `# key: value` metadata lines (the document's field paths: \
+        `format`, `trace_id`, `vehicle_id`, `pantograph.model`, `pantograph.serial`, \
+        `recorded_at`, `test.kind`, `test.joint`, `test.rig`, `test.protocol`, \
+        `test.gauge_resolution_n`), a header row of channel names with `t_s` first, then one row \
+        per sample, separated by `,` (or `;` with a decimal comma). A CSV not of this shape is \
+        400; either form breaking a rule of the trace format (../shared/contract/TRACE_FORMAT.md: \
+        `t_s` strictly increasing, channels of one length, the kind's channels, finite values, \
+        rig values within the type's limits) is 422.",
         content((TraceDocument = "application/json"), (String = "text/csv"))),
     responses(
         (status = 202, description = "Stored; its fit is queued", body = TraceAccepted),
-        (status = 400, description = "Not JSON / not CSV of the documented shape", body = Problem, content_type = "application/problem+json"),
+        (status = 400, description = "Not JSON, or not CSV of the shape the request body describes (`field` names the line or field)", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "The trace_id is stored with other content", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body larger than the limit", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "Neither application/json nor text/csv", body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "A rule of the trace format is broken (`field` names it)", body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["writer"])))]
 pub async fn upload_trace(
     State(st): State<AppState>,
     _auth: Writer,
@@ -217,13 +234,12 @@ pub async fn upload_trace(
 
 /// A trace's metadata, its fit job and current fit.
 #[utoipa::path(get, path = "/v1/traces/{trace_id}", tag = "traces",
-    params(("trace_id" = String, Path, description = "trace id")),
+    params(("trace_id" = TraceId, Path, description = "trace id")),
     responses(
-        (status = 200, body = TraceView),
+        (status = 200, description = "The trace's metadata, fit job and current fit", body = TraceView),
         (status = 400, description = "Malformed trace id", body = Problem, content_type = "application/problem+json"),
-        (status = 404, body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["reader"])))]
 pub async fn get_trace(
     State(st): State<AppState>,
     _auth: Reader,
@@ -282,14 +298,13 @@ fn wants_csv(headers: &HeaderMap) -> bool {
 
 /// A trace's samples: JSON, or with `Accept: text/csv` the whole trace in the CSV upload shape.
 #[utoipa::path(get, path = "/v1/traces/{trace_id}/samples", tag = "traces",
-    params(("trace_id" = String, Path, description = "trace id")),
+    params(("trace_id" = TraceId, Path, description = "trace id")),
     responses(
         (status = 200, description = "The samples, bit-identical to the upload",
             content((SamplesView = "application/json"), (String = "text/csv"))),
         (status = 400, description = "Malformed trace id", body = Problem, content_type = "application/problem+json"),
-        (status = 404, body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["reader"])))]
 pub async fn get_samples(
     State(st): State<AppState>,
     _auth: Reader,
@@ -320,13 +335,13 @@ pub async fn get_samples(
 /// A trace's current fit (the trace format's fit result). 404 with the job's state until the
 /// fit is written (`job.state`: `queued`, `running`, or `failed` with `job.last_error`).
 #[utoipa::path(get, path = "/v1/traces/{trace_id}/fit", tag = "traces",
-    params(("trace_id" = String, Path, description = "trace id")),
+    params(("trace_id" = TraceId, Path, description = "trace id")),
     responses(
-        (status = 200, body = FitView),
+        (status = 200, description = "The fit result", body = FitView),
         (status = 400, description = "Malformed trace id", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such trace, or no fit yet (then `job` says why)", body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["reader"])))]
 pub async fn get_fit(
     State(st): State<AppState>,
     _auth: Reader,
@@ -395,13 +410,13 @@ pub struct CurveView {
 /// refit). 404 when the trace has no fit, or its fit was stored without a curve (fits written
 /// before curves were kept, pooled fits).
 #[utoipa::path(get, path = "/v1/traces/{trace_id}/fit/curve", tag = "traces",
-    params(("trace_id" = String, Path, description = "trace id")),
+    params(("trace_id" = TraceId, Path, description = "trace id")),
     responses(
-        (status = 200, body = CurveView),
+        (status = 200, description = "The stored curves", body = CurveView),
         (status = 400, description = "Malformed trace id", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such trace, no fit, or a fit without a curve", body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["reader"])))]
 pub async fn get_fit_curve(
     State(st): State<AppState>,
     _auth: Reader,

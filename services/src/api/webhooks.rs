@@ -27,10 +27,17 @@ pub fn router() -> OpenApiRouter<AppState> {
 #[derive(Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct NewWebhook {
-    /// `http://` or `https://` URL that receives `POST`s.
+    /// `http://` or `https://` URL with a host, that receives `POST`s; at most 2048
+    /// characters, no whitespace or control characters.
+    #[schema(
+        format = "uri",
+        max_length = 2048,
+        pattern = "^[Hh][Tt][Tt][Pp][Ss]?://[^\\s\\x00-\\x1F\\x7F-\\x9F]+$"
+    )]
     pub url: String,
     /// Which alert severities to send (default both).
     #[serde(default = "both")]
+    #[schema(min_items = 1)]
     pub severities: Vec<Severity>,
 }
 
@@ -62,7 +69,15 @@ pub struct DeliveryLog {
 }
 
 fn check_url(raw: &str) -> Result<(), AppError> {
-    let u = reqwest::Url::parse(raw.trim())
+    // The URL parser would drop surrounding spaces and tabs or newlines inside: refused instead,
+    // so that what is stored is what was sent.
+    if raw.chars().any(|c| c.is_whitespace() || c.is_control()) {
+        return Err(AppError::bad_field(
+            "url",
+            "must not contain whitespace or control characters",
+        ));
+    }
+    let u = reqwest::Url::parse(raw)
         .map_err(|e| AppError::bad_field("url", format!("not a URL: {e}")))?;
     if !matches!(u.scheme(), "http" | "https") || u.host_str().is_none() {
         return Err(AppError::bad_field(
@@ -70,15 +85,14 @@ fn check_url(raw: &str) -> Result<(), AppError> {
             "must be an http:// or https:// URL with a host",
         ));
     }
-    if raw.len() > 2048 {
+    if raw.chars().count() > 2048 {
         return Err(AppError::bad_field("url", "at most 2048 characters"));
     }
     Ok(())
 }
 
 fn parse_id(raw: &str) -> Result<i64, AppError> {
-    raw.trim()
-        .parse::<i64>()
+    raw.parse::<i64>()
         .map_err(|_| AppError::bad_parameter("id", "a webhook id is a whole number"))
 }
 
@@ -86,11 +100,10 @@ fn parse_id(raw: &str) -> Result<i64, AppError> {
 #[utoipa::path(post, path = "/v1/admin/webhooks", tag = "admin",
     request_body = NewWebhook,
     responses(
-        (status = 201, body = CreatedWebhook),
+        (status = 201, description = "The subscription and its signing secret, shown this once", body = CreatedWebhook),
         (status = 400, description = "A bad URL or severities", body = Problem, content_type = "application/problem+json"),
-        (status = 415, body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["admin"])))]
 pub async fn create_webhook(
     State(st): State<AppState>,
     _auth: Admin,
@@ -122,8 +135,8 @@ pub async fn create_webhook(
 
 /// Every subscription, deleted ones included.
 #[utoipa::path(get, path = "/v1/admin/webhooks", tag = "admin",
-    responses((status = 200, body = WebhookList)),
-    security(("bearer" = [])))]
+    responses((status = 200, description = "Every subscription", body = WebhookList)),
+    security(("bearer" = ["admin"])))]
 pub async fn list_webhooks(
     State(st): State<AppState>,
     _auth: Admin,
@@ -138,10 +151,9 @@ pub async fn list_webhooks(
     params(("id" = i64, Path, description = "webhook id")),
     responses(
         (status = 204, description = "Deleted"),
-        (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such subscription, or deleted already", body = Problem, content_type = "application/problem+json"),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["admin"])))]
 pub async fn delete_webhook(
     State(st): State<AppState>,
     _auth: Admin,
@@ -156,14 +168,14 @@ pub async fn delete_webhook(
 }
 
 /// The delivery log of a subscription: newest first, each with attempts, last status and error.
+/// A deleted subscription keeps its log (it is listed with its `deleted_at`, and its pending
+/// deliveries show why they failed): only an id never created is 404.
 #[utoipa::path(get, path = "/v1/admin/webhooks/{id}/deliveries", tag = "admin",
     params(("id" = i64, Path, description = "webhook id")),
     responses(
-        (status = 200, body = DeliveryLog),
-        (status = 400, body = Problem, content_type = "application/problem+json"),
-        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 200, description = "The newest deliveries, of a live or deleted subscription", body = DeliveryLog),
     ),
-    security(("bearer" = [])))]
+    security(("bearer" = ["admin"])))]
 pub async fn list_deliveries(
     State(st): State<AppState>,
     _auth: Admin,

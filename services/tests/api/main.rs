@@ -12,6 +12,7 @@ mod corpus;
 mod gauge;
 mod harness;
 mod lift;
+mod openapi;
 mod quadrangle;
 mod security;
 mod static_force;
@@ -73,6 +74,11 @@ suite!(
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn web_pages_in_headless_chromium() {
     browser::web_pages_in_headless_chromium().await;
+}
+
+#[test]
+fn openapi_every_operation_states_its_security_and_every_answer() {
+    openapi::every_operation_states_its_security_and_every_answer();
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
