@@ -182,6 +182,7 @@ pub struct ResidualResult {
 /// A release that was not free (`joint::identify::release::disturbed`): the part of the record
 /// left out of the fit and the evidence, per half-swing left out.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct ReleaseDisturbance {
     /// The release first found, s: the left-out part runs from here to `until_s`.
     pub from_s: f64,
@@ -196,6 +197,7 @@ pub struct ReleaseDisturbance {
 
 /// One half-swing left out: its loss per unit path and its duration against a free one's.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct DisturbedSwing {
     pub from_s: f64,
     pub to_s: f64,
