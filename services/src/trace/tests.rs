@@ -345,7 +345,10 @@ fn the_api_doc_lists_the_static_force_limits() {
             sf.gauge_reading_interval_s[0], sf.gauge_reading_interval_s[1]
         ),
     ] {
-        assert!(doc.contains(&row), "docs/API.md \"Input limits\" lacks {row}");
+        assert!(
+            doc.contains(&row),
+            "docs/API.md \"Input limits\" lacks {row}"
+        );
     }
 }
 
