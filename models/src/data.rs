@@ -202,7 +202,7 @@ pub struct PaperTests {
 /// The span a test rig's stated values and recorded channels can physically have (issue 18):
 /// each `[lo, hi]` inclusive, channel bounds on the absolute value. Outside it, a trace is
 /// refused at upload naming the field, before any fit could spend its budget on it. The file
-/// states each value's reason; README "Input limits" lists them.
+/// states each value's reason; docs/API.md "Input limits" lists them.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RigLimits {
@@ -706,10 +706,10 @@ mod tests {
         assert_eq!(field(&[l.time_s[1] - 1.0, l.time_s[1]]), Ok(()));
     }
 
-    /// README "Input limits" is these values: a row per `[rig_limits]` key with its span.
+    /// docs/API.md "Input limits" is these values: a row per `[rig_limits]` key with its span.
     #[test]
-    fn readme_lists_every_rig_limit() {
-        let readme = include_str!("../../README.md");
+    fn the_api_doc_lists_every_rig_limit() {
+        let doc = include_str!("../../docs/API.md");
         let l = builtin_160ec().rig_limits();
         let spans = [
             ("pin_radius_m", l.pin_radius_m),
@@ -746,10 +746,10 @@ mod tests {
                 "| `[drive] torque_range_Nm` (geometry file) | [{lo}, {hi}] |"
             ));
         }
-        let missing: Vec<&String> = rows.iter().filter(|r| !readme.contains(*r)).collect();
+        let missing: Vec<&String> = rows.iter().filter(|r| !doc.contains(*r)).collect();
         assert!(
             missing.is_empty(),
-            "README \"Input limits\" lacks {missing:#?}"
+            "docs/API.md \"Input limits\" lacks {missing:#?}"
         );
     }
 

@@ -2,6 +2,7 @@
 //! simulator) against their truth, interval coverage on synthetic traces, the measured trace.
 
 mod architecture;
+mod architecture_doc;
 mod body_uncertainty;
 mod coverage;
 mod driven;

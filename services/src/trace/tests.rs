@@ -321,10 +321,10 @@ fn a_static_force_test_is_accepted_and_each_bad_reading_named() {
     assert_eq!(field_of(d), "test.gauge_resolution_n");
 }
 
-/// README "Input limits" lists the `[static_force]` limits an upload is checked against.
+/// docs/API.md "Input limits" lists the `[static_force]` limits an upload is checked against.
 #[test]
-fn readme_lists_the_static_force_limits() {
-    let readme = include_str!("../../../README.md");
+fn the_api_doc_lists_the_static_force_limits() {
+    let doc = include_str!("../../../docs/API.md");
     let sf = data::builtin_160ec()
         .static_force
         .as_ref()
@@ -345,7 +345,10 @@ fn readme_lists_the_static_force_limits() {
             sf.gauge_reading_interval_s[0], sf.gauge_reading_interval_s[1]
         ),
     ] {
-        assert!(readme.contains(&row), "README \"Input limits\" lacks {row}");
+        assert!(
+            doc.contains(&row),
+            "docs/API.md \"Input limits\" lacks {row}"
+        );
     }
 }
 
