@@ -24,12 +24,14 @@ use nalgebra::DMatrix;
 
 use super::super::attribution::{AttributionOptions, Combination, attribute};
 use super::super::dynamics::LiftModel;
-use super::super::identify::{EffectPrior, LiftFitOptions, ParamEstimate};
+use super::super::fit::{LiftFitOptions, ParamEstimate};
+use super::super::posterior::{EffectPrior, correlation, inverse_spd};
 use super::super::sensitivity::LiftParam;
 use super::super::static_force::DriveLine;
 use super::super::topology::RevJoint;
 use super::simulate::spring_rate_drive;
 use super::solve::{Warm, forces_near, warm_starts};
+use super::terms::{FD_STEP, GaugeEffect, GaugeEffectEstimate};
 use super::{GaugeError, GaugeRecord, gauge_data};
 use crate::contract::drift::{DriftThresholds, Status};
 use crate::joint::identify::lm::{LmOptions, Problem, Termination, minimize};
@@ -46,69 +48,11 @@ pub const FITTED_JOINTS: [RevJoint; 7] = [
     RevJoint::J7,
 ];
 
-/// Forward-difference step of the Jacobian: 10⁻⁴ in ln μ (a joint's force change is ~10⁻³ N,
-/// 10⁵ times the strip-force solver's tolerance) and in a spring-rate factor.
-pub const FD_STEP: f64 = 1e-4;
-
 /// Lowest μ fitted, × Table 4: a joint with 1 % of its friction is as good as frictionless
 /// and keeps ln μ finite.
 const MIN_MULTIPLE: f64 = 0.01;
 /// Highest μ fitted, × Table 4 (the lift fit's bound).
 const MAX_MULTIPLE: f64 = 10.0;
-
-/// The prior of the gauge's zero b, N ([`GaugeEffect::prior`]).
-pub const SENSOR_OFFSET_PRIOR: EffectPrior = EffectPrior {
-    mean: 0.0,
-    sd: 10.0,
-    lower: -50.0,
-    upper: 50.0,
-};
-
-/// An effect a gauge fit can carry besides the friction (`effects`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum GaugeEffect {
-    /// The gauge's zero off by b, N: F_meas = F + b (both branches shifted alike).
-    SensorOffset,
-    /// The drive characteristic's slope × k about its first point (the mean curve tilted): a
-    /// spring whose rate differs from the type's.
-    SpringRate,
-}
-
-impl GaugeEffect {
-    pub const ALL: [GaugeEffect; 2] = [GaugeEffect::SensorOffset, GaugeEffect::SpringRate];
-
-    /// The contract's vocabulary name.
-    pub fn name(self) -> &'static str {
-        match self {
-            GaugeEffect::SensorOffset => "sensor_offset",
-            GaugeEffect::SpringRate => "spring_rate",
-        }
-    }
-
-    /// The value of "no effect": b = 0 N, k = 1.
-    pub fn null_value(self) -> f64 {
-        match self {
-            GaugeEffect::SensorOffset => 0.0,
-            GaugeEffect::SpringRate => 1.0,
-        }
-    }
-
-    /// The prior. `sensor_offset` b: N(0, (10 N)²) in [−50, 50] N — a gauge's zero is off by
-    /// newtons after a bad tare; 50 N is half the static force, a mounting error, not a zero.
-    /// `spring_rate` k: N(1, 0.5²) in [0.2, 5] — a spring of another rate class is tens of
-    /// per cent off; beyond 5× it is another pantograph.
-    pub fn prior(self) -> EffectPrior {
-        match self {
-            GaugeEffect::SensorOffset => SENSOR_OFFSET_PRIOR,
-            GaugeEffect::SpringRate => EffectPrior {
-                mean: 1.0,
-                sd: 0.5,
-                lower: 0.2,
-                upper: 5.0,
-            },
-        }
-    }
-}
 
 /// Settings of a gauge fit.
 #[derive(Debug, Clone)]
@@ -157,24 +101,6 @@ impl Default for GaugeFitOptions {
             },
             attribution: lift.attribution,
         }
-    }
-}
-
-/// A fitted effect, its units (N or a factor).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GaugeEffectEstimate {
-    pub effect: GaugeEffect,
-    pub value: f64,
-    pub posterior_sd: f64,
-    /// value ± t·sd (the t quantile at the fit's degrees of freedom), cut at the prior's bounds.
-    pub ci95: [f64; 2],
-}
-
-impl GaugeEffectEstimate {
-    /// The interval leaves out the value of "no effect".
-    pub fn excludes_null(&self) -> bool {
-        let v = self.effect.null_value();
-        self.ci95[0] > v || self.ci95[1] < v
     }
 }
 
@@ -408,7 +334,7 @@ pub fn fit_gauge_from(
     for i in 0..p {
         post0[(i, i)] += prior_prec[i];
     }
-    let cov0 = super::super::identify::inverse_spd(&post0);
+    let cov0 = inverse_spd(&post0);
     let p_eff = (&a * &cov0).trace().clamp(0.0, p as f64);
     let dof = (n as f64 - p_eff).max(1.0);
     let rss: f64 = rep.residuals[..n].iter().map(|v| v * v).sum();
@@ -417,7 +343,7 @@ pub fn fit_gauge_from(
     for i in 0..p {
         post[(i, i)] += prior_prec[i];
     }
-    let cov_u = super::super::identify::inverse_spd(&post);
+    let cov_u = inverse_spd(&post);
     let t = student_t_quantile(0.975, dof.floor() as usize);
     // Every interval at the t quantile: the posterior scaled so that Z95·sd is t·sd.
     let scale = (t / Z95).powi(2);
@@ -430,7 +356,7 @@ pub fn fit_gauge_from(
     for i in 0..p {
         info_x[(i, i)] += if i < pf { 1.0 / (s * s) } else { prior_prec[i] };
     }
-    let cov_h = super::super::identify::inverse_spd(&info_x);
+    let cov_h = inverse_spd(&info_x);
     let params: Vec<LiftParam> = FITTED_JOINTS.iter().map(|j| LiftParam::Dry(*j)).collect();
     let contracted: Vec<bool> = (0..pf)
         .map(|i| cov_x[(i, i)].max(0.0).sqrt() < s / opts.informed_factor * xs[i].min(1.0))
@@ -519,13 +445,5 @@ pub fn fit_gauge_from(
         iterations: rep.iterations,
         evaluations: rep.evaluations,
         termination: rep.termination,
-    })
-}
-
-fn correlation(cov: &DMatrix<f64>) -> DMatrix<f64> {
-    let n = cov.nrows();
-    DMatrix::from_fn(n, n, |i, j| {
-        let d = (cov[(i, i)] * cov[(j, j)]).sqrt();
-        if d > 0.0 { cov[(i, j)] / d } else { 0.0 }
     })
 }

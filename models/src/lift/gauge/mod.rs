@@ -52,6 +52,8 @@
 //!
 //! - [`simulate`] — a simulated gauge record (noise, quantisation, optional effects), seeded.
 //! - [`fit`] — MAP fit of the revolute joints' dry μ in log space, intervals, attribution.
+//! - [`terms`] — the gauge's effects with their priors and estimates, the Jacobian's step:
+//!   what the gauge fit and a lift fit pooling gauge records share (below both).
 //! - [`effects`] — the residual loop: `sensor_offset`, `spring_rate`, or `unexplained`.
 //! - [`report`] — the contract's `FitResult` of a gauge record (joints J1…J9 and the combination).
 //! - `solve` — the strip force near a known solution (the fit's fast path).
@@ -61,14 +63,16 @@ pub mod fit;
 pub mod report;
 pub mod simulate;
 pub(crate) mod solve;
+pub mod terms;
 #[cfg(test)]
 mod tests;
 
 pub use effects::{GaugeResidual, GaugeVerdict, diagnose};
-pub use fit::{GaugeEffect, GaugeEffectEstimate, GaugeFit, GaugeFitOptions, fit_gauge};
-pub use report::{GaugeChannels, GaugeReport, fit_gauge_trace};
+pub use fit::{GaugeFit, GaugeFitOptions, fit_gauge};
+pub use report::{GaugeChannels, GaugeReport, fit_gauge_trace, named_effect, spring_rate_of};
 pub use simulate::{GaugeSimOptions, reading_heights, simulate_builtin_gauge, simulate_gauge};
 pub use solve::predicted_forces_n;
+pub use terms::{GaugeEffect, GaugeEffectEstimate};
 
 pub use super::static_force::DriveLine;
 pub use super::statics::StaticFriction;
