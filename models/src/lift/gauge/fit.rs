@@ -18,7 +18,9 @@
 //!   (x = μ/μ⁰): a parameter is contracted when its posterior sd is under prior sd / 2 (× min(x, 1));
 //!   directions the data pin are the eigenvectors of the data's information; a joint in an
 //!   informed direction with others is not separately identified and is reported in that
-//!   direction's combination (level Σ w_j x_j, 1 at baseline).
+//!   direction's combination (level Σ w_j x_j, 1 at baseline). Its members: every joint of the
+//!   direction until those left out would widen the level's interval by under 1 %
+//!   ([`level_min_share`]; the lift's share rule left joints out whose prior tripled it).
 
 use nalgebra::DMatrix;
 
@@ -371,7 +373,10 @@ pub fn fit_gauge_from(
         s,
         opts.informed_factor,
         &opts.thresholds,
-        &opts.attribution,
+        &AttributionOptions {
+            min_share: level_min_share(&cov_h, pf, s).min(opts.attribution.min_share),
+            ..opts.attribution
+        },
     );
     let estimates: Vec<ParamEstimate> = (0..pf)
         .map(|i| {
@@ -446,4 +451,55 @@ pub fn fit_gauge_from(
         evaluations: rep.evaluations,
         termination: rep.termination,
     })
+}
+
+/// How much the joints left out of the level may widen its interval: 1 %, as a share of its
+/// variance ([`level_min_share`]). A tenth of what a record can tell of its own width: its
+/// noise scale comes from ~27 degrees of freedom (30 readings less the effective parameters),
+/// whose relative sd is 1/√54 ≈ 14 %. At Table 4 it falls between J4 (left out it would add
+/// 9 % of the data's variance) and J7 (0.4 %), so the members do not change from record to
+/// record (`tests::the_level_interval_matches_its_spread_over_noise_draws`).
+pub const LEVEL_WIDENING: f64 = 1.01 * 1.01 - 1.0;
+
+/// The least share (squared component) a joint needs in the best-informed direction to join
+/// its level (`AttributionOptions::min_share`): every joint is in, by decreasing share, until
+/// the joints left out would add at most [`LEVEL_WIDENING`] of the data's variance to it.
+///
+/// Why (issue 39, point 5): the data pin the gap, the direction v of their information
+/// Λ = (Σ_ff)⁻¹ − P⁻¹ (as `lift::attribution`), with eigenvalue λ: the level along all of v has
+/// variance 1/(λ(Σv)²). A level over the members M only, v_M·x/Σ_M v, is that less the joints
+/// left out, each unseen apart from it, so it carries their prior: s²·Σ_{j∉M} v_j²/(Σ_M v)² more.
+/// The lift's rule (`min_share` 0.01) keeps J1 and J3 (v² 0.024 and 0.968 at Table 4) and
+/// drops J5, J2′ and J2 (0.0036, 0.0033, 0.0011): with s = 0.5 their prior made the J1+J3
+/// interval 2.9 times the level's spread over noise draws (sd 0.038 against 0.013, 120 records
+/// at the stated gauge, `tests::probe_level_calibration`) — all of it the dropped joints' prior,
+/// none of it the noise. With J2, J2′, J4 and J5 in, J7 (v² 1.6·10⁻⁷) left out adds 0.4 % of
+/// the data's variance. A joint whose component has the other sign stops the walk: a level is
+/// never a contrast.
+pub fn level_min_share(cov_h: &DMatrix<f64>, pf: usize, prior_sd: f64) -> f64 {
+    let Some(ff) = cov_h.view((0, 0), (pf, pf)).into_owned().try_inverse() else {
+        return f64::INFINITY;
+    };
+    let lambda = (&ff + ff.transpose()) / 2.0 - DMatrix::identity(pf, pf) / (prior_sd * prior_sd);
+    let eig = lambda.symmetric_eigen();
+    let k = eig.eigenvalues.imax();
+    let (lam, v) = (eig.eigenvalues[k], eig.eigenvectors.column(k).into_owned());
+    if !(lam.is_finite() && lam > 0.0) {
+        return f64::INFINITY;
+    }
+    let sign = v.sum().signum();
+    let mut order: Vec<usize> = (0..pf).collect();
+    order.sort_by(|&a, &b| (v[b] * v[b]).total_cmp(&(v[a] * v[a])));
+    let budget = LEVEL_WIDENING / (lam * prior_sd * prior_sd);
+    let mut left_out: f64 = v.iter().map(|c| c * c).sum();
+    let mut share = f64::INFINITY;
+    for i in order {
+        if left_out <= budget || v[i] * sign <= 0.0 {
+            break;
+        }
+        share = v[i] * v[i];
+        left_out -= share;
+    }
+    // Just below the last member's share, so that it passes `>=`.
+    share * (1.0 - 1e-9)
 }

@@ -10,7 +10,7 @@
 //!   frictionless travel): not estimated by a quasi-static test — baseline, prior interval, not
 //!   identified, `unknown`. J9 has no dry friction: 0, no baseline;
 //! - each informed combination: in `combinations` and as an entry of `joints` named by its
-//!   members (`J1+J3`), the level in the `dry` slot, unit `× Table 4`, baseline 1;
+//!   members (`J1+J2+J2'+J3+J4+J5`), the level in the `dry` slot, unit `× Table 4`, baseline 1;
 //! - `rmse` in N; `residual.effects` the named effects (`sensor_offset`: `offset_n`,
 //!   `offset_n_ci95`; `spring_rate`: `rate_factor`, `rate_factor_ci95`) with `rmse_before` the
 //!   plain model's (no zero, no k) and `rmse_after` the final fit's; `verdict: "unexplained"` and every joint
