@@ -204,6 +204,7 @@ async fn static_force_finding(
             "recorded_at": meta.recorded_at,
             "findings": v.findings,
             "parameters": v.parameters,
+            "spring": v.spring,
             "limits": v.limits,
         });
         let new = finding_alert(serial, STATIC_FORCE_ALERT, meta, trace_id, reason, evidence);

@@ -667,7 +667,8 @@ fn simulate_static_force_writes_a_gauge_measurement() {
     );
     let table = run_ok(bin().arg("fit").arg(&file));
     assert!(
-        table.contains("static_force test") && table.contains("informed by this trace: J1+J2+J2'+J3+J4+J5"),
+        table.contains("static_force test")
+            && table.contains("informed by this trace: J1+J2+J2'+J3+J4+J5"),
         "{table}"
     );
 }

@@ -63,6 +63,7 @@ suite!(
     hostile_requests_answer_problems_naming_their_field,
     a_release_is_found_or_stated_and_reported,
     static_force_is_predicted_and_judged_against_the_limits,
+    a_named_spring_rate_moves_the_static_force_prediction,
     a_gauge_measurement_is_stored_refused_and_drawn,
     a_gauge_record_pools_with_the_next_lift,
     a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,

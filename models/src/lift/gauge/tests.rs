@@ -10,6 +10,7 @@ use crate::lift::attribution::Combination;
 use crate::lift::dynamics::LiftModel;
 use crate::lift::geometry::builtin_160ec;
 use crate::lift::sensitivity::LiftParam;
+use crate::lift::static_force::MuEstimate;
 use crate::lift::topology::RevJoint;
 
 /// Readings per branch of the test records.
@@ -741,7 +742,10 @@ fn the_level_interval_matches_its_spread_over_noise_draws() {
             (0.90..=0.98).contains(&coverage),
             "{drift:?}: coverage {covered}/{n}"
         );
-        assert!((mean - 1.0).abs() < 2.0 * spread, "{drift:?}: biased {mean}");
+        assert!(
+            (mean - 1.0).abs() < 2.0 * spread,
+            "{drift:?}: biased {mean}"
+        );
     }
 }
 
@@ -781,12 +785,21 @@ fn probe_level_variance_parts() {
     post[(pf, pf)] += 1.0 / 100.0;
     let cov = post.clone().try_inverse().unwrap();
     // The data's information on the friction, b marginalised, and its leading direction.
-    let ff = cov.view((0, 0), (pf, pf)).into_owned().try_inverse().unwrap()
+    let ff = cov
+        .view((0, 0), (pf, pf))
+        .into_owned()
+        .try_inverse()
+        .unwrap()
         - DMatrix::identity(pf, pf) / (s * s);
     let eig = ff.clone().symmetric_eigen();
     let k = eig.eigenvalues.imax();
     let v = eig.eigenvectors.column(k).into_owned();
-    eprintln!("leading direction {:?}, eigenvalue {:.1} (sd {:.4})", v.as_slice(), eig.eigenvalues[k], 1.0 / eig.eigenvalues[k].sqrt());
+    eprintln!(
+        "leading direction {:?}, eigenvalue {:.1} (sd {:.4})",
+        v.as_slice(),
+        eig.eigenvalues[k],
+        1.0 / eig.eigenvalues[k].sqrt()
+    );
     let (i1, i3) = (0, 3);
     let sum = v[i1] + v[i3];
     let w = [v[i1] / sum, v[i3] / sum];
@@ -814,4 +827,123 @@ fn probe_level_variance_parts() {
         "J1+J3 weights {w:?}: posterior sd {full:.4}, others known {known:.4}, MAP spread over noise {spread:.4}; all-joint level weights {:?}: sd {all_sd:.4}, spread {all_spread:.4}",
         wall.as_slice()
     );
+}
+
+/// Each revolute joint's dry μ as the service takes it from one fit result
+/// (`services::static_force::current_mu`): an informed combination moves its members to level ×
+/// Table 4 with the level's interval, a separately identified joint takes its own.
+fn mu_of(
+    result: &crate::contract::report::FitResult,
+) -> [MuEstimate; crate::lift::topology::N_REV] {
+    let g = builtin_160ec();
+    let mut mu: [MuEstimate; crate::lift::topology::N_REV] = std::array::from_fn(|i| MuEstimate {
+        value: g.revolute[i].dry_mu,
+        ci95: None,
+    });
+    for j in result.joints.iter().filter(|j| j.dry.identifiable) {
+        let members: Vec<RevJoint> = j
+            .joint
+            .split('+')
+            .filter_map(|n| RevJoint::ALL.into_iter().find(|r| r.name() == n))
+            .collect();
+        for r in &members {
+            let b = g.revolute[r.index()].dry_mu;
+            let k = if members.len() > 1 { b } else { 1.0 };
+            mu[r.index()] = MuEstimate {
+                value: j.dry.value * k,
+                ci95: Some([j.dry.ci95[0] * k, j.dry.ci95[1] * k]),
+            };
+        }
+    }
+    mu
+}
+
+/// Issue 39, point 5: a gauge record of a spring 0.85× the type's rate (seeds 700–702) names
+/// `spring_rate`, and the static-force prediction from its fit result takes it: the true curve
+/// (Table 4 friction, k 0.85) lies inside the predicted band at ≥ 90 % of the 28 heights ×
+/// branches (measured 28/28, worst 0.03–0.15 N). With the type's spring (what it did before)
+/// the truth is inside at 2 of 28, 7.0 N off (6 of 28 in the issue, with the wider J1+J3 band).
+#[test]
+fn a_named_spring_rate_flows_into_the_static_force_prediction() {
+    use crate::lift::static_force::{RateEstimate, predict_rated};
+    let g = builtin_160ec();
+    let data = crate::data::builtin_160ec().static_force.as_ref().unwrap();
+    let (base, _, _) = setup();
+    let table4: [MuEstimate; crate::lift::topology::N_REV] = std::array::from_fn(|i| MuEstimate {
+        value: g.revolute[i].dry_mu,
+        ci95: None,
+    });
+    let truth = predict_rated(
+        g,
+        data,
+        &table4,
+        &RateEstimate {
+            factor: 0.85,
+            ci95: None,
+        },
+    )
+    .unwrap()
+    .curve;
+    let inside = |p: &crate::lift::static_force::StaticForceCurve| {
+        (0..truth.heights_m.len())
+            .map(|i| {
+                usize::from(
+                    p.raise_lo_n[i] <= truth.raise_n[i] && truth.raise_n[i] <= p.raise_hi_n[i],
+                ) + usize::from(
+                    p.lower_lo_n[i] <= truth.lower_n[i] && truth.lower_n[i] <= p.lower_hi_n[i],
+                )
+            })
+            .sum::<usize>()
+    };
+    let n = 2 * truth.heights_m.len();
+    for seed in 700..703 {
+        let rec = record(&base, seed, 0.0, 0.85);
+        let report = fit_gauge_trace(
+            &GaugeChannels {
+                strip_height_m: &rec.heights_m,
+                force_n: &rec.forces_n,
+                resolution_n: rec.resolution_n,
+            },
+            &DriftThresholds::default(),
+            "spring",
+        )
+        .unwrap();
+        let rate = spring_rate_of(&report.result).expect("spring_rate named");
+        let mu = mu_of(&report.result);
+        let rated = predict_rated(g, data, &mu, &rate).unwrap().curve;
+        let typed = predict_rated(g, data, &mu, &RateEstimate::TYPE)
+            .unwrap()
+            .curve;
+        let worst = (0..truth.heights_m.len())
+            .map(|i| {
+                (rated.raise_n[i] - truth.raise_n[i])
+                    .abs()
+                    .max((rated.lower_n[i] - truth.lower_n[i]).abs())
+            })
+            .fold(0.0, f64::max);
+        let worst_typed = (0..truth.heights_m.len())
+            .map(|i| (typed.raise_n[i] - truth.raise_n[i]).abs())
+            .fold(0.0, f64::max);
+        eprintln!(
+            "seed {seed}: k {:.4} {:?}; truth inside {}/{n} (type's spring {}/{n}); worst {worst:.2} N (type's {worst_typed:.2} N)",
+            rate.factor,
+            rate.ci95,
+            inside(&rated),
+            inside(&typed)
+        );
+        assert!(
+            rate.ci95.is_some_and(|[lo, hi]| lo <= 0.85 && 0.85 <= hi),
+            "seed {seed}: {rate:?}"
+        );
+        assert!(
+            10 * inside(&rated) >= 9 * n,
+            "seed {seed}: {}/{n}",
+            inside(&rated)
+        );
+        assert!(
+            2 * inside(&typed) < n,
+            "seed {seed}: the type's spring fits too"
+        );
+        assert!(worst < 1.0 && worst_typed > 3.0, "seed {seed}");
+    }
 }
