@@ -375,7 +375,6 @@ pub fn fit_gauge_from(
         &opts.thresholds,
         &AttributionOptions {
             min_share: level_min_share(&cov_h, pf, s).min(opts.attribution.min_share),
-            ..opts.attribution
         },
     );
     let estimates: Vec<ParamEstimate> = (0..pf)
