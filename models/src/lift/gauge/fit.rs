@@ -457,7 +457,7 @@ pub fn fit_gauge_from(
 /// noise scale comes from ~27 degrees of freedom (30 readings less the effective parameters),
 /// whose relative sd is 1/√54 ≈ 14 %. At Table 4 it falls between J4 (left out it would add
 /// 9 % of the data's variance) and J7 (0.4 %), so the members do not change from record to
-/// record (`tests::the_level_interval_matches_its_spread_over_noise_draws`).
+/// record (`calibration_tests::the_level_interval_matches_its_spread_over_noise_draws`).
 pub const LEVEL_WIDENING: f64 = 1.01 * 1.01 - 1.0;
 
 /// The least share (squared component) a joint needs in the best-informed direction to join
@@ -471,8 +471,8 @@ pub const LEVEL_WIDENING: f64 = 1.01 * 1.01 - 1.0;
 /// The lift's rule (`min_share` 0.01) keeps J1 and J3 (v² 0.024 and 0.968 at Table 4) and
 /// drops J5, J2′ and J2 (0.0036, 0.0033, 0.0011): with s = 0.5 their prior made the J1+J3
 /// interval 2.9 times the level's spread over noise draws (sd 0.038 against 0.013, 120 records
-/// at the stated gauge, `tests::probe_level_calibration`) — all of it the dropped joints' prior,
-/// none of it the noise. With J2, J2′, J4 and J5 in, J7 (v² 1.6·10⁻⁷) left out adds 0.4 % of
+/// at the stated gauge; `calibration_tests::probe_level_variance_parts` splits it) — all of it
+/// the dropped joints' prior, none of it the noise. With J2, J2′, J4 and J5 in, J7 (v² 1.6·10⁻⁷) left out adds 0.4 % of
 /// the data's variance. A joint whose component has the other sign stops the walk: a level is
 /// never a contrast.
 pub fn level_min_share(cov_h: &DMatrix<f64>, pf: usize, prior_sd: f64) -> f64 {

@@ -34,7 +34,7 @@
 //!   it would widen the interval by 0.2 %). Its 95 % interval is about ±0.5 % (sd 0.0027 ×
 //!   Table 4), within 14 % of the level's spread over noise draws (0.0024), holding the truth on
 //!   116 of 120 records at Table 4 and with J5 ×2 (`fit::level_min_share`,
-//!   `tests::the_level_interval_matches_its_spread_over_noise_draws`). Until issue 39 the level
+//!   `calibration_tests::the_level_interval_matches_its_spread_over_noise_draws`). Until issue 39 the level
 //!   was J1+J3 alone (the lift's `min_share` dropped J2, J2', J5): its interval carried their
 //!   prior, ±8 % (sd 0.038), 2.9 times the spread (0.013), and a worn J5 read as J1+J3 +2.5 %.
 //! - Table 4, seeds 0–4: level 0.996–1.003, every interval holding 1, `ok`, no effect named;
@@ -62,6 +62,8 @@
 //! - [`report`] — the contract's `FitResult` of a gauge record (joints J1…J9 and the combination).
 //! - `solve` — the strip force near a known solution (the fit's fast path).
 
+#[cfg(test)]
+mod calibration_tests;
 pub mod effects;
 pub mod fit;
 pub mod report;
