@@ -207,6 +207,7 @@ async fn static_force_finding(
             recorded_at: meta.recorded_at,
             findings: v.findings,
             parameters: v.parameters,
+            spring: Some(v.spring),
             limits: v.limits,
         }))
         .to_json();

@@ -1,5 +1,9 @@
 //! A pantograph's predicted static contact force (issue 20): its current joint friction, each
-//! parameter from the latest test that informed it, mapped into `models::lift::static_force`.
+//! parameter from the latest test that informed it, and its drive spring's rate — the type's, or
+//! the `spring_rate` its latest force-gauge record named (issue 39, point 5) — mapped into
+//! `models::lift::static_force`. The gauge's zero that record named (`sensor_offset`) is the
+//! gauge's, not the pantograph's: the prediction is the true force, and the measured points are
+//! shown with that zero taken off ([`GaugeMeasurement::zero_n`]).
 //!
 //! No physics here: the models compute the characteristic and the findings against the type's
 //! `[static_force]` limits; this module picks the parameters, runs the models off the runtime and
@@ -7,9 +11,13 @@
 
 use chrono::{DateTime, Utc};
 use pantowatch_models::data;
+use pantowatch_models::lift::gauge::{GaugeEffect, named_effect, spring_rate_of};
 use pantowatch_models::lift::geometry::{self, Geometry};
-use pantowatch_models::lift::static_force::{self, LimitFinding, MuEstimate, StaticForceCurve};
+use pantowatch_models::lift::static_force::{
+    self, LimitFinding, MuEstimate, RateEstimate, StaticForceCurve,
+};
 use pantowatch_models::lift::topology::{N_REV, RevJoint};
+use pantowatch_models::report::FitResult;
 use serde::Serialize;
 use utoipa::ToSchema;
 
@@ -35,6 +43,56 @@ pub struct MuSource {
     pub recorded_at: Option<DateTime<Utc>>,
 }
 
+/// The drive spring's rate the prediction used: the drive line's slope × `rate_factor`.
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize, ToSchema)]
+pub struct SpringSource {
+    /// 1 for the type's spring.
+    pub rate_factor: f64,
+    /// The 95 % interval of the named rate; `null` for the type's (no band).
+    pub rate_factor_ci95: Option<[f64; 2]>,
+    /// `type`: the type's drive characteristic (no gauge record, or the latest named no other
+    /// rate); `gauge record`: the `spring_rate` the latest force-gauge record's fit named.
+    pub source: String,
+    /// The gauge record whose fit decided it (none for `type` without a gauge record).
+    pub trace_id: Option<String>,
+    pub recorded_at: Option<DateTime<Utc>>,
+}
+
+impl SpringSource {
+    /// The type's spring, no gauge record.
+    pub fn type_spring() -> Self {
+        Self {
+            rate_factor: 1.0,
+            rate_factor_ci95: None,
+            source: "type".to_owned(),
+            trace_id: None,
+            recorded_at: None,
+        }
+    }
+
+    /// The spring a gauge record's fit `result` tells: its named `spring_rate`, else the type's.
+    pub fn of_gauge_fit(result: &FitResult, trace_id: &str, recorded_at: DateTime<Utc>) -> Self {
+        let (rate_factor, rate_factor_ci95, source) = match spring_rate_of(result) {
+            Some(r) => (r.factor, r.ci95, "gauge record"),
+            None => (1.0, None, "type"),
+        };
+        Self {
+            rate_factor,
+            rate_factor_ci95,
+            source: source.to_owned(),
+            trace_id: Some(trace_id.to_owned()),
+            recorded_at: Some(recorded_at),
+        }
+    }
+
+    fn estimate(&self) -> RateEstimate {
+        RateEstimate {
+            factor: self.rate_factor,
+            ci95: self.rate_factor_ci95,
+        }
+    }
+}
+
 /// The predicted characteristic: forces on the strip, N, at `heights_m`.
 #[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
 pub struct StaticForceView {
@@ -55,6 +113,8 @@ pub struct StaticForceView {
     pub findings: Vec<FindingView>,
     /// Each revolute joint's dry μ used, with its source.
     pub parameters: Vec<MuSource>,
+    /// The drive spring's rate used (the drive torque above is the line with it).
+    pub spring: SpringSource,
     /// The latest force-gauge measurement of the pantograph (its latest `static_force` trace's
     /// readings as stored, not refitted); absent when it has none. Filled by the API route.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -194,6 +254,7 @@ fn view(
     c: StaticForceCurve,
     findings: &[LimitFinding],
     parameters: Vec<MuSource>,
+    spring: SpringSource,
 ) -> StaticForceView {
     let lim = static_force::ForceLimits::from(d);
     let nominal_n: Vec<f64> = c.heights_m.iter().map(|&h| lim.nominal_at_n(h)).collect();
@@ -209,6 +270,7 @@ fn view(
         },
         findings: findings.iter().map(FindingView::from).collect(),
         parameters,
+        spring,
         measured: None,
         heights_m: c.heights_m,
         drive_torque_nm: c.drive_torque_nm,
@@ -222,19 +284,31 @@ fn view(
     }
 }
 
-/// The prediction for `mu` on the type `model` (blocking: call off the runtime).
+/// The prediction for `mu` and the drive spring `spring` on the type `model` (blocking: call
+/// off the runtime).
 pub fn predict_blocking(
     serial: &str,
     model: &str,
     mu: &[MuEstimate; N_REV],
     parameters: Vec<MuSource>,
+    spring: SpringSource,
 ) -> Result<StaticForceView, PredictError> {
     let (d, g) = type_models(model).ok_or_else(|| PredictError::NoModel(model.to_owned()))?;
-    let p = static_force::predict(g, d, mu).map_err(|e| PredictError::Model(e.to_string()))?;
-    Ok(view(serial, model, d, p.curve, &p.findings, parameters))
+    let p = static_force::predict_rated(g, d, mu, &spring.estimate())
+        .map_err(|e| PredictError::Model(e.to_string()))?;
+    Ok(view(
+        serial,
+        model,
+        d,
+        p.curve,
+        &p.findings,
+        parameters,
+        spring,
+    ))
 }
 
-/// A stored pantograph's prediction from its current parameters.
+/// A stored pantograph's prediction from its current parameters: the friction from
+/// [`current_mu`], the spring from its latest force-gauge record's fit ([`latest_gauge_fit`]).
 pub async fn predict(store: &Store, serial: &str) -> Result<StaticForceView, PredictError> {
     let model = store
         .pantograph_model(serial)
@@ -243,10 +317,36 @@ pub async fn predict(store: &Store, serial: &str) -> Result<StaticForceView, Pre
     let (_, g) = type_models(&model).ok_or_else(|| PredictError::NoModel(model.clone()))?;
     let history = store.serial_history(serial).await?;
     let (mu, sources) = current_mu(g, &history);
+    let spring = match latest_gauge_fit(store, serial).await? {
+        Some((meta, result)) => {
+            SpringSource::of_gauge_fit(&result, &meta.trace_id, meta.recorded_at)
+        }
+        None => SpringSource::type_spring(),
+    };
     let serial = serial.to_owned();
-    tokio::task::spawn_blocking(move || predict_blocking(&serial, &model, &mu, sources))
+    tokio::task::spawn_blocking(move || predict_blocking(&serial, &model, &mu, sources, spring))
         .await
         .map_err(|e| PredictError::Model(e.to_string()))?
+}
+
+/// The latest `static_force` trace of `serial` with its fit's result; `None` when it has none
+/// or that trace is not fitted yet. The spring rate and the gauge's zero are the gauge's latest
+/// word: a later record that names no other rate puts the type's spring back.
+pub async fn latest_gauge_fit(
+    store: &Store,
+    serial: &str,
+) -> Result<Option<(crate::store::TraceMeta, FitResult)>, StoreError> {
+    let Some(meta) = store
+        .latest_trace_of_kind(serial, crate::trace::STATIC_FORCE)
+        .await?
+    else {
+        return Ok(None);
+    };
+    let Some(fit) = store.get_fit(&meta.trace_id).await? else {
+        return Ok(None);
+    };
+    let result = fit.result()?;
+    Ok(Some((meta, result)))
 }
 
 /// A force gauge's readings of a pantograph's static contact force: its latest stored
@@ -262,6 +362,10 @@ pub struct GaugeMeasurement {
     pub raise: Vec<[f64; 2]>,
     /// `[H m, F N]` readings lowering it after the highest, in recorded order.
     pub lower: Vec<[f64; 2]>,
+    /// The gauge's zero b its fit named (`sensor_offset`), N: the readings are F + b, so F is a
+    /// reading less b (the page draws them so). `null`: none named, or the trace not fitted yet.
+    pub zero_n: Option<f64>,
+    pub zero_n_ci95: Option<[f64; 2]>,
 }
 
 /// The latest `static_force` trace of `serial` as measured points; `None` when it has none, or
@@ -286,7 +390,21 @@ pub async fn latest_measurement(
         }
         Err(e) => return Err(e),
     };
-    Ok(measurement_of(&meta, channels))
+    let mut m = measurement_of(&meta, channels);
+    if let Some(m) = m.as_mut()
+        && let Some(fit) = store.get_fit(&meta.trace_id).await?
+    {
+        match fit.result() {
+            Ok(r) => (m.zero_n, m.zero_n_ci95) = gauge_zero_of(&r).unzip(),
+            Err(e) => tracing::warn!(trace = %meta.trace_id, error = %e, "gauge fit unreadable"),
+        }
+    }
+    Ok(m)
+}
+
+/// The gauge's zero a gauge fit `result` named (`sensor_offset`), N, with its interval.
+pub fn gauge_zero_of(result: &FitResult) -> Option<(f64, [f64; 2])> {
+    named_effect(result, GaugeEffect::SensorOffset)
 }
 
 /// The measured points of a stored `static_force` trace (see [`latest_measurement`]).
@@ -316,5 +434,7 @@ pub fn measurement_of(
         gauge_resolution_n: g.gauge_resolution_n,
         raise: pts(raise),
         lower: pts(lower),
+        zero_n: None,
+        zero_n_ci95: None,
     })
 }

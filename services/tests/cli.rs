@@ -651,15 +651,15 @@ fn simulate_static_force_writes_a_gauge_measurement() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(flag), "{args:?}: {err}");
     }
-    // Fitted as a force-gauge record: J3 ×3 shows as the J1+J3 dry combination at watch or
-    // worse, the RMSE in N.
+    // Fitted as a force-gauge record: J3 ×3 shows in the gap's dry combination (J3 with J1, J2,
+    // J2', J4, J5: issue 39) at watch or worse, the RMSE in N.
     let file = tmp("gauge.json");
     std::fs::write(&file, serde_json::to_vec(&worn).unwrap()).unwrap();
     let out = run_ok(bin().arg("fit").arg(&file).arg("--json"));
     let r: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(r["rmse"]["unit"], "N", "{r}");
     let combo = &r["combinations"][0];
-    assert_eq!(combo["label"], "J1+J3 dry", "{r}");
+    assert_eq!(combo["label"], "J1+J2+J2'+J3+J4+J5 dry", "{r}");
     assert!(combo["value"].as_f64().unwrap() > 2.0, "{combo}");
     assert!(
         combo["status"] == "watch" || combo["status"] == "alarm",
@@ -667,7 +667,8 @@ fn simulate_static_force_writes_a_gauge_measurement() {
     );
     let table = run_ok(bin().arg("fit").arg(&file));
     assert!(
-        table.contains("static_force test") && table.contains("informed by this trace: J1+J3"),
+        table.contains("static_force test")
+            && table.contains("informed by this trace: J1+J2+J2'+J3+J4+J5"),
         "{table}"
     );
 }

@@ -72,7 +72,7 @@ pub struct LiftFitOptions {
     /// Force-gauge records of the same pantograph fitted with the traces (issue 20, point 3;
     /// `lift::gauge`): their readings join the residual vector scaled by their noise; only the
     /// dry μ of the moving revolute joints enter them (quasi-static), and each record's zero, a
-    /// nuisance with the gauge fit's prior (`gauge::fit::SENSOR_OFFSET_PRIOR`). Empty (the
+    /// nuisance with the gauge fit's prior (`gauge::terms::SENSOR_OFFSET_PRIOR`). Empty (the
     /// default): none.
     pub gauge_records: Vec<PooledGauge>,
     /// Friction parameters each trace of a pooled fit gets its own deviation of (a random
@@ -342,7 +342,7 @@ pub struct LiftFit {
     /// Each pooled gauge record's residual RMS, N.
     pub gauge_rmse_n: Vec<f64>,
     /// Each pooled gauge record's fitted zero, N, with its interval (a nuisance).
-    pub gauge_offsets: Vec<super::gauge::GaugeEffectEstimate>,
+    pub gauge_offsets: Vec<super::gauge::terms::GaugeEffectEstimate>,
 }
 
 /// What one trace can tell: its Fisher information at the model's parameters.
@@ -441,14 +441,9 @@ pub fn effect_prior(p: LiftParam) -> Option<EffectPrior> {
     }
 }
 
-/// Prior of one effect parameter ([`effect_prior`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EffectPrior {
-    pub mean: f64,
-    pub sd: f64,
-    pub lower: f64,
-    pub upper: f64,
-}
+/// Prior of one effect parameter ([`effect_prior`]): `lift::posterior`'s, below this file and
+/// the gauge's terms alike.
+pub use super::posterior::EffectPrior;
 
 /// One fitted effect parameter, physical units.
 #[derive(Debug, Clone, PartialEq)]

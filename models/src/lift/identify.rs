@@ -21,6 +21,9 @@ pub use super::fit::{
     effect_prior,
 };
 use super::inputs::{InputReconstruction, reconstruct};
+// Re-exported for the fits that took it from here (`design`, `quadrangle::identify`).
+pub(crate) use super::posterior::inverse_spd;
+use super::posterior::{correlation, pinv};
 use super::sensitivity::{
     LiftParam, SensWorkspace, simulate_sensitivities, simulate_sensitivities_in,
 };
@@ -39,11 +42,11 @@ const MAX_STEPS_PER_S: f64 = 1000.0;
 const MAX_MULTIPLE: f64 = 10.0;
 
 /// Forward-difference step of a pooled gauge record's Jacobian, in units of Table 4 (the gauge
-/// fit's, `lift::gauge::fit::FD_STEP`).
-const GAUGE_FD_STEP: f64 = super::gauge::fit::FD_STEP;
+/// fit's, `lift::gauge::terms::FD_STEP`).
+const GAUGE_FD_STEP: f64 = super::gauge::terms::FD_STEP;
 
-/// The prior of a pooled gauge record's zero: the gauge fit's (`gauge::fit::GaugeEffect::prior`).
-const GAUGE_ZERO_PRIOR: EffectPrior = super::gauge::fit::SENSOR_OFFSET_PRIOR;
+/// The prior of a pooled gauge record's zero: the gauge fit's (`gauge::terms::GaugeEffect::prior`).
+const GAUGE_ZERO_PRIOR: EffectPrior = super::gauge::terms::SENSOR_OFFSET_PRIOR;
 
 /// Friction parameters in scaled units: x = θ/θ₀.
 fn baseline_of(model: &LiftModel, params: &[LiftParam]) -> Result<Vec<f64>, LiftFitError> {
@@ -70,31 +73,6 @@ fn baseline_of(model: &LiftModel, params: &[LiftParam]) -> Result<Vec<f64>, Lift
 
 mod problem;
 use problem::MapProblem;
-
-/// Inverse of a symmetric positive-definite matrix (Cholesky), or a pseudo-inverse.
-pub(crate) fn inverse_spd(a: &DMatrix<f64>) -> DMatrix<f64> {
-    match a.clone().cholesky() {
-        Some(c) => c.inverse(),
-        None => pinv(a),
-    }
-}
-
-/// Pseudo-inverse of a symmetric positive semi-definite matrix (directions below 10⁻¹² of the
-/// largest dropped).
-fn pinv(a: &DMatrix<f64>) -> DMatrix<f64> {
-    let svd = a.clone().svd(true, true);
-    let smax = svd.singular_values.max();
-    svd.pseudo_inverse(smax * 1e-12)
-        .unwrap_or_else(|_| DMatrix::zeros(a.nrows(), a.ncols()))
-}
-
-fn correlation(cov: &DMatrix<f64>) -> DMatrix<f64> {
-    let n = cov.nrows();
-    DMatrix::from_fn(n, n, |i, j| {
-        let d = (cov[(i, i)] * cov[(j, j)]).sqrt();
-        if d > 0.0 { cov[(i, j)] / d } else { 0.0 }
-    })
-}
 
 /// Check a trace's channels.
 fn check(traces: &[LiftTrace]) -> Result<usize, LiftFitError> {
@@ -738,8 +716,8 @@ pub fn fit_map_in(
         .map(|gi| {
             let (i, pr) = (z0 + gi, GAUGE_ZERO_PRIOR);
             let (v, sd) = (rep.x[i], cov[(i, i)].max(0.0).sqrt());
-            super::gauge::GaugeEffectEstimate {
-                effect: super::gauge::GaugeEffect::SensorOffset,
+            super::gauge::terms::GaugeEffectEstimate {
+                effect: super::gauge::terms::GaugeEffect::SensorOffset,
                 value: v,
                 posterior_sd: sd,
                 ci95: [(v - Z95 * sd).max(pr.lower), (v + Z95 * sd).min(pr.upper)],

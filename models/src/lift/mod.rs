@@ -23,6 +23,7 @@
 //! - [`input_noise`] — the inputs' sensor noise propagated into a lift fit's intervals.
 //! - [`attribution`] — which friction parameters a fit tells apart; combinations of the rest.
 //! - [`identify`] — Fisher information per trace, MAP fit with Table 4 as prior, verdicts.
+//! - [`posterior`] — an effect's prior, the information's inverse, correlations: below every fit.
 //! - [`batch`] — many lift fits on all cores, results in input order, progress by callback.
 //! - `integrate` — DOPRI5 or Rosenbrock-W over a sampled record, dense output at the samples.
 
@@ -40,6 +41,7 @@ pub mod input_noise;
 pub mod inputs;
 mod integrate;
 pub mod kinematics;
+pub mod posterior;
 pub mod protocol;
 pub mod readout;
 pub mod report;

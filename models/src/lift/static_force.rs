@@ -14,13 +14,16 @@
 //!   equation in F is solved by the secant method (T_static is all but affine in F);
 //! - **assumed quasi-static**: the speed is small enough that viscous terms (D·ω, J8's and J9's
 //!   dampers) and inertia vanish; the J8 slide is at its frictionless static travel (its dry
-//!   band of ±0.5 mm of travel changes H by as much, not F); J6 is locked in the plane (no work).
+//!   band of ±0.5 mm of travel changes H by as much, not F); J6 is locked in the plane (no work);
+//! - the drive line's slope is the type's unless a gauge record named another spring rate
+//!   (`spring_rate`, factor k: [`RateEstimate`], [`characteristic_rated`]; issue 39, point 5).
 //!
-//! The 95 % band is propagated from each joint's dry-μ interval (the fit that informed it) by
-//! evaluating F with that μ at the interval's ends, all others at their values, and adding the
-//! per-joint changes (an interval sum, not a root-sum-square: the store keeps no covariance
-//! between parameters and a lift's friction estimates are strongly correlated, so the sum is the
-//! bound that holds for any correlation). A joint without an interval adds nothing.
+//! The 95 % band is propagated from each joint's dry-μ interval (the fit that informed it), and
+//! from k's, by evaluating F with that parameter at the interval's ends, all others at their
+//! values, and adding the per-parameter changes (an interval sum, not a root-sum-square: the
+//! store keeps no covariance between parameters and a lift's friction estimates are strongly
+//! correlated, so the sum is the bound that holds for any correlation). A joint without an
+//! interval adds nothing, nor the type's spring.
 
 use super::dynamics::{DynamicsError, LiftModel};
 use super::geometry::Geometry;
@@ -48,6 +51,17 @@ impl DriveLine {
         }
     }
 
+    /// This line with its slope × `factor` about its first point (h0, t0): the torque there
+    /// kept, its rate of change with height scaled — a spring whose rate differs from the
+    /// type's (the `spring_rate` a gauge record names; **assumed** the drive's torque at the lift
+    /// test's initial state is what the depot sets, so the pivot).
+    pub fn with_rate_factor(&self, factor: f64) -> DriveLine {
+        DriveLine {
+            t1_nm: self.t0_nm + factor * (self.t1_nm - self.t0_nm),
+            ..*self
+        }
+    }
+
     pub fn torque_nm(&self, strip_height_m: f64) -> f64 {
         let dh = self.h1_m - self.h0_m;
         if dh.abs() < 1e-12 {
@@ -63,6 +77,31 @@ impl DriveLine {
 pub struct MuEstimate {
     pub value: f64,
     pub ci95: Option<[f64; 2]>,
+}
+
+/// The drive's spring-rate factor k a prediction uses ([`DriveLine::with_rate_factor`]) with its
+/// 95 % interval: [`RateEstimate::TYPE`] (1, no interval) for the type's spring; a gauge record's
+/// named `spring_rate` otherwise (`gauge::report::spring_rate_of`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RateEstimate {
+    pub factor: f64,
+    pub ci95: Option<[f64; 2]>,
+}
+
+impl RateEstimate {
+    /// The type's spring: k = 1, nothing added to the band.
+    pub const TYPE: RateEstimate = RateEstimate {
+        factor: 1.0,
+        ci95: None,
+    };
+
+    fn is_valid(&self) -> bool {
+        let ok_ci = match self.ci95 {
+            None => true,
+            Some([lo, hi]) => lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi,
+        };
+        self.factor.is_finite() && self.factor > 0.0 && ok_ci
+    }
 }
 
 /// The predicted characteristic. Forces in N on the strip, positive down (the gauge's reading).
@@ -157,6 +196,24 @@ pub fn characteristic(
     drive: &DriveLine,
     heights_m: &[f64],
 ) -> Result<StaticForceCurve, StaticForceError> {
+    characteristic_rated(g, mu, drive, &RateEstimate::TYPE, heights_m)
+}
+
+/// [`characteristic`] with `drive`'s slope × the spring-rate factor `rate`
+/// ([`DriveLine::with_rate_factor`]); k's interval adds to the band as a μ's does (F at each end
+/// of it, the others at their values; module doc).
+pub fn characteristic_rated(
+    g: &Geometry,
+    mu: &[MuEstimate; N_REV],
+    drive: &DriveLine,
+    rate: &RateEstimate,
+    heights_m: &[f64],
+) -> Result<StaticForceCurve, StaticForceError> {
+    if !rate.is_valid() {
+        return Err(StaticForceError::Invalid(format!(
+            "spring-rate factor {rate:?}"
+        )));
+    }
     for j in RevJoint::ALL {
         let e = mu[j.index()];
         let ok_ci = match e.ci95 {
@@ -180,15 +237,22 @@ pub fn characteristic(
     let values: [f64; N_REV] = std::array::from_fn(|i| mu[i].value);
     let model = with_mu(base, &values);
     let frictionless_model = with_mu(base, &[0.0; N_REV]);
-    // The models with one μ at an end of its interval (negative ends clipped to 0: μ ≥ 0).
-    let mut ends: Vec<LiftModel> = Vec::new();
+    let rated = drive.with_rate_factor(rate.factor);
+    // The models with one μ at an end of its interval (negative ends clipped to 0: μ ≥ 0), then
+    // the drive at each end of k's: pairs of (model, drive).
+    let mut ends: Vec<(LiftModel, DriveLine)> = Vec::new();
     for (i, e) in mu.iter().enumerate() {
         if let Some([lo, hi]) = e.ci95 {
             for v in [lo.max(0.0), hi.max(0.0)] {
                 let mut m = values;
                 m[i] = v;
-                ends.push(with_mu(base, &m));
+                ends.push((with_mu(base, &m), rated));
             }
+        }
+    }
+    if let Some([lo, hi]) = rate.ci95 {
+        for k in [lo, hi] {
+            ends.push((model.clone(), drive.with_rate_factor(k)));
         }
     }
     let mut c = StaticForceCurve {
@@ -203,7 +267,7 @@ pub fn characteristic(
         lower_hi_n: Vec::new(),
     };
     for &h in heights_m {
-        let t = drive.torque_nm(h);
+        let t = rated.torque_nm(h);
         c.drive_torque_nm.push(t);
         c.frictionless_n.push(strip_force_n(
             &frictionless_model,
@@ -227,7 +291,7 @@ pub fn characteristic(
             for pair in ends.chunks(2) {
                 let d: Vec<f64> = pair
                     .iter()
-                    .map(|m| strip_force_n(m, ar, h, t, dir).map(|x| x - f))
+                    .map(|(m, dr)| strip_force_n(m, ar, h, dr.torque_nm(h), dir).map(|x| x - f))
                     .collect::<Result<_, _>>()?;
                 let (dmin, dmax) = d
                     .iter()
@@ -288,8 +352,19 @@ pub fn predict(
     data: &crate::data::StaticForceData,
     mu: &[MuEstimate; N_REV],
 ) -> Result<Prediction, StaticForceError> {
+    predict_rated(g, data, mu, &RateEstimate::TYPE)
+}
+
+/// [`predict`] with the drive line's slope × `rate` (a gauge record's named `spring_rate`; its
+/// interval in the band).
+pub fn predict_rated(
+    g: &Geometry,
+    data: &crate::data::StaticForceData,
+    mu: &[MuEstimate; N_REV],
+    rate: &RateEstimate,
+) -> Result<Prediction, StaticForceError> {
     let heights = height_grid(data.working_height_m, data.height_step_m)?;
-    let curve = characteristic(g, mu, &DriveLine::from_lift_test(g), &heights)?;
+    let curve = characteristic_rated(g, mu, &DriveLine::from_lift_test(g), rate, &heights)?;
     let findings = curve.findings(&ForceLimits::from(data));
     Ok(Prediction { curve, findings })
 }

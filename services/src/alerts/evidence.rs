@@ -62,6 +62,10 @@ pub struct StaticForceEvidence {
     pub recorded_at: DateTime<Utc>,
     pub findings: Vec<FindingView>,
     pub parameters: Vec<MuSource>,
+    /// The drive spring the prediction used (a gauge record's named `spring_rate`, or the
+    /// type's); absent in findings stored before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spring: Option<crate::static_force::SpringSource>,
     pub limits: LimitsView,
 }
 
@@ -223,6 +227,7 @@ mod tests {
             recorded_at,
             findings: vec![finding.clone()],
             parameters: parameters.clone(),
+            spring: None,
             limits: limits.clone(),
         }));
         let static_force_before = json!({

@@ -3,7 +3,9 @@
 //!
 //! A trace is fitted first; a fit result (the contract's JSON, e.g. `pantowatch fit --json`) is
 //! read as is. The joints that fit informs take its values and intervals; the rest stay at the
-//! type's baseline (no band), as for a stored pantograph with that one test.
+//! type's baseline (no band), as for a stored pantograph with that one test. A force-gauge
+//! record's fit that names `spring_rate` sets the drive spring's rate (with its interval in the
+//! band); otherwise the type's spring (issue 39, point 5).
 
 use std::path::PathBuf;
 
@@ -11,7 +13,9 @@ use anyhow::Context;
 use chrono::Utc;
 use pantowatch_models::drift::DriftThresholds;
 
-use crate::static_force::{StaticForceView, current_mu, predict_blocking, type_models};
+use crate::static_force::{
+    SpringSource, StaticForceView, current_mu, predict_blocking, type_models,
+};
 use crate::store::{JointPoint, NewFit};
 
 /// Exactly one of `--trace` and `--fit`; `--model` and `--json` go with either.
@@ -42,6 +46,18 @@ pub fn table(v: &StaticForceView) -> String {
         s += &format!("{} {:.4} ({})  ", p.joint, p.dry_mu, p.source);
     }
     s += "\n";
+    let sp = &v.spring;
+    s += &match sp.rate_factor_ci95 {
+        Some([lo, hi]) => format!(
+            "drive spring: rate × {:.4} [{lo:.4}, {hi:.4}] ({}{})\n",
+            sp.rate_factor,
+            sp.source,
+            sp.trace_id
+                .as_deref()
+                .map_or(String::new(), |t| format!(" {t}"))
+        ),
+        None => format!("drive spring: the type's ({})\n", sp.source),
+    };
     s += &format!(
         "{:>6} {:>8} {:>24} {:>24} {:>8} {:>8}\n",
         "H m", "F0", "F_raise [lo, hi]", "F_lower [lo, hi]", "min", "max"
@@ -105,8 +121,13 @@ pub fn run(a: StaticForceArgs, thresholds: &DriftThresholds) -> anyhow::Result<(
     };
     let (_, g) = type_models(&model)
         .ok_or_else(|| anyhow::anyhow!("pantograph type `{model}` has no static-force model"))?;
-    let fit = NewFit::from_result(result);
     let now = Utc::now();
+    let spring = if pantowatch_models::lift::gauge::spring_rate_of(&result).is_some() {
+        SpringSource::of_gauge_fit(&result, &name, now)
+    } else {
+        SpringSource::type_spring()
+    };
+    let fit = NewFit::from_result(result);
     let points: Vec<JointPoint> = fit
         .joints
         .into_iter()
@@ -121,7 +142,8 @@ pub fn run(a: StaticForceArgs, thresholds: &DriftThresholds) -> anyhow::Result<(
         })
         .collect();
     let (mu, sources) = current_mu(g, &points);
-    let v = predict_blocking(&name, &model, &mu, sources).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let v = predict_blocking(&name, &model, &mu, sources, spring)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {

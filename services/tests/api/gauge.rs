@@ -8,6 +8,9 @@ use serde_json::{Value, json};
 
 use crate::harness::*;
 
+/// The combination a gauge record of the built-in type informs (`models::lift::gauge`, issue 39).
+const GAUGE_LEVEL: &str = "J1+J2+J2'+J3+J4+J5";
+
 /// A simulated gauge measurement (`simulate --kind static_force`): 15 readings raising, 14
 /// lowering, 0.2 N noise, 0.1 N resolution.
 pub fn gauge_doc(serial: &str, trace_id: &str, scale: &[&str]) -> pantowatch::trace::TraceDoc {
@@ -221,9 +224,10 @@ pub async fn a_gauge_measurement_is_stored_refused_and_drawn(b: Backend) {
             "{name} differs"
         );
     }
-    // The fit (`models::lift::gauge`): the hysteresis informs J1 and J3's dry friction together,
-    // a combination like a lift's; J3 ×2 puts its level near 0.14 × 1 + 0.86 × 2 ≈ 1.86, past
-    // the watch band, and the RMSE is the gauge's noise (0.2 N with its 0.1 N steps).
+    // The fit (`models::lift::gauge`): the hysteresis informs the gap's level, J3 with J1, J2,
+    // J2', J4 and J5 (issue 39: every joint the gap tells of); J3 ×2 puts it near
+    // 0.24 × 1 + 0.76 × 2 ≈ 1.76, past the watch band, and the RMSE is the gauge's noise (0.2 N
+    // with its 0.1 N steps).
     let fit = app.wait_for_fit("gauge-1").await;
     assert_eq!(fit["rmse"]["unit"], "N", "{fit}");
     let rmse = fit["rmse"]["value"].as_f64().expect("rmse");
@@ -232,18 +236,18 @@ pub async fn a_gauge_measurement_is_stored_refused_and_drawn(b: Backend) {
         .as_array()
         .expect("joints")
         .iter()
-        .find(|j| j["joint"] == "J1+J3")
+        .find(|j| j["joint"] == GAUGE_LEVEL)
         .cloned()
-        .unwrap_or_else(|| panic!("no J1+J3 combination: {fit}"));
+        .unwrap_or_else(|| panic!("no {GAUGE_LEVEL} combination: {fit}"));
     let level = combo["dry"]["value"].as_f64().expect("level");
     let ci = floats(&combo["dry"]["ci95"]);
     assert!(
         (1.6..2.1).contains(&level) && ci[0] > 1.5,
-        "J1+J3 level {level} {ci:?}: {combo}"
+        "{GAUGE_LEVEL} level {level} {ci:?}: {combo}"
     );
     assert_eq!(combo["status"], "watch", "{combo}");
-    // The pantograph's predicted static force takes J1 and J3's dry friction from it, as from a
-    // lift's combination (level × Table 4 each).
+    // The pantograph's predicted static force takes its members' dry friction from it, as from
+    // a lift's combination (level × Table 4 each).
     let (s, v) = app
         .get_json(&format!("/v1/pantographs/{serial}/static-force"))
         .await;
@@ -255,7 +259,7 @@ pub async fn a_gauge_measurement_is_stored_refused_and_drawn(b: Backend) {
         .find(|p| p["joint"] == "J3")
         .cloned()
         .expect("J3");
-    assert_eq!(j3["source"], "combination J1+J3", "{j3}");
+    assert_eq!(j3["source"], format!("combination {GAUGE_LEVEL}"), "{j3}");
     assert_eq!(j3["trace_id"], "gauge-1", "{j3}");
     // … and carries the gauge's readings as stored, split at the turn.
     assert_eq!(v["measured"]["trace_id"], "gauge-1", "{v}");

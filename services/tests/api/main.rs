@@ -65,6 +65,7 @@ suite!(
     a_release_is_found_or_stated_and_reported,
     a_disturbed_release_is_left_out_and_said,
     static_force_is_predicted_and_judged_against_the_limits,
+    a_named_spring_rate_moves_the_static_force_prediction,
     a_gauge_measurement_is_stored_refused_and_drawn,
     a_gauge_record_pools_with_the_next_lift,
     a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,

@@ -28,7 +28,8 @@
 use super::super::dynamics::LiftModel;
 use super::super::static_force::DriveLine;
 use super::GaugeRecord;
-use super::fit::{GaugeEffect, GaugeFit, GaugeFitOptions, fit_gauge_from};
+use super::fit::{GaugeFit, GaugeFitOptions, fit_gauge_from};
+use super::terms::GaugeEffect;
 use crate::numerics::stats::{WHITENESS_P, normal_quantile};
 
 pub use super::super::residual::{EFFECT_TRY_RATIO, MODEL_ERROR_RATIO};

@@ -18,18 +18,22 @@
 //!   (x = μ/μ⁰): a parameter is contracted when its posterior sd is under prior sd / 2 (× min(x, 1));
 //!   directions the data pin are the eigenvectors of the data's information; a joint in an
 //!   informed direction with others is not separately identified and is reported in that
-//!   direction's combination (level Σ w_j x_j, 1 at baseline).
+//!   direction's combination (level Σ w_j x_j, 1 at baseline). Its members: every joint of the
+//!   direction until those left out would widen the level's interval by under 1 %
+//!   ([`level_min_share`]; the lift's share rule left joints out whose prior tripled it).
 
 use nalgebra::DMatrix;
 
 use super::super::attribution::{AttributionOptions, Combination, attribute};
 use super::super::dynamics::LiftModel;
-use super::super::identify::{EffectPrior, LiftFitOptions, ParamEstimate};
+use super::super::fit::{LiftFitOptions, ParamEstimate};
+use super::super::posterior::{EffectPrior, correlation, inverse_spd};
 use super::super::sensitivity::LiftParam;
 use super::super::static_force::DriveLine;
 use super::super::topology::RevJoint;
 use super::simulate::spring_rate_drive;
 use super::solve::{Warm, forces_near, warm_starts};
+use super::terms::{FD_STEP, GaugeEffect, GaugeEffectEstimate};
 use super::{GaugeError, GaugeRecord, gauge_data};
 use crate::contract::drift::{DriftThresholds, Status};
 use crate::joint::identify::lm::{LmOptions, Problem, Termination, minimize};
@@ -46,69 +50,11 @@ pub const FITTED_JOINTS: [RevJoint; 7] = [
     RevJoint::J7,
 ];
 
-/// Forward-difference step of the Jacobian: 10⁻⁴ in ln μ (a joint's force change is ~10⁻³ N,
-/// 10⁵ times the strip-force solver's tolerance) and in a spring-rate factor.
-pub const FD_STEP: f64 = 1e-4;
-
 /// Lowest μ fitted, × Table 4: a joint with 1 % of its friction is as good as frictionless
 /// and keeps ln μ finite.
 const MIN_MULTIPLE: f64 = 0.01;
 /// Highest μ fitted, × Table 4 (the lift fit's bound).
 const MAX_MULTIPLE: f64 = 10.0;
-
-/// The prior of the gauge's zero b, N ([`GaugeEffect::prior`]).
-pub const SENSOR_OFFSET_PRIOR: EffectPrior = EffectPrior {
-    mean: 0.0,
-    sd: 10.0,
-    lower: -50.0,
-    upper: 50.0,
-};
-
-/// An effect a gauge fit can carry besides the friction (`effects`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum GaugeEffect {
-    /// The gauge's zero off by b, N: F_meas = F + b (both branches shifted alike).
-    SensorOffset,
-    /// The drive characteristic's slope × k about its first point (the mean curve tilted): a
-    /// spring whose rate differs from the type's.
-    SpringRate,
-}
-
-impl GaugeEffect {
-    pub const ALL: [GaugeEffect; 2] = [GaugeEffect::SensorOffset, GaugeEffect::SpringRate];
-
-    /// The contract's vocabulary name.
-    pub fn name(self) -> &'static str {
-        match self {
-            GaugeEffect::SensorOffset => "sensor_offset",
-            GaugeEffect::SpringRate => "spring_rate",
-        }
-    }
-
-    /// The value of "no effect": b = 0 N, k = 1.
-    pub fn null_value(self) -> f64 {
-        match self {
-            GaugeEffect::SensorOffset => 0.0,
-            GaugeEffect::SpringRate => 1.0,
-        }
-    }
-
-    /// The prior. `sensor_offset` b: N(0, (10 N)²) in [−50, 50] N — a gauge's zero is off by
-    /// newtons after a bad tare; 50 N is half the static force, a mounting error, not a zero.
-    /// `spring_rate` k: N(1, 0.5²) in [0.2, 5] — a spring of another rate class is tens of
-    /// per cent off; beyond 5× it is another pantograph.
-    pub fn prior(self) -> EffectPrior {
-        match self {
-            GaugeEffect::SensorOffset => SENSOR_OFFSET_PRIOR,
-            GaugeEffect::SpringRate => EffectPrior {
-                mean: 1.0,
-                sd: 0.5,
-                lower: 0.2,
-                upper: 5.0,
-            },
-        }
-    }
-}
 
 /// Settings of a gauge fit.
 #[derive(Debug, Clone)]
@@ -157,24 +103,6 @@ impl Default for GaugeFitOptions {
             },
             attribution: lift.attribution,
         }
-    }
-}
-
-/// A fitted effect, its units (N or a factor).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GaugeEffectEstimate {
-    pub effect: GaugeEffect,
-    pub value: f64,
-    pub posterior_sd: f64,
-    /// value ± t·sd (the t quantile at the fit's degrees of freedom), cut at the prior's bounds.
-    pub ci95: [f64; 2],
-}
-
-impl GaugeEffectEstimate {
-    /// The interval leaves out the value of "no effect".
-    pub fn excludes_null(&self) -> bool {
-        let v = self.effect.null_value();
-        self.ci95[0] > v || self.ci95[1] < v
     }
 }
 
@@ -408,7 +336,7 @@ pub fn fit_gauge_from(
     for i in 0..p {
         post0[(i, i)] += prior_prec[i];
     }
-    let cov0 = super::super::identify::inverse_spd(&post0);
+    let cov0 = inverse_spd(&post0);
     let p_eff = (&a * &cov0).trace().clamp(0.0, p as f64);
     let dof = (n as f64 - p_eff).max(1.0);
     let rss: f64 = rep.residuals[..n].iter().map(|v| v * v).sum();
@@ -417,7 +345,7 @@ pub fn fit_gauge_from(
     for i in 0..p {
         post[(i, i)] += prior_prec[i];
     }
-    let cov_u = super::super::identify::inverse_spd(&post);
+    let cov_u = inverse_spd(&post);
     let t = student_t_quantile(0.975, dof.floor() as usize);
     // Every interval at the t quantile: the posterior scaled so that Z95·sd is t·sd.
     let scale = (t / Z95).powi(2);
@@ -430,7 +358,7 @@ pub fn fit_gauge_from(
     for i in 0..p {
         info_x[(i, i)] += if i < pf { 1.0 / (s * s) } else { prior_prec[i] };
     }
-    let cov_h = super::super::identify::inverse_spd(&info_x);
+    let cov_h = inverse_spd(&info_x);
     let params: Vec<LiftParam> = FITTED_JOINTS.iter().map(|j| LiftParam::Dry(*j)).collect();
     let contracted: Vec<bool> = (0..pf)
         .map(|i| cov_x[(i, i)].max(0.0).sqrt() < s / opts.informed_factor * xs[i].min(1.0))
@@ -445,7 +373,9 @@ pub fn fit_gauge_from(
         s,
         opts.informed_factor,
         &opts.thresholds,
-        &opts.attribution,
+        &AttributionOptions {
+            min_share: level_min_share(&cov_h, pf, s).min(opts.attribution.min_share),
+        },
     );
     let estimates: Vec<ParamEstimate> = (0..pf)
         .map(|i| {
@@ -522,10 +452,53 @@ pub fn fit_gauge_from(
     })
 }
 
-fn correlation(cov: &DMatrix<f64>) -> DMatrix<f64> {
-    let n = cov.nrows();
-    DMatrix::from_fn(n, n, |i, j| {
-        let d = (cov[(i, i)] * cov[(j, j)]).sqrt();
-        if d > 0.0 { cov[(i, j)] / d } else { 0.0 }
-    })
+/// How much the joints left out of the level may widen its interval: 1 %, as a share of its
+/// variance ([`level_min_share`]). A tenth of what a record can tell of its own width: its
+/// noise scale comes from ~27 degrees of freedom (30 readings less the effective parameters),
+/// whose relative sd is 1/√54 ≈ 14 %. At Table 4 it falls between J4 (left out it would add
+/// 9 % of the data's variance) and J7 (0.4 %), so the members do not change from record to
+/// record (`calibration_tests::the_level_interval_matches_its_spread_over_noise_draws`).
+pub const LEVEL_WIDENING: f64 = 1.01 * 1.01 - 1.0;
+
+/// The least share (squared component) a joint needs in the best-informed direction to join
+/// its level (`AttributionOptions::min_share`): every joint is in, by decreasing share, until
+/// the joints left out would add at most [`LEVEL_WIDENING`] of the data's variance to it.
+///
+/// Why (issue 39, point 5): the data pin the gap, the direction v of their information
+/// Λ = (Σ_ff)⁻¹ − P⁻¹ (as `lift::attribution`), with eigenvalue λ: the level along all of v has
+/// variance 1/(λ(Σv)²). A level over the members M only, v_M·x/Σ_M v, is that less the joints
+/// left out, each unseen apart from it, so it carries their prior: s²·Σ_{j∉M} v_j²/(Σ_M v)² more.
+/// The lift's rule (`min_share` 0.01) keeps J1 and J3 (v² 0.024 and 0.968 at Table 4) and
+/// drops J5, J2′ and J2 (0.0036, 0.0033, 0.0011): with s = 0.5 their prior made the J1+J3
+/// interval 2.9 times the level's spread over noise draws (sd 0.038 against 0.013, 120 records
+/// at the stated gauge; `calibration_tests::probe_level_variance_parts` splits it) — all of it
+/// the dropped joints' prior, none of it the noise. With J2, J2′, J4 and J5 in, J7 (v² 1.6·10⁻⁷) left out adds 0.4 % of
+/// the data's variance. A joint whose component has the other sign stops the walk: a level is
+/// never a contrast.
+pub fn level_min_share(cov_h: &DMatrix<f64>, pf: usize, prior_sd: f64) -> f64 {
+    let Some(ff) = cov_h.view((0, 0), (pf, pf)).into_owned().try_inverse() else {
+        return f64::INFINITY;
+    };
+    let lambda = (&ff + ff.transpose()) / 2.0 - DMatrix::identity(pf, pf) / (prior_sd * prior_sd);
+    let eig = lambda.symmetric_eigen();
+    let k = eig.eigenvalues.imax();
+    let (lam, v) = (eig.eigenvalues[k], eig.eigenvectors.column(k).into_owned());
+    if !(lam.is_finite() && lam > 0.0) {
+        return f64::INFINITY;
+    }
+    let sign = v.sum().signum();
+    let mut order: Vec<usize> = (0..pf).collect();
+    order.sort_by(|&a, &b| (v[b] * v[b]).total_cmp(&(v[a] * v[a])));
+    let budget = LEVEL_WIDENING / (lam * prior_sd * prior_sd);
+    let mut left_out: f64 = v.iter().map(|c| c * c).sum();
+    let mut share = f64::INFINITY;
+    for i in order {
+        if left_out <= budget || v[i] * sign <= 0.0 {
+            break;
+        }
+        share = v[i] * v[i];
+        left_out -= share;
+    }
+    // Just below the last member's share, so that it passes `>=`.
+    share * (1.0 - 1e-9)
 }

@@ -10,13 +10,14 @@
 //!   frictionless travel): not estimated by a quasi-static test — baseline, prior interval, not
 //!   identified, `unknown`. J9 has no dry friction: 0, no baseline;
 //! - each informed combination: in `combinations` and as an entry of `joints` named by its
-//!   members (`J1+J3`), the level in the `dry` slot, unit `× Table 4`, baseline 1;
+//!   members (`J1+J2+J2'+J3+J4+J5`), the level in the `dry` slot, unit `× Table 4`, baseline 1;
 //! - `rmse` in N; `residual.effects` the named effects (`sensor_offset`: `offset_n`,
 //!   `offset_n_ci95`; `spring_rate`: `rate_factor`, `rate_factor_ci95`) with `rmse_before` the
 //!   plain model's (no zero, no k) and `rmse_after` the final fit's; `verdict: "unexplained"` and every joint
 //!   withheld (not identified, `unknown`) when the plain model leaves a model error no effect
 //!   explains (`effects`); `excess_ratio` the final residual's RMS over the noise; no held-out test
-//!   (`holdout_note` says why, the pair repeats the RMSE);
+//!   (`holdout_note` says why, the pair repeats the RMSE); read back by [`named_effect`] and
+//!   [`spring_rate_of`] (the static-force prediction takes a named spring rate from there);
 //! - `fit`: `sensor_offset` the gauge's zero b (N) with its interval, always fitted (a nuisance,
 //!   as a lift's torque offset; named as the `sensor_offset` effect only by its margins);
 //!   `interval_inflation` the noise scale over σ₀; release fields: the first reading.
@@ -25,12 +26,13 @@ use std::sync::OnceLock;
 
 use super::super::attribution::Combination;
 use super::super::dynamics::LiftModel;
+use super::super::fit::ParamEstimate;
 use super::super::geometry::{Geometry, builtin_160ec};
-use super::super::identify::ParamEstimate;
-use super::super::static_force::DriveLine;
+use super::super::static_force::{DriveLine, RateEstimate};
 use super::super::topology::RevJoint;
 use super::effects::{GaugeLoop, GaugeResidual, GaugeVerdict, fit_with_effects};
-use super::fit::{GaugeEffect, GaugeFit, GaugeFitOptions};
+use super::fit::{GaugeFit, GaugeFitOptions};
+use super::terms::{GaugeEffect, GaugeEffectEstimate};
 use super::{GaugeError, GaugeRecord};
 use crate::contract::drift::{DriftThresholds, Status};
 use crate::contract::report::{
@@ -244,12 +246,17 @@ pub fn gauge_result(
     }
 }
 
-fn effect_result(e: super::fit::GaugeEffectEstimate) -> EffectResult {
-    use serde_json::json;
-    let (k, kci) = match e.effect {
+/// The keys of an effect's value and interval in `residual.effects[].params`.
+fn param_keys(effect: GaugeEffect) -> (&'static str, &'static str) {
+    match effect {
         GaugeEffect::SensorOffset => ("offset_n", "offset_n_ci95"),
         GaugeEffect::SpringRate => ("rate_factor", "rate_factor_ci95"),
-    };
+    }
+}
+
+fn effect_result(e: GaugeEffectEstimate) -> EffectResult {
+    use serde_json::json;
+    let (k, kci) = param_keys(e.effect);
     let mut params = serde_json::Map::new();
     params.insert(k.into(), json!(e.value));
     params.insert(kci.into(), json!(e.ci95));
@@ -330,4 +337,35 @@ fn combination_joint(c: &Combination, prior_relative_sd: f64) -> JointResult {
         viscous,
         dry,
     }
+}
+
+/// A gauge record's named `effect` read back from its contract result (`residual.effects`, as
+/// [`gauge_result`] writes it): the value and its 95 % interval; `None` when the record did not
+/// name it, when its joints were withheld (`unexplained`), or when the entry does not read
+/// (a lift's `sensor_offset` is an H offset in metres, not a gauge's zero: no `offset_n`).
+pub fn named_effect(result: &FitResult, effect: GaugeEffect) -> Option<(f64, [f64; 2])> {
+    if result.residual.verdict.is_some() {
+        return None;
+    }
+    let (k, kci) = param_keys(effect);
+    let e = result
+        .residual
+        .effects
+        .iter()
+        .find(|e| e.name == effect.name())?;
+    let v = e.params.get(k)?.as_f64()?;
+    let ci = e.params.get(kci)?.as_array()?;
+    let (lo, hi) = (ci.first()?.as_f64()?, ci.get(1)?.as_f64()?);
+    (v.is_finite() && lo.is_finite() && hi.is_finite() && lo <= v && v <= hi)
+        .then_some((v, [lo, hi]))
+}
+
+/// The spring-rate factor a gauge record's fit named (`spring_rate`), as the static-force
+/// prediction takes it ([`super::super::static_force::predict_rated`]); `None`: not named.
+pub fn spring_rate_of(result: &FitResult) -> Option<RateEstimate> {
+    let (factor, ci) = named_effect(result, GaugeEffect::SpringRate)?;
+    (factor > 0.0 && ci[0] > 0.0).then_some(RateEstimate {
+        factor,
+        ci95: Some(ci),
+    })
 }

@@ -42,13 +42,10 @@ impl Default for GaugeSimOptions {
 }
 
 /// `drive` with its slope × `factor` about its first point (h0, t0): the torque there kept, the
-/// rate of change with height scaled — a spring whose rate differs from the type's (**assumed**
-/// the drive's torque at the lift test's initial state is what the depot sets, so the pivot).
+/// rate of change with height scaled — a spring whose rate differs from the type's
+/// ([`DriveLine::with_rate_factor`], where the prediction takes it too).
 pub fn spring_rate_drive(drive: &DriveLine, factor: f64) -> DriveLine {
-    DriveLine {
-        t1_nm: drive.t0_nm + factor * (drive.t1_nm - drive.t0_nm),
-        ..*drive
-    }
+    drive.with_rate_factor(factor)
 }
 
 /// Reading heights over the built-in type's working range: `per_branch` equally spaced heights

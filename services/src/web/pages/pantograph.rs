@@ -199,7 +199,9 @@ const LOWER_COLOR: &str = "#e65100";
 /// The predicted static contact force (issue 20): raising and lowering with their 95 % bands,
 /// the frictionless curve, and the type's limits (nominal, min, max) over strip height; with
 /// the latest force-gauge measurement's readings over it when the pantograph has one (raising:
-/// filled blue dots, lowering: hollow orange squares, as stored, not refitted).
+/// filled blue dots, lowering: hollow orange squares, as stored, not refitted; less the gauge's
+/// zero when its fit named one, `sensor_offset`). The drive line is the type's, or its slope ×
+/// the `spring_rate` the latest gauge record named (issue 39, point 5).
 fn static_force_chart(
     v: &crate::static_force::StaticForceView,
     measured: Option<&crate::static_force::GaugeMeasurement>,
@@ -216,10 +218,12 @@ fn static_force_chart(
         &v.limits.min_n,
         &v.limits.max_n,
     ];
+    // The gauge reads F + b: its points are drawn as F, the zero it named taken off.
+    let zero_n = measured.and_then(|m| m.zero_n).unwrap_or(0.0);
     let gauge_f = measured
         .into_iter()
         .flat_map(|m| m.raise.iter().chain(&m.lower))
-        .map(|p| p[1]);
+        .map(|p| p[1] - zero_n);
     let ylo = all
         .iter()
         .flat_map(|s| s.iter())
@@ -273,14 +277,22 @@ fn static_force_chart(
             (&m.lower, GAUGE_LOWER_CLASS, LOWER_COLOR, true, "lowering"),
         ] {
             for (i, p) in pts.iter().enumerate() {
-                let label = format!(
+                let mut label = format!(
                     "gauge {} {branch} reading {}: H {} m, F {} N",
                     m.trace_id,
                     i + 1,
                     fmt_num(p[0]),
-                    fmt_num(p[1])
+                    fmt_num(p[1] - zero_n)
                 );
-                f.marker((p[0], p[1]), class, color, open, &label);
+                if zero_n != 0.0 {
+                    let _ = write!(
+                        label,
+                        " (read {} N, less the gauge's zero {} N)",
+                        fmt_num(p[1]),
+                        fmt_num(zero_n)
+                    );
+                }
+                f.marker((p[0], p[1] - zero_n), class, color, open, &label);
             }
         }
         legend.push((
@@ -308,6 +320,16 @@ fn static_force_chart(
         fmt_num(v.limits.max_n[i0]),
         fmt_num(h0),
     );
+    if let Some([lo, hi]) = v.spring.rate_factor_ci95 {
+        let _ = write!(
+            desc,
+            "; drive spring rate × {} [{}, {}] as gauge record {} named it",
+            fmt_num(v.spring.rate_factor),
+            fmt_num(lo),
+            fmt_num(hi),
+            v.spring.trace_id.as_deref().unwrap_or("?")
+        );
+    }
     if v.findings.is_empty() {
         desc.push_str("; every band within the limits.");
     } else {
@@ -330,6 +352,14 @@ fn static_force_chart(
             m.raise.len(),
             m.lower.len()
         );
+        if let Some(b) = m.zero_n {
+            let _ = write!(
+                desc,
+                " The gauge's zero was off by {} N (its fit named sensor_offset): the readings are \
+                 drawn less it.",
+                fmt_num(b)
+            );
+        }
     }
     let x_labels = vec![
         (x0, format!("{} m", fmt_num(x0))),
@@ -347,13 +377,14 @@ fn static_force_chart(
             }
             p.note {
                 "Quasi-static strip force for raising (blue) and lowering (orange) with the drive at \
-                 the lift-test line, from each joint's dry friction of the latest test that informed \
-                 it (others at Table 4); shaded: 95 % bands; red dashed: the type's limits; green \
+                 the lift-test line (its slope × the spring rate a force-gauge record named, if \
+                 one did), from each joint's dry friction of the latest test that informed it \
+                 (others at Table 4); shaded: 95 % bands; red dashed: the type's limits; green \
                  dashed: nominal; grey dashed: without friction."
                 @if let Some(m) = measured {
                     " Dots (raising) and hollow squares (lowering): the force gauge's readings of "
                     a href={ "/traces/" (seg(&m.trace_id)) } { (m.trace_id) }
-                    " as uploaded."
+                    @if m.zero_n.is_some() { " less the gauge's zero its fit named." } @else { " as uploaded." }
                 }
             }
         }
