@@ -29,8 +29,8 @@ impl Input {
         if n == 0 {
             return (0.0, 0.0);
         }
-        // (`!(t > …)`: a NaN time reads the first value, as before the record starts.)
-        if !(t > self.t_s[0]) {
+        // (A NaN time reads the first value, as before the record starts.)
+        if t <= self.t_s[0] || t.is_nan() {
             return (self.value[0], 0.0);
         }
         if t >= self.t_s[n - 1] {
@@ -48,7 +48,7 @@ impl Input {
         if n == 0 || t >= self.t_s[n - 1] {
             return None;
         }
-        if !(t >= self.t_s[0]) {
+        if t < self.t_s[0] || t.is_nan() {
             return Some(self.t_s[0]);
         }
         Some(self.t_s[self.interval(t) + 1])
