@@ -252,3 +252,94 @@ fn direction_dependent_friction_on_a_driven_axis_reads_as_its_force_zero() {
         "friction held in {friction_held} of {n}"
     );
 }
+
+/// Issue 38's before/after table (run by hand, not a timed test): every example trace and a
+/// measured-like set of input-driven axis records (`synth::DrivenAxis`: 1–5 kHz, 5–60 s, the
+/// stand's 0.2 N force noise and the logger's steps, 0.05 or 0.5 mm position noise), each
+/// through the whole fit (`fit_joint_test`: base fit, residual loop, intervals); one JSON line
+/// each to `$PANTOWATCH_ISSUE38_OUT` (values, intervals, effects, seconds).
+#[test]
+#[ignore]
+fn issue38_before_after_table() {
+    use pantowatch_models::synth::DrivenAxis;
+    let out = std::env::var("PANTOWATCH_ISSUE38_OUT").unwrap_or("/dev/stderr".into());
+    let mut lines = Vec::new();
+    let mut row = |name: &str, test: &JointTest, b: &Baseline| {
+        let clock = std::time::Instant::now();
+        let r = pantowatch_models::fit_joint_test(
+            test,
+            b,
+            &pantowatch_models::drift::DriftThresholds::default(),
+            "t",
+            &pantowatch_models::identify::FitOptions::default(),
+        );
+        let secs = clock.elapsed().as_secs_f64();
+        let line = match r {
+            Ok((r, _)) => {
+                let j = &r.joints[0];
+                serde_json::json!({"name": name, "samples": test.t_s.len(), "seconds": secs,
+                    "viscous": j.viscous.value, "viscous_ci95": j.viscous.ci95,
+                    "dry": j.dry.value, "dry_ci95": j.dry.ci95,
+                    "input_offset": r.fit.input_offset.as_ref().map(|q| q.value),
+                    "input_offset_ci95": r.fit.input_offset_ci95,
+                    "rmse": r.rmse.value, "effects": names(&r)})
+            }
+            Err(e) => serde_json::json!({"name": name, "error": e.to_string()}),
+        };
+        eprintln!("{line}");
+        lines.push(line.to_string());
+    };
+    if let Some(ex) = pantowatch::cli::examples_dir() {
+        let mut files: Vec<_> = std::fs::read_dir(&ex)
+            .unwrap()
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                p.extension().is_some_and(|x| x == "json")
+                    && p.file_stem().is_some_and(|s| s != "truth")
+            })
+            .collect();
+        files.sort();
+        for f in files {
+            let doc = pantowatch::cli::read_trace(&f).unwrap();
+            let (test, b) = doc.joint_test().unwrap();
+            row(&f.file_stem().unwrap().to_string_lossy(), &test, &b);
+        }
+    }
+    let b = Baseline {
+        joint: "custom".into(),
+        viscous: None,
+        dry: None,
+        viscous_unit: "N·s/m",
+    };
+    for (fs_hz, duration_s, pos_noise, seed) in [
+        (1000.0, 25.0, 0.05, 1u64),
+        (1000.0, 25.0, 0.05, 2),
+        (2000.0, 10.0, 0.05, 3),
+        (5000.0, 5.0, 0.05, 4),
+        (1000.0, 25.0, 0.5, 5),
+        (1000.0, 60.0, 0.05, 6),
+    ] {
+        let axis = DrivenAxis {
+            moving_mass_kg: 8.0,
+            viscous: 204.0,
+            normal_force_n: 40.8,
+            dry: 0.5,
+            input_offset_n: -3.2,
+            force_n: 150.0,
+            fs_hz,
+            duration_s,
+            force_noise_n: 0.2,
+            force_step_n: 0.05,
+            position_noise_mm: pos_noise,
+            position_step_mm: 0.01,
+            seed,
+        };
+        let test = axis.record().unwrap();
+        row(
+            &format!("axis {fs_hz} Hz {duration_s} s {pos_noise} mm seed {seed}"),
+            &test,
+            &b,
+        );
+    }
+    std::fs::write(&out, lines.join("\n") + "\n").unwrap();
+}

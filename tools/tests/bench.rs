@@ -62,6 +62,10 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
     for measure in [
         "| fit: pendulum",
         "| fit: slider",
+        "| fit time vs length: pendulum J3",
+        "| fit time vs length: slider J8",
+        "| fit time vs length: input-driven axis",
+        "| fit: input-driven axis, positioning-benchmark size (25k samples, 1 kHz)",
         "| fit: lift, clean inputs (3 raise-and-lower lifts, one core)",
         "| fit: lift, realistic sensor noise (3 raise-and-lower lifts, one core)",
         "| fit: lift, 2× sensor noise (3 raise-and-lower lifts, one core)",
@@ -77,7 +81,7 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
     assert!(!stdout.contains("not measured"), "{stdout}");
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let rows = v["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 11, "{v}");
+    assert_eq!(rows.len(), 15, "{v}");
     let row = |prefix: &str| {
         rows.iter()
             .find(|r| r["measure"].as_str().unwrap().starts_with(prefix))
@@ -94,6 +98,30 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
     assert!(
         lp["detail"]["named_right"].as_u64().is_some_and(|n| n >= 2),
         "{lp}"
+    );
+    // Issue 38: fit time against record length per single-joint kind, at 1k and 10k samples
+    // (quick), judged on its growth exponent (its value), each length with both timings.
+    for prefix in [
+        "fit time vs length: pendulum",
+        "fit time vs length: slider",
+        "fit time vs length: input-driven",
+    ] {
+        let r = row(prefix);
+        assert!(r["value"].as_f64().is_some_and(f64::is_finite), "{r}");
+        assert!(r["pass"].is_boolean(), "{r}");
+        let points = r["detail"].as_array().unwrap();
+        assert_eq!(points.len(), 2, "{r}");
+        for p in points {
+            assert!(p["identify_s"].as_f64().is_some_and(|t| t > 0.0), "{r}");
+            assert!(p["with_loop_s"].as_f64().is_some_and(|t| t > 0.0), "{r}");
+        }
+    }
+    let emps = row("fit: input-driven axis");
+    assert!(
+        emps["detail"]["samples"]
+            .as_u64()
+            .is_some_and(|n| n.abs_diff(25_000) <= 1),
+        "{emps}"
     );
     // Without the peer the single-joint ratio is not judged, and says why.
     assert!(row("fit: pendulum")["pass"].is_null());

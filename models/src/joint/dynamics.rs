@@ -4,7 +4,7 @@
 //! Pendulum: `J·α̈ = −m·g·d·sin α − T_f(ω, N)`, N = |m·a_cm − m·g| depends on α̈ (implicit).
 //! Slider:   `m·ẍ = −k·x + F_N(t) − F_f(v)`, Fn constant.
 
-use crate::joint::friction::{DynParam, FrictionLaw};
+use crate::joint::friction::{DynParam, FrictionLaw, Shapes};
 use crate::joint::rig::{PendulumRig, SliderRig};
 
 /// The mechanism of a single-joint test.
@@ -29,13 +29,14 @@ impl Input {
         if n == 0 {
             return (0.0, 0.0);
         }
-        if t <= self.t_s[0] {
+        // (A NaN time reads the first value, as before the record starts.)
+        if t <= self.t_s[0] || t.is_nan() {
             return (self.value[0], 0.0);
         }
         if t >= self.t_s[n - 1] {
             return (self.value[n - 1], 0.0);
         }
-        let i = self.t_s.partition_point(|&x| x <= t) - 1;
+        let i = self.interval(t);
         let (t0, t1) = (self.t_s[i], self.t_s[i + 1]);
         let slope = (self.value[i + 1] - self.value[i]) / (t1 - t0);
         (self.value[i] + slope * (t - t0), slope)
@@ -43,8 +44,39 @@ impl Input {
 
     /// The first sample time strictly after `t`.
     pub fn next_knot(&self, t: f64) -> Option<f64> {
-        let i = self.t_s.partition_point(|&x| x <= t);
-        self.t_s.get(i).copied()
+        let n = self.t_s.len();
+        if n == 0 || t >= self.t_s[n - 1] {
+            return None;
+        }
+        if t < self.t_s[0] || t.is_nan() {
+            return Some(self.t_s[0]);
+        }
+        Some(self.t_s[self.interval(t) + 1])
+    }
+
+    /// The sample interval holding `t`: the last i with `t_s[i] ≤ t`, for
+    /// `t_s[0] ≤ t < t_s[n−1]` (issue 38: O(1), not a search over the record). A logger's times
+    /// are evenly spaced, so the interval is where that spacing puts it, checked and moved by a
+    /// sample when a time's rounding puts it next door; a search is the fallback (an uneven grid).
+    /// The same i as `partition_point(|x| x ≤ t) − 1`.
+    #[inline]
+    fn interval(&self, t: f64) -> usize {
+        let ts = &self.t_s;
+        let last = ts.len() - 2;
+        let (first, end) = (ts[0], ts[last + 1]);
+        let guess = ((t - first) / (end - first) * (last + 1) as f64) as usize;
+        let i = guess.min(last);
+        if ts[i] <= t {
+            if t < ts[i + 1] {
+                return i;
+            }
+            if i < last && t < ts[i + 2] {
+                return i + 1;
+            }
+        } else if i > 0 && ts[i - 1] <= t {
+            return i - 1;
+        }
+        ts.partition_point(|&x| x <= t).saturating_sub(1).min(last)
     }
 }
 
@@ -271,6 +303,23 @@ impl Dof {
         -law.d_param(p, q, v, s, acc.normal, self.lever()) / acc.f_a
     }
 
+    /// [`Dof::accel_d_param`] with the friction's factors at (q, v) given
+    /// ([`FrictionLaw::shapes`]): one evaluation of them for every parameter of a state.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    pub fn accel_d_param_at(
+        &self,
+        law: &FrictionLaw,
+        shapes: &Shapes,
+        acc: &Accel,
+        p: DynParam,
+        q: f64,
+        v: f64,
+        s: f64,
+    ) -> f64 {
+        -law.d_param_at(shapes, p, q, v, s, acc.normal, self.lever()) / acc.f_a
+    }
+
     /// The static friction capacity at rest at q: lever · N_rest · μs.
     pub fn static_capacity(&self, law: &FrictionLaw, q: f64) -> f64 {
         self.lever() * self.normal_at_rest(q) * law.static_mu(q)
@@ -327,6 +376,42 @@ mod tests {
         assert!(r.abs() < 1e-12, "residual {r}");
         // The reaction is not m·g: it includes the inertial load.
         assert!((n - 7.415 * 9.81).abs() > 1.0);
+    }
+
+    /// Issue 38: the input's interval found in O(1) is the one the search over the record finds,
+    /// on an even logger grid (times from i/fs, with their rounding), an uneven one, repeated
+    /// times and outside the record.
+    #[test]
+    fn input_lookup_is_the_search_s_answer() {
+        let even: Vec<f64> = (0..=5000).map(|i| i as f64 / 1000.0).collect();
+        let mut rng = crate::numerics::noise::Noise::new(38);
+        let mut uneven = vec![0.0];
+        for _ in 0..2000 {
+            let last = *uneven.last().unwrap();
+            uneven.push(last + 1e-4 + 0.01 * rng.uniform().powi(3));
+        }
+        let repeated = vec![0.0, 0.5, 0.5, 0.5, 1.0, 2.0, 2.0, 3.0];
+        for ts in [even, uneven, repeated] {
+            let input = Input {
+                value: ts.iter().map(|t| (3.0 * t).sin()).collect(),
+                t_s: ts.clone(),
+            };
+            let (a, b) = (ts[0], ts[ts.len() - 1]);
+            let mut probes: Vec<f64> = ts.clone();
+            probes.extend(ts.iter().map(|t| t + 1e-12));
+            probes.extend(ts.iter().map(|t| t - 1e-12));
+            probes.extend((0..3000).map(|_| a - 0.1 + (b - a + 0.2) * rng.uniform()));
+            for t in probes {
+                let k = ts.partition_point(|&x| x <= t);
+                assert_eq!(input.next_knot(t), ts.get(k).copied(), "next knot at {t}");
+                if t > a && t < b {
+                    let i = k - 1;
+                    let slope = (input.value[i + 1] - input.value[i]) / (ts[i + 1] - ts[i]);
+                    let expect = (input.value[i] + slope * (t - ts[i]), slope);
+                    assert_eq!(input.at(t), expect, "value at {t}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -205,6 +205,13 @@ pub struct FrictionLaw {
     pub asymmetry: f64,
 }
 
+/// The dry friction's speed factor φ(v) and position factor ψ(q) at one state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shapes {
+    pub phi: f64,
+    pub psi: f64,
+}
+
 /// Friction torque (or force) and its partial derivatives.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct FrictionEval {
@@ -356,8 +363,33 @@ impl FrictionLaw {
     /// ∂(friction)/∂p for the parameter `p`, same arguments as [`FrictionLaw::eval`].
     #[inline]
     pub fn d_param(&self, p: DynParam, q: f64, v: f64, s: f64, normal: f64, lever: f64) -> f64 {
-        let (phi, _) = self.dry_shape(v);
-        let (psi, _) = self.position_shape(q);
+        self.d_param_at(&self.shapes(q, v), p, q, v, s, normal, lever)
+    }
+
+    /// The speed and position factors φ(v), ψ(q) at a state, for [`FrictionLaw::d_param_at`]:
+    /// computed once for all the parameters of a sensitivity right-hand side (issue 38).
+    #[inline]
+    pub fn shapes(&self, q: f64, v: f64) -> Shapes {
+        Shapes {
+            phi: self.dry_shape(v).0,
+            psi: self.position_shape(q).0,
+        }
+    }
+
+    /// [`FrictionLaw::d_param`] with the factors at (q, v) given ([`FrictionLaw::shapes`]).
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    pub fn d_param_at(
+        &self,
+        shapes: &Shapes,
+        p: DynParam,
+        q: f64,
+        v: f64,
+        s: f64,
+        normal: f64,
+        lever: f64,
+    ) -> f64 {
+        let Shapes { phi, psi } = *shapes;
         let base = lever * (s + self.asymmetry) * normal;
         match p {
             DynParam::Viscous => v,

@@ -118,10 +118,16 @@ impl OdeSystem for Segment<'_> {
         dy[0] = v;
         dy[1] = acc.a;
         let ns = self.sens.len();
+        if ns == 0 {
+            return Ok(());
+        }
+        let shapes = self.law.shapes(q, v);
         for (j, p) in self.sens.iter().enumerate() {
             let (sq, sv) = (y[2 + j], y[2 + ns + j]);
             let a_p = match p {
-                SensParam::Dyn(dp) => self.dof.accel_d_param(self.law, &acc, *dp, q, v, self.s),
+                SensParam::Dyn(dp) => self
+                    .dof
+                    .accel_d_param_at(self.law, &shapes, &acc, *dp, q, v, self.s),
                 SensParam::Inertia => -self.dof.inertia() * acc.a / acc.f_a,
                 SensParam::InputOffset => 1.0 / acc.f_a,
                 _ => 0.0,

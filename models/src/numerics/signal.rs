@@ -31,6 +31,47 @@ pub fn local_cubic(t: &[f64], y: &[f64], i: usize, half: usize) -> (f64, f64, f6
     (c[0], c1 / span, 2.0 * c2 / (span * span))
 }
 
+/// `local_cubic(tt, e_k, half, half)` for every unit impulse e_k, k < tt.len(), in O(window)
+/// rather than O(window²) (issue 38: at 10 kHz a pendulum's window is ~1,800 samples). The
+/// normal matrix does not depend on the data, and with a unit impulse the right-hand side is
+/// the impulse's own powers: the same sums and the same elimination as [`local_cubic`], so the
+/// same weights to the bit.
+fn impulse_weights(tt: &[f64], half: usize) -> Vec<(f64, f64, f64)> {
+    let n = tt.len();
+    let (lo, hi) = (0, (half + half).min(n - 1));
+    let t0 = tt[half];
+    let span = (tt[hi] - tt[lo]).max(f64::MIN_POSITIVE);
+    let deg = (hi - lo).min(3);
+    let m = deg + 1;
+    let powers = |k: usize| {
+        let u = (tt[k] - t0) / span;
+        let mut pw = [1.0, u, u * u, u * u * u];
+        pw[m..].fill(0.0);
+        pw
+    };
+    let mut a = [[0.0f64; 4]; 4];
+    for k in lo..=hi {
+        let pw = powers(k);
+        for r in 0..m {
+            for c in 0..m {
+                a[r][c] += pw[r] * pw[c];
+            }
+        }
+    }
+    (0..n)
+        .map(|k| {
+            if k < lo || k > hi {
+                return (0.0, 0.0, 0.0);
+            }
+            let mut b = powers(k);
+            let c = solve_small(&mut a.clone(), &mut b, m);
+            let c1 = if m > 1 { c[1] } else { 0.0 };
+            let c2 = if m > 2 { c[2] } else { 0.0 };
+            (c[0], c1 / span, 2.0 * c2 / (span * span))
+        })
+        .collect()
+}
+
 /// Gaussian elimination with partial pivoting on an m×m system (m ≤ 4).
 fn solve_small(a: &mut [[f64; 4]; 4], b: &mut [f64; 4], m: usize) -> [f64; 4] {
     for col in 0..m {
@@ -134,6 +175,24 @@ mod tests {
         assert!((resolution(&mm) - 0.025).abs() < 1e-9);
     }
 
+    /// Issue 38: the impulse weights in O(window) are the per-impulse fits' to the bit.
+    #[test]
+    fn impulse_weights_are_the_per_impulse_fits() {
+        for half in [1usize, 2, 5, 40] {
+            let tt: Vec<f64> = (0..2 * half + 1)
+                .map(|k| (k as f64 - half as f64) * 1e-3)
+                .collect();
+            let fast = impulse_weights(&tt, half);
+            let mut e = vec![0.0; tt.len()];
+            for k in 0..tt.len() {
+                e[k] = 1.0;
+                let slow = local_cubic(&tt, &e, half, half);
+                e[k] = 0.0;
+                assert_eq!(fast[k], slow, "half {half}, k {k}");
+            }
+        }
+    }
+
     #[test]
     fn cubic_derivatives_of_a_sine_on_uneven_samples() {
         let t: Vec<f64> = (0..400)
@@ -171,13 +230,7 @@ pub fn local_cubic_at(t: &[f64], y: &[f64], idx: &[usize], half: usize) -> Vec<(
     // Weights: the local cubic's coefficients are linear in y; apply it to unit impulses once.
     let m = 2 * half + 1;
     let tt: Vec<f64> = (0..m).map(|k| (k as f64 - half as f64) * dt).collect();
-    let mut w = vec![(0.0, 0.0, 0.0); m];
-    let mut e = vec![0.0; m];
-    for k in 0..m {
-        e[k] = 1.0;
-        w[k] = local_cubic(&tt, &e, half, half);
-        e[k] = 0.0;
-    }
+    let w = impulse_weights(&tt, half);
     idx.iter()
         .map(|&i| {
             if i < half || i + half >= n {

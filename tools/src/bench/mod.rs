@@ -10,6 +10,7 @@ pub mod ingest;
 pub mod lift;
 pub mod machine;
 pub mod query;
+pub mod scaling;
 pub mod suite;
 pub mod table;
 
