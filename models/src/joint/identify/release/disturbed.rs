@@ -244,17 +244,24 @@ fn turning_points(t: &[f64], y: &[f64], start: usize, period_s: f64) -> Vec<Turn
     turns
 }
 
+impl Turn {
+    /// Sample `i` as it was read, of unknown error: where a local fit cannot be made.
+    fn raw(t: &[f64], y: &[f64], i: usize) -> Turn {
+        Turn {
+            t_s: t[i],
+            y: y[i],
+            sd: f64::INFINITY,
+            index: i,
+        }
+    }
+}
+
 /// The release at sample `i`, where the motion leaves rest: `y = c + a·(t − tᵢ)²` (no linear
 /// term: at rest) fitted over the `w_s` after it (within period/20 of a release the free motion
 /// differs from its parabola by under 0.05 % of the amplitude); its value is c.
 fn at_rest(t: &[f64], y: &[f64], i: usize, w_s: f64) -> Turn {
     let hi = t.partition_point(|&x| x <= t[i] + w_s).min(t.len());
-    let fallback = Turn {
-        t_s: t[i],
-        y: y[i],
-        sd: f64::INFINITY,
-        index: i,
-    };
+    let fallback = Turn::raw(t, y, i);
     if hi < i + 4 {
         return fallback;
     }
@@ -289,12 +296,7 @@ fn at_rest(t: &[f64], y: &[f64], i: usize, w_s: f64) -> Turn {
 fn vertex(t: &[f64], y: &[f64], i: usize, w_s: f64) -> Turn {
     let lo = t.partition_point(|&x| x < t[i] - w_s);
     let hi = t.partition_point(|&x| x <= t[i] + w_s).min(t.len());
-    let fallback = Turn {
-        t_s: t[i],
-        y: y[i],
-        sd: f64::INFINITY,
-        index: i,
-    };
+    let fallback = Turn::raw(t, y, i);
     if hi < lo + 5 {
         return fallback;
     }
