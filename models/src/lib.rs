@@ -94,6 +94,7 @@ pub fn fit_joint_test_with_finding(
         ),
         pooled: None,
         combinations: Vec::new(),
+        pooled_rig: None,
     };
     Ok((result, reported, finding))
 }

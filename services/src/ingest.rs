@@ -151,6 +151,25 @@ impl Intake {
                     message: format!("`{}`: {e}", doc.recorded_at),
                 })
             })?;
+        // Recordings of one rig (issue 36, point 5): refused, naming `test.rig_id`, before
+        // anything is written, when the rig id is another test's, joint's or rig's.
+        if let (Some(rig), Some(serial)) = (doc.rig_id(), doc.pantograph_serial.as_deref())
+            && let Err(message) = crate::pooled::check_same_rig(
+                &self.store,
+                serial,
+                doc.kind.as_str(),
+                doc.joint.as_deref(),
+                rig,
+                doc.test.get("rig"),
+                doc.trace_id.as_deref(),
+            )
+            .await?
+        {
+            return Err(IngestError::Invalid(TraceError {
+                field: "test.rig_id".into(),
+                message,
+            }));
+        }
         let test_json = doc.test.to_string();
         let new = NewTrace {
             trace_id: doc.trace_id,

@@ -1,5 +1,7 @@
 //! Pooled lift fits (issue 15, point 4): after a lift's own fit is written, the pantograph's
 //! recent lifts are fitted together and the result stored as the newest lift's current fit.
+//! Pooled rig fits (issue 36, point 5, [`after_rig`]): after a single-joint test's fit, the
+//! recordings of its rig (`test.rig_id`) are fitted with one set of physical parameters.
 //!
 //! Window (stated): the newest lift and the lifts before it within [`WINDOW_DAYS`], at most
 //! [`MAX_LIFTS`] — a month of monthly lifts is three tests; J2/J2'/J5 become informed only over
@@ -204,6 +206,195 @@ pub async fn after_lift(
         if let Err(e) = alerts::after_fit(store, trace_id, w.fit_id, &fit.result, alerts_opts).await
         {
             tracing::error!(trace = %trace_id, error = %e, "alert rules failed after the pooled fit");
+        }
+    }
+    Ok(Some(w.fit_id))
+}
+
+/// Most recordings in one pooled rig fit (the newest, the triggering one included).
+pub const MAX_RIG_RECORDINGS: usize = 4;
+/// Most traces of one kind scanned for a rig's recordings (newest first).
+const RIG_SCAN: i64 = 500;
+
+/// A stored test's `rig_id` and its `rig` object (`{}` when absent): what makes recordings
+/// one rig's (issue 36, point 5).
+fn rig_of(test_json: &str) -> Option<(String, serde_json::Value)> {
+    let test: serde_json::Value = serde_json::from_str(test_json).ok()?;
+    let id = test.get("rig_id")?.as_str()?.to_owned();
+    let rig = test
+        .get("rig")
+        .cloned()
+        .filter(|r| !r.is_null())
+        .unwrap_or_else(|| serde_json::json!({}));
+    Some((id, rig))
+}
+
+/// The upload's `test.rig_id` against the pantograph's stored recordings of that rig: they
+/// must be the same kind of test, of the same joint, on the same stated rig (body, pin,
+/// attachments). `Err(message)` names what differs; the caller refuses the upload, naming
+/// `test.rig_id`, before anything is written. (Two uploads racing with one new rig id are not
+/// checked against each other: the pooled fit then refuses the pair, logged.)
+pub async fn check_same_rig(
+    store: &Store,
+    serial: &str,
+    kind: &str,
+    joint: Option<&str>,
+    rig_id: &str,
+    rig: Option<&serde_json::Value>,
+    trace_id: Option<&str>,
+) -> Result<Result<(), String>, StoreError> {
+    let empty = serde_json::json!({});
+    let rig = rig.filter(|r| !r.is_null()).unwrap_or(&empty);
+    for k in ["pendulum", "slider"] {
+        for m in store.traces_of_kind(serial, k, RIG_SCAN).await? {
+            if Some(m.trace_id.as_str()) == trace_id {
+                continue;
+            }
+            let Some((id, stored_rig)) = rig_of(&m.test_json) else {
+                continue;
+            };
+            if id != rig_id {
+                continue;
+            }
+            let what = if m.kind != kind {
+                Some("test.kind")
+            } else if m.joint.as_deref() != joint {
+                Some("test.joint")
+            } else if &stored_rig != rig {
+                Some("test.rig")
+            } else {
+                None
+            };
+            if let Some(what) = what {
+                return Ok(Err(format!(
+                    "`{rig_id}` is the rig of trace `{}` of pantograph {serial}, whose {what} \
+                     differs: recordings of one rig share the test kind, the joint and the \
+                     stated rig",
+                    m.trace_id
+                )));
+            }
+        }
+    }
+    Ok(Ok(()))
+}
+
+/// The model version of a pooled rig fit over `ids` (sorted; a short hash tells sets apart).
+pub fn rig_version(rig_id: &str, ids: &[String]) -> String {
+    use sha2::{Digest, Sha256};
+    let mut sorted = ids.to_vec();
+    sorted.sort();
+    let h = Sha256::digest(sorted.join("\n").as_bytes());
+    let tag: String = h.iter().take(4).map(|b| format!("{b:02x}")).collect();
+    format!(
+        "{MODEL_VERSION}; rig {rig_id} pooled over {} recordings {tag}",
+        ids.len()
+    )
+}
+
+/// After a single-joint trace's own fit: when it states `test.rig_id` and the pantograph has
+/// another recording of that rig (same kind, joint and stated rig), the newest
+/// [`MAX_RIG_RECORDINGS`] are fitted pooled (`models::residual::pooled`: one set of physical
+/// parameters, the pooled residual loop) and the result stored as this trace's fit, with
+/// `pooled_rig` naming every recording; then the alert rules run on it. CPU work runs off the
+/// async runtime under `limits`, like a job's fit; past them, or when the pooled fit fails, it
+/// is logged and the trace's own fit stands. `Ok(None)`: nothing to pool.
+pub async fn after_rig(
+    store: &Store,
+    trace_id: &str,
+    thresholds: DriftThresholds,
+    alerts_opts: &AlertOptions,
+    limits: FitLimits,
+) -> Result<Option<i64>, StoreError> {
+    let Some(meta) = store.get_trace(trace_id).await? else {
+        return Ok(None);
+    };
+    let (Some(serial), Some((rig_id, rig))) = (meta.serial.clone(), rig_of(&meta.test_json)) else {
+        return Ok(None);
+    };
+    let mut pool = vec![meta.clone()];
+    for m in store.traces_of_kind(&serial, &meta.kind, RIG_SCAN).await? {
+        if pool.len() == MAX_RIG_RECORDINGS {
+            break;
+        }
+        if m.trace_id == meta.trace_id || m.joint != meta.joint {
+            continue;
+        }
+        if rig_of(&m.test_json).is_some_and(|(id, r)| id == rig_id && r == rig) {
+            pool.push(m);
+        }
+    }
+    if pool.len() < 2 {
+        return Ok(None);
+    }
+    let ids: Vec<String> = pool.iter().map(|m| m.trace_id.clone()).collect();
+    let mut docs = Vec::new();
+    for m in &pool {
+        let Some(channels) = store.get_samples(&m.trace_id).await? else {
+            return Ok(None);
+        };
+        docs.push(crate::ingest::stored_doc_as_sent(m, channels).map_err(StoreError::Invalid)?);
+    }
+    let version = rig_version(&rig_id, &ids);
+    let budget = Budget::new(limits.max_evaluations);
+    let stop = budget.canceller();
+    let t0 = std::time::Instant::now();
+    let task_ids = ids.clone();
+    let task = tokio::task::spawn_blocking(move || {
+        let mut tests = Vec::new();
+        let mut baseline = None;
+        for d in docs {
+            let d = d.typed().map_err(|e| format!("{}: {e}", e.field))?;
+            let (t, b) = d.joint_test().map_err(|e| e.to_string())?;
+            baseline.get_or_insert(b);
+            tests.push(t);
+        }
+        let baseline = baseline.ok_or("no recording")?;
+        pantowatch_models::budget::run(&budget, || {
+            let refs: Vec<_> = tests.iter().collect();
+            let finding = pantowatch_models::residual::pooled::analyse_pooled(
+                &refs,
+                &pantowatch_models::identify::FitOptions::default(),
+            )
+            .map_err(|e| e.to_string())?;
+            pantowatch_models::residual::pooled::pooled_result(
+                &refs,
+                &finding,
+                0,
+                &task_ids,
+                &rig_id,
+                &baseline,
+                &thresholds,
+            )
+            .map_err(|e| e.to_string())
+        })
+        .unwrap_or_else(|e| Err(format!("{e} (the worker's fit limits)")))
+    });
+    let fitted = match tokio::time::timeout(limits.wall, task).await {
+        Ok(joined) => joined.map_err(|e| StoreError::Task(e.to_string()))?,
+        Err(_) => {
+            stop.cancel();
+            Err(format!(
+                "ran past worker.fit_budget_secs ({} s) and was stopped",
+                limits.wall.as_secs_f64()
+            ))
+        }
+    };
+    metrics::histogram!("pantowatch_fit_duration_seconds", "kind" => "rig_pooled")
+        .record(t0.elapsed().as_secs_f64());
+    let result = match fitted {
+        Ok(r) => r,
+        Err(e) => {
+            tracing::info!(trace = %trace_id, error = %e, "pooled rig fit failed or ran past its limits; the trace's own fit stands");
+            return Ok(None);
+        }
+    };
+    let fit = NewFit::from_result(result);
+    let w = store.insert_fit(trace_id, &version, &fit).await?;
+    if w.created {
+        tracing::info!(trace = %trace_id, fit_id = w.fit_id, recordings = ids.len(), "pooled rig fit written");
+        if let Err(e) = alerts::after_fit(store, trace_id, w.fit_id, &fit.result, alerts_opts).await
+        {
+            tracing::error!(trace = %trace_id, error = %e, "alert rules failed after the pooled rig fit");
         }
     }
     Ok(Some(w.fit_id))

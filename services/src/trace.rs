@@ -360,6 +360,22 @@ impl TraceDoc {
             ));
         }
         let joint = text(wt.joint, "test.joint", false)?;
+        // Recordings of one rig (issue 36, point 5): a name within the pantograph's records.
+        if let Some(rig) = text(wt.rig_id, "test.rig_id", false)? {
+            crate::ids::normalise_text("test.rig_id", &rig).map_err(id_rule)?;
+            if !matches!(kind, Kind::Pendulum | Kind::Slider) {
+                return Err(bad(
+                    "test.rig_id",
+                    "only a single-joint test (pendulum, slider) is pooled by its rig",
+                ));
+            }
+            if pantograph_serial.is_none() {
+                return Err(bad(
+                    "test.rig_id",
+                    "needs pantograph.serial: a rig id names a rig within one pantograph's records",
+                ));
+            }
+        }
         let wire::Channels(mut chans) = required(w.channels, "channels")?;
         if chans.len() > MAX_CHANNELS {
             return Err(bad(
@@ -454,6 +470,11 @@ impl TraceDoc {
         };
         // Type the test now, so a document the model cannot use is rejected at the door.
         doc.typed()
+    }
+
+    /// The stated `test.rig_id` (recordings of one rig, issue 36 point 5), if any.
+    pub fn rig_id(&self) -> Option<&str> {
+        self.test.get("rig_id").and_then(Value::as_str)
     }
 
     /// The document with its test typed ([`TestSpec`]): the one place the test is checked.

@@ -365,6 +365,20 @@ pub async fn process_next(
             {
                 tracing::error!(trace = %trace_id, error = %e, "pooled lift fit failed");
             }
+            // A single-joint test stating `test.rig_id` gets the pooled fit of its rig's
+            // recordings (issue 36, point 5); its own fit is durable already.
+            if matches!(kind, "pendulum" | "slider")
+                && let Err(e) = crate::pooled::after_rig(
+                    store,
+                    &trace_id,
+                    opts.thresholds,
+                    &opts.alerts,
+                    opts.limits(),
+                )
+                .await
+            {
+                tracing::error!(trace = %trace_id, error = %e, "pooled rig fit failed");
+            }
             Ok(Some(JobEvent::Done {
                 trace_id,
                 status,

@@ -27,7 +27,7 @@ fn pendulum_test(
 
 /// As [`pendulum_test`], the pendulum's true inertia about its pin `inertia_scale` × the rig's
 /// stated one (the test states the rig's value: `inertia_error`, issue 17).
-fn pendulum_test_with_inertia(
+pub(crate) fn pendulum_test_with_inertia(
     joint: &str,
     truth: &Truth,
     release_deg: f64,
@@ -169,7 +169,7 @@ pub(crate) fn names(r: &FitResult) -> Vec<String> {
     r.residual.effects.iter().map(|e| e.name.clone()).collect()
 }
 
-fn base(joint: &str) -> FrictionLaw {
+pub(crate) fn base(joint: &str) -> FrictionLaw {
     let j = builtin_160ec().joint(joint).unwrap();
     FrictionLaw::base(j.viscous_baseline(), j.dry_mu)
 }

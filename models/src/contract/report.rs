@@ -177,6 +177,70 @@ pub struct ResidualResult {
     )]
     #[cfg_attr(feature = "openapi", schema(schema_with = schema::number_pairs))]
     pub autocorrelation_before: Vec<(f64, f64)>,
+    /// Single-joint fits (issue 36, point 3): two explanations fit the record equally (BIC and
+    /// held-out error within the stated margins); the verdict is then `ambiguous`, no effect is
+    /// named, and this says which, and the test that would tell them apart.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ambiguity: Option<Ambiguity>,
+    /// Single-joint fits (issue 36, point 3): the best model tried judged on the early (large
+    /// swings) and late (small swings) halves of the free motion separately; absent when no
+    /// effect was tried.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub halves: Option<HalvesCheck>,
+}
+
+/// Explanations a record cannot tell apart (`joint::residual::ambiguity`).
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct Ambiguity {
+    /// Lowest BIC first.
+    pub explanations: Vec<Explanation>,
+    /// The margins two explanations fell within, in words (ΔBIC and held-out RMSE).
+    pub margin: String,
+    /// The test that would tell them apart, derived from how their predictions differ.
+    pub separating_test: String,
+}
+
+/// One explanation of an ambiguous record.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct Explanation {
+    /// An effect of the vocabulary, or a physical term outside it (`restoring_torque`).
+    pub name: String,
+    pub in_vocabulary: bool,
+    /// BIC above the lowest's (0 for the first).
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub delta_bic: f64,
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub holdout_rmse: f64,
+    /// Its fitted parameters, named with units, each with its `…_ci95` where fitted with one.
+    pub params: serde_json::Map<String, serde_json::Value>,
+}
+
+/// Share of the base model's excess over the noise (σ²) the best model tried explains, and the
+/// RMS it leaves over the noise, in the early and the late half of the free motion.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct HalvesCheck {
+    /// The model judged: effect names joined by `+`.
+    pub model: String,
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub early_explained_share: f64,
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub late_explained_share: f64,
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub early_remainder_over_noise: f64,
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub late_remainder_over_noise: f64,
+    /// False when a half the base model misfits is explained under the loop's share: the model
+    /// is then not the record's explanation, whatever its average.
+    pub holds: bool,
 }
 
 /// A release that was not free (`joint::identify::release::disturbed`): the part of the record
@@ -343,6 +407,77 @@ pub struct FitResult {
     /// Parameters the test informs only together (lift fits; issue 15).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub combinations: Vec<CombinationResult>,
+    /// Set on a pooled single-joint fit (issue 36, point 5): recordings of one rig fitted with
+    /// one set of physical parameters, and the pooled residual loop's finding.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pooled_rig: Option<PooledRig>,
+}
+
+/// A pooled single-joint fit across recordings of one rig (`joint::residual::pooled`): the
+/// fit's `joints` are the rig's shared parameters, `residual` this recording's part.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct PooledRig {
+    /// The upload's `test.rig_id`.
+    pub rig_id: String,
+    /// The recordings pooled (this fit's trace first), each with its errors.
+    pub recordings: Vec<PooledRigRecording>,
+    /// Effects named across every recording (each explains ≥ 75 % of every recording's excess
+    /// over the noise in its early and late halves, leaving ≤ 3× the noise).
+    pub effects: Vec<String>,
+    /// `unexplained` when a misfit above the noise remains that no effect explains on every
+    /// recording; absent when the base model fits them all or an effect is named.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub verdict: Option<String>,
+    /// The model whose errors `rmse_pooled_after` are: the named one, else the best tried.
+    pub best_tried: Vec<String>,
+    /// Each model tried on the pool, and why it was or was not named.
+    pub tried: Vec<PooledRigModel>,
+}
+
+/// One recording of a pooled rig fit.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct PooledRigRecording {
+    pub trace_id: String,
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub release_t_s: f64,
+    pub samples_fitted: usize,
+    /// Sensor noise from the pooled base residual's first differences, channel units.
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub noise_sigma: f64,
+    /// Fitted alone (base model), and what its own loop named alone.
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub rmse_alone: f64,
+    pub named_alone: Vec<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub verdict_alone: Option<String>,
+    /// RMSE, channel units: the pooled base model, and the pooled model of `best_tried`.
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub rmse_pooled_before: f64,
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub rmse_pooled_after: f64,
+    /// Share of the pooled base residual's excess over the noise `best_tried` explains here.
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub explained_share: f64,
+}
+
+/// One model tried on a pool.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct PooledRigModel {
+    pub effects: Vec<String>,
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub delta_bic: f64,
+    pub accepted: bool,
+    pub reason: String,
 }
 
 /// Measured vs fitted model of one fit, stored with the fit so a page draws it without

@@ -700,6 +700,8 @@ fn build_result(
             holdout_note: None,
             autocorrelation: super::residual::autocorrelation(trace.inputs.t_s, &residual),
             autocorrelation_before: Vec::new(),
+            ambiguity: None,
+            halves: None,
         },
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),
@@ -736,6 +738,7 @@ fn build_result(
         },
         pooled: None,
         combinations,
+        pooled_rig: None,
     }
 }
 

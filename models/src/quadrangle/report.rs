@@ -235,6 +235,8 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
             holdout_note: None,
             autocorrelation: Vec::new(),
             autocorrelation_before: Vec::new(),
+            ambiguity: None,
+            halves: None,
         },
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),
@@ -271,6 +273,7 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
         },
         pooled: None,
         combinations: Vec::new(),
+        pooled_rig: None,
     }
 }
 

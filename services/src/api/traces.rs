@@ -23,7 +23,7 @@ use crate::ingest::{self, Accepted};
 use crate::store::{JobState, Status, TraceMeta};
 use crate::trace_csv;
 use pantowatch_models::report::{
-    CombinationResult, FitDetails, JointResult, PooledTests, Quantity, ResidualResult,
+    CombinationResult, FitDetails, JointResult, PooledRig, PooledTests, Quantity, ResidualResult,
 };
 
 pub fn router() -> OpenApiRouter<AppState> {
@@ -160,6 +160,12 @@ pub struct FitView {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Vec<CombinationResult>>)]
     pub combinations: Option<Value>,
+    /// A pooled single-joint fit across recordings of one rig (issue 36, point 5; the uploads'
+    /// `test.rig_id`): each recording's errors alone and pooled, before and after, and the
+    /// pooled verdict; absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<PooledRig>)]
+    pub pooled_rig: Option<Value>,
 }
 
 /// The trace document (`pantograph-trace/1`) as uploaded; see the trace format.
@@ -368,6 +374,11 @@ pub async fn get_fit(
                 .transpose()?,
             combinations: (!r.combinations.is_empty())
                 .then(|| json(serde_json::to_value(&r.combinations)))
+                .transpose()?,
+            pooled_rig: r
+                .pooled_rig
+                .as_ref()
+                .map(|p| json(serde_json::to_value(p)))
                 .transpose()?,
             trace_id: f.trace_id,
             fit_id: f.id,

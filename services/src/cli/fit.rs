@@ -236,6 +236,48 @@ pub fn table(doc: &TraceDoc, r: &FitResult) -> String {
         r.residual.holdout_rmse_after,
         r.rmse.unit
     );
+    // Issue 36, point 3: explanations the record cannot tell apart, and the halves check.
+    if let Some(a) = &r.residual.ambiguity {
+        let each: Vec<String> = a
+            .explanations
+            .iter()
+            .map(|e| {
+                format!(
+                    "{}{} (ΔBIC {:.1}, held-out {:.4})",
+                    e.name,
+                    if e.in_vocabulary {
+                        ""
+                    } else {
+                        ", outside the vocabulary"
+                    },
+                    e.delta_bic,
+                    e.holdout_rmse
+                )
+            })
+            .collect();
+        s += &format!(
+            "ambiguous: the record cannot tell apart {} ({})\n  the test that would: {}\n",
+            each.join(" and "),
+            a.margin,
+            a.separating_test
+        );
+    }
+    if let Some(h) = &r.residual.halves {
+        s += &format!(
+            "{} on the early / late half of the swing: explains {:.0} % / {:.0} % of the base \
+             excess over the noise, leaves {:.1}× / {:.1}× the noise{}\n",
+            h.model,
+            100.0 * h.early_explained_share,
+            100.0 * h.late_explained_share,
+            h.early_remainder_over_noise,
+            h.late_remainder_over_noise,
+            if h.holds {
+                ""
+            } else {
+                ": not the explanation across the range"
+            }
+        );
+    }
     if let Some(w) = &r.residual.joints_withheld {
         s += &format!("joint statuses withheld: {w}\n");
     }

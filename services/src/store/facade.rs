@@ -209,6 +209,17 @@ impl Store {
         dispatch!(self, s => s.latest_trace_of_kind(serial, kind).await)
     }
 
+    /// The pantograph's traces of `kind`, newest first (recorded time, then id), at most
+    /// `limit`: the candidates of a pooled rig fit (issue 36, point 5).
+    pub async fn traces_of_kind(
+        &self,
+        serial: &str,
+        kind: &str,
+        limit: i64,
+    ) -> Result<Vec<TraceMeta>> {
+        dispatch!(self, s => s.traces_of_kind(serial, kind, limit).await)
+    }
+
     /// Rows per table.
     pub async fn counts(&self) -> Result<Counts> {
         dispatch!(self, s => s.counts().await)

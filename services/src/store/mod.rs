@@ -295,6 +295,12 @@ pub(crate) trait TraceBackend {
         serial: &str,
         kind: &str,
     ) -> impl Future<Output = Result<Option<TraceMeta>>> + Send;
+    fn traces_of_kind(
+        &self,
+        serial: &str,
+        kind: &str,
+        limit: i64,
+    ) -> impl Future<Output = Result<Vec<TraceMeta>>> + Send;
     fn close(&self) -> impl Future<Output = ()> + Send;
 }
 

@@ -140,6 +140,11 @@ pub struct WireTest {
     pub protocol: Option<Value>,
     #[serde(default)]
     pub release_t_s: Option<Finite>,
+    /// Recordings of one rig (issue 36, point 5): a single-joint test's name for its rig
+    /// within the pantograph's records; the same `pantograph.serial`, `test.kind`, `test.joint`
+    /// and `test.rig_id` are fitted pooled.
+    #[serde(default)]
+    pub rig_id: Option<String>,
     /// `Some(None)`: stated as `null`.
     #[serde(default, deserialize_with = "present")]
     pub gauge_resolution_n: Option<Option<Finite>>,

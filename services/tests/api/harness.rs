@@ -290,6 +290,7 @@ impl TestApp {
             "fit",
             "pooled",
             "combinations",
+            "pooled_rig",
         ] {
             assert_eq!(fit.get(k), stored.get(k), "{id}: `{k}`");
         }

@@ -21,6 +21,7 @@
 //! - A sensor zero the base fit estimates is reported as `sensor_offset` when its interval
 //!   excludes zero (the paper's model has none).
 
+pub mod ambiguity;
 mod diagnose;
 mod effects;
 pub mod pooled;
@@ -481,14 +482,120 @@ pub fn analyse(
     let sigma2 = diagnosis.noise_sigma.powi(2);
     let excess = |h: f64| (h * h - sigma2).max(0.0);
     let mut verdict = None;
+    // Why a model that passed its own tests is not named (None: the share rule below).
+    let mut why_not: Option<String> = None;
+    // Issue 36, point 3: the model must explain the record across its range, early large
+    // swings and late small ones judged apart.
+    let halves_check = chosen.as_ref().map(|(effs, sp)| {
+        ambiguity::halves(
+            test,
+            full.start,
+            &base_split,
+            sp,
+            effs,
+            diagnosis.noise_sigma,
+            EXPLAINED_SHARE,
+        )
+    });
+    if let Some(h) = &halves_check
+        && !h.holds
+    {
+        why_not = Some(format!(
+            "it explains {:.0} % of the early half's excess over the noise and {:.0} % of the              late half's (needs {:.0} % in each): not the record's explanation across its range",
+            100.0 * h.early_explained_share,
+            100.0 * h.late_explained_share,
+            100.0 * EXPLAINED_SHARE
+        ));
+        verdict = Some("unexplained".to_string());
+        chosen = None;
+    }
     if let Some((_, sp)) = &chosen {
         let before = excess(base_split.rmse_holdout);
         if before > 0.0 && excess(sp.rmse_holdout) > (1.0 - EXPLAINED_SHARE) * before {
             verdict = Some("unexplained".to_string());
             chosen = None;
         }
-    } else if !diagnosis.white && excess(base_split.rmse_holdout) > 0.5 * sigma2 {
+    } else if verdict.is_none()
+        && !diagnosis.white
+        && excess(base_split.rmse_holdout) > 0.5 * sigma2
+    {
         verdict = Some("unexplained".to_string());
+    }
+    // Issue 36, point 3: another explanation that fits as well (a vocabulary effect, or for an
+    // inertia error the restoring torque outside the vocabulary) makes the record ambiguous.
+    let mut ambiguity_block = None;
+    if let Some((effs, sp)) = chosen.clone() {
+        let params = |effs: &[Effect], fit: &FitOutcome| {
+            let mut m = serde_json::Map::new();
+            for e in effs {
+                m.extend(effect_result(*e, fit, test).params);
+            }
+            m
+        };
+        let named = ambiguity::Fitted {
+            name: effs.iter().map(|e| e.name()).collect::<Vec<_>>().join("+"),
+            in_vocabulary: true,
+            bic: bic(&sp.fit),
+            params: params(&effs, &sp.fit),
+            split: sp.clone(),
+        };
+        let mut rivals: Vec<ambiguity::Fitted> = accepted
+            .iter()
+            .filter(|(e, _)| !effs.contains(e))
+            .map(|(e, s)| ambiguity::Fitted {
+                name: e.name().to_owned(),
+                in_vocabulary: true,
+                bic: bic(&s.fit),
+                params: params(&[*e], &s.fit),
+                split: s.clone(),
+            })
+            .filter(|f| ambiguity::equal(&named, f))
+            .collect();
+        if effs.contains(&Effect::InertiaError)
+            && let Some(alt) = ambiguity::restoring_torque(
+                test,
+                &base_split,
+                &base,
+                sp.fit.inertia_log.exp(),
+                opts,
+            )
+        {
+            let k = alt.params["stiffness_nm_per_rad"]
+                .as_f64()
+                .unwrap_or(f64::NAN);
+            if alt.bic <= named.bic - ambiguity::AMBIGUITY_BIC
+                && alt.split.rmse_holdout <= named.split.rmse_holdout
+            {
+                why_not = Some(format!(
+                    "a restoring torque beside gravity (outside the vocabulary, {k:.4} N·m/rad)                      fits better: BIC {:.1} lower, held-out RMSE {:.4} against {:.4}",
+                    named.bic - alt.bic,
+                    alt.split.rmse_holdout,
+                    named.split.rmse_holdout
+                ));
+                verdict = Some("unexplained".to_string());
+                chosen = None;
+            } else if ambiguity::equal(&named, &alt) {
+                rivals.push(alt);
+            }
+        }
+        if chosen.is_some() && !rivals.is_empty() {
+            let mut all = vec![named];
+            all.extend(rivals);
+            all.sort_by(|a, b| a.bic.total_cmp(&b.bic));
+            let amplitude = full.trajectory.q.iter().fold(0.0f64, |m, q| m.max(q.abs()));
+            let block = ambiguity::ambiguity(test, &all, amplitude);
+            why_not = Some(format!(
+                "the record cannot tell apart {} ({})",
+                all.iter()
+                    .map(|f| f.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" and "),
+                block.margin
+            ));
+            ambiguity_block = Some(block);
+            verdict = Some("ambiguous".to_string());
+            chosen = None;
+        }
     }
     let (effects, best_split, augmented) = match chosen {
         Some((effs, sp)) => {
@@ -516,7 +623,9 @@ pub fn analyse(
     for c in &mut candidates {
         if c.accepted && c.effects != effects {
             c.accepted = false;
-            c.reason = if effects.is_empty() {
+            c.reason = if let Some(why) = &why_not {
+                format!("{}; not named: {why}", c.reason)
+            } else if effects.is_empty() {
                 format!(
                     "{}; not named: the effects that passed explain under {:.0} % of the held-out \
                      excess over the noise",
@@ -552,7 +661,7 @@ pub fn analyse(
         holdout_rmse_before: base_split.rmse_holdout,
         holdout_rmse_after: after.rmse_holdout,
         verdict: verdict.clone(),
-        correlates_with: if verdict.is_some() {
+        correlates_with: if verdict.as_deref() == Some("unexplained") {
             top_correlations(&diagnosis)
         } else {
             Vec::new()
@@ -562,6 +671,8 @@ pub fn analyse(
         holdout_note: None,
         autocorrelation: Vec::new(),
         autocorrelation_before: Vec::new(),
+        ambiguity: ambiguity_block,
+        halves: halves_check,
     };
     Ok(Finding {
         residual,

@@ -377,3 +377,111 @@ pub fn analyse_pooled(tests: &[&JointTest], opts: &FitOptions) -> Result<PooledF
         alone,
     })
 }
+
+/// The contract's fit result for recording `i` of a pooled finding (issue 36, point 5): the
+/// rig's shared parameters as its joint (judged against `baseline`), its own start, zero and
+/// errors, the pooled loop's effects and verdict, and the `pooled_rig` block naming every
+/// recording (`trace_ids`, in the order of `tests`).
+#[allow(clippy::too_many_arguments)]
+pub fn pooled_result(
+    tests: &[&JointTest],
+    finding: &PooledFinding,
+    i: usize,
+    trace_ids: &[String],
+    rig_id: &str,
+    baseline: &crate::contract::testspec::Baseline,
+    thresholds: &crate::contract::drift::DriftThresholds,
+) -> Result<crate::contract::report::FitResult, FitError> {
+    use crate::contract::report::{
+        self as report, FitResult, PooledRig, PooledRigModel, PooledRigRecording, Quantity,
+        ResidualResult,
+    };
+    let (Some(test), Some(fit), Some(base)) = (
+        tests.get(i),
+        finding.reported.per_recording.get(i),
+        finding.base.per_recording.get(i),
+    ) else {
+        return Err(FitError::Start(format!("no recording {i} in the pool")));
+    };
+    let units = match test.dof.mech {
+        crate::joint::dynamics::Mechanism::Pendulum(_) => ("rad", "rad/s"),
+        crate::joint::dynamics::Mechanism::Slider(_) => ("m", "m/s"),
+    };
+    let names = |e: &[Effect]| e.iter().map(|e| e.name().to_owned()).collect::<Vec<_>>();
+    // This recording first, then the others in their order.
+    let order: Vec<usize> = std::iter::once(i)
+        .chain((0..tests.len()).filter(|&j| j != i))
+        .collect();
+    let recordings = order
+        .iter()
+        .filter_map(|&j| {
+            let r = finding.recordings.get(j)?;
+            Some(PooledRigRecording {
+                trace_id: trace_ids.get(j).cloned().unwrap_or_default(),
+                release_t_s: r.release_t_s,
+                samples_fitted: r.samples_fitted,
+                noise_sigma: r.noise_sigma,
+                rmse_alone: r.rmse_alone,
+                named_alone: r.named_alone.clone(),
+                verdict_alone: r.verdict_alone.clone(),
+                rmse_pooled_before: r.rmse_pooled_before,
+                rmse_pooled_after: r.rmse_pooled_after,
+                explained_share: r.explained_share,
+            })
+        })
+        .collect();
+    let tried = finding
+        .candidates
+        .iter()
+        .map(|c| PooledRigModel {
+            effects: names(&c.effects),
+            delta_bic: c.delta_bic,
+            accepted: c.accepted,
+            reason: c.reason.clone(),
+        })
+        .collect();
+    let effects = finding
+        .effects
+        .iter()
+        .map(|e| super::effects::effect_result(*e, fit, test))
+        .collect();
+    Ok(FitResult {
+        trace_id: trace_ids.get(i).cloned().unwrap_or_default(),
+        joints: vec![report::joint_result(fit, baseline, thresholds)],
+        rmse: Quantity {
+            value: fit.rmse,
+            unit: test.unit.to_string(),
+        },
+        residual: ResidualResult {
+            effects,
+            rmse_before: base.rmse,
+            rmse_after: fit.rmse,
+            holdout_rmse_before: base.rmse,
+            holdout_rmse_after: fit.rmse,
+            verdict: finding.verdict.clone(),
+            holdout_note: Some(
+                "a pooled fit holds no part out: each recording is judged on its early and late \
+                 halves instead (`pooled_rig`); the held-out pair repeats the fitted RMSE"
+                    .into(),
+            ),
+            ..ResidualResult::default()
+        },
+        fit: report::details(
+            fit,
+            test.t_s[fit.start],
+            &release_of(test)?,
+            units,
+            test.unit,
+        ),
+        pooled: None,
+        combinations: Vec::new(),
+        pooled_rig: Some(PooledRig {
+            rig_id: rig_id.to_owned(),
+            recordings,
+            effects: names(&finding.effects),
+            verdict: finding.verdict.clone(),
+            best_tried: names(&finding.best_tried),
+            tried,
+        }),
+    })
+}

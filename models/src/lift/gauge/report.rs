@@ -208,6 +208,8 @@ pub fn gauge_result(
             holdout_note: Some(NO_HOLDOUT.into()),
             autocorrelation: Vec::new(),
             autocorrelation_before: Vec::new(),
+            ambiguity: None,
+            halves: None,
         },
         fit: FitDetails {
             model_version: MODEL_VERSION.to_string(),
@@ -243,6 +245,7 @@ pub fn gauge_result(
         },
         pooled: None,
         combinations,
+        pooled_rig: None,
     }
 }
 

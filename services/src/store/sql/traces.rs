@@ -389,6 +389,31 @@ concat!(
         .map(|r| trace_from(&r))
         .transpose()
     }
+
+    async fn traces_of_kind(
+        &self,
+        serial: &str,
+        kind: &str,
+        limit: i64,
+    ) -> Result<Vec<TraceMeta>> {
+        query(
+concat!(
+            "SELECT trace_id, vehicle_id, serial, model, recorded_at, kind, joint, test_json,
+                    content_sha256, sample_count, channel_names, ",
+            blob_len!(),
+            " AS samples_bytes, created_at
+             FROM traces WHERE serial = $1 AND kind = $2
+             ORDER BY recorded_at DESC, trace_id DESC LIMIT $3"
+        ))
+        .bind(serial)
+        .bind(kind)
+        .bind(limit)
+        .fetch_all(&self.pool)
+        .await?
+        .iter()
+        .map(trace_from)
+        .collect()
+    }
 }
     };
 }

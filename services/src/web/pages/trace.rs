@@ -85,6 +85,7 @@ async fn trace(st: &AppState, id: &str) -> Result<Markup, AppError> {
             }
         }
         (release_note(&result))
+        (pooled_rig(&result))
         (residual_finding(&result))
         (charts)
     })
@@ -104,6 +105,56 @@ fn release_note(result: &FitResult) -> Markup {
             }
         } @else if let Some(w) = &f.release_warning {
             p #release { "Release at " (fmt_num(f.release_t_s)) " s (" (f.release_rule) "): " (w) "." }
+        }
+    }
+}
+
+/// A pooled fit across recordings of one rig (issue 36, point 5): each recording linked, with
+/// its errors alone and pooled, and the pooled verdict.
+fn pooled_rig(result: &FitResult) -> Markup {
+    let Some(p) = &result.pooled_rig else {
+        return html! {};
+    };
+    let verdict = if !p.effects.is_empty() {
+        format!("named across every recording: {}", p.effects.join(" + "))
+    } else if let Some(v) = &p.verdict {
+        format!(
+            "{v}: no effect explains every recording (best tried: {})",
+            if p.best_tried.is_empty() {
+                "none".to_owned()
+            } else {
+                p.best_tried.join(" + ")
+            }
+        )
+    } else {
+        "the base model fits every recording".to_owned()
+    };
+    html! {
+        h2 { "Pooled over rig " (p.rig_id) }
+        p #pooled-verdict { (verdict) "." }
+        table #pooled-rig {
+            thead {
+                tr {
+                    th { "recording" } th { "RMSE alone" } th { "named alone" }
+                    th { "pooled before" } th { "pooled after" } th { "explained" }
+                }
+            }
+            tbody {
+                @for r in &p.recordings {
+                    tr {
+                        td { a href={ "/traces/" (seg(&r.trace_id)) } { (r.trace_id) } }
+                        td { (num(Some(r.rmse_alone))) }
+                        td {
+                            @if r.named_alone.is_empty() {
+                                (r.verdict_alone.clone().unwrap_or_else(|| "—".into()))
+                            } @else { (r.named_alone.join(" + ")) }
+                        }
+                        td { (num(Some(r.rmse_pooled_before))) }
+                        td { (num(Some(r.rmse_pooled_after))) }
+                        td { (format!("{:.0} %", 100.0 * r.explained_share)) }
+                    }
+                }
+            }
         }
     }
 }
@@ -195,6 +246,22 @@ fn residual_finding(result: &FitResult) -> Markup {
             p #withheld.alarm { b { "Joint statuses withheld:" } " " (w) "." }
         }
         @if let Some(w) = holdout_note { p #holdout-note { (w) "." } }
+        @if let Some(a) = &r.ambiguity {
+            p #ambiguity.watch {
+                b { "Ambiguous: " }
+                "the record cannot tell apart "
+                (a.explanations.iter().map(|e| if e.in_vocabulary { e.name.clone() } else { format!("{} (outside the vocabulary)", e.name) }).collect::<Vec<_>>().join(" and "))
+                " (" (a.margin) "). The test that would: " (a.separating_test)
+            }
+        }
+        @if let Some(h) = &r.halves {
+            p #halves {
+                (h.model) " explains " (format!("{:.0} %", 100.0 * h.early_explained_share))
+                " of the early half's excess over the noise and "
+                (format!("{:.0} %", 100.0 * h.late_explained_share)) " of the late half's"
+                @if !h.holds { ": not the explanation across the record's range" } "."
+            }
+        }
         @if !after.is_empty() {
             table #acf {
                 thead {
