@@ -154,7 +154,7 @@ impl Intake {
         // Recordings of one rig (issue 36, point 5): refused, naming `test.rig_id`, before
         // anything is written, when the rig id is another test's, joint's or rig's.
         if let (Some(rig), Some(serial)) = (doc.rig_id(), doc.pantograph_serial.as_deref())
-            && let Err(message) = crate::pooled::check_same_rig(
+            && let Err(message) = check_same_rig(
                 &self.store,
                 serial,
                 doc.kind.as_str(),
@@ -254,6 +254,71 @@ pub fn stored_doc_as_sent(
         spec: crate::trace::TestSpec::Unchecked,
         channels,
     })
+}
+
+/// Most traces of one kind scanned for a rig's recordings (newest first).
+pub const RIG_SCAN: i64 = 500;
+
+/// A stored test's `rig_id` and its `rig` object (`{}` when absent): what makes recordings
+/// one rig's (issue 36, point 5).
+pub fn rig_of(test_json: &str) -> Option<(String, serde_json::Value)> {
+    let test: serde_json::Value = serde_json::from_str(test_json).ok()?;
+    let id = test.get("rig_id")?.as_str()?.to_owned();
+    let rig = test
+        .get("rig")
+        .cloned()
+        .filter(|r| !r.is_null())
+        .unwrap_or_else(|| serde_json::json!({}));
+    Some((id, rig))
+}
+
+/// The upload's `test.rig_id` against the pantograph's stored recordings of that rig: they
+/// must be the same kind of test, of the same joint, on the same stated rig (body, pin,
+/// attachments). `Err(message)` names what differs; the caller refuses the upload, naming
+/// `test.rig_id`, before anything is written. (Two uploads racing with one new rig id are not
+/// checked against each other: the pooled fit then refuses the pair, logged.)
+pub async fn check_same_rig(
+    store: &Store,
+    serial: &str,
+    kind: &str,
+    joint: Option<&str>,
+    rig_id: &str,
+    rig: Option<&serde_json::Value>,
+    trace_id: Option<&str>,
+) -> Result<Result<(), String>, StoreError> {
+    let empty = serde_json::json!({});
+    let rig = rig.filter(|r| !r.is_null()).unwrap_or(&empty);
+    for k in ["pendulum", "slider"] {
+        for m in store.traces_of_kind(serial, k, RIG_SCAN).await? {
+            if Some(m.trace_id.as_str()) == trace_id {
+                continue;
+            }
+            let Some((id, stored_rig)) = rig_of(&m.test_json) else {
+                continue;
+            };
+            if id != rig_id {
+                continue;
+            }
+            let what = if m.kind != kind {
+                Some("test.kind")
+            } else if m.joint.as_deref() != joint {
+                Some("test.joint")
+            } else if &stored_rig != rig {
+                Some("test.rig")
+            } else {
+                None
+            };
+            if let Some(what) = what {
+                return Ok(Err(format!(
+                    "`{rig_id}` is the rig of trace `{}` of pantograph {serial}, whose {what} \
+                     differs: recordings of one rig share the test kind, the joint and the \
+                     stated rig",
+                    m.trace_id
+                )));
+            }
+        }
+    }
+    Ok(Ok(()))
 }
 
 #[cfg(test)]

@@ -213,70 +213,7 @@ pub async fn after_lift(
 
 /// Most recordings in one pooled rig fit (the newest, the triggering one included).
 pub const MAX_RIG_RECORDINGS: usize = 4;
-/// Most traces of one kind scanned for a rig's recordings (newest first).
-const RIG_SCAN: i64 = 500;
-
-/// A stored test's `rig_id` and its `rig` object (`{}` when absent): what makes recordings
-/// one rig's (issue 36, point 5).
-fn rig_of(test_json: &str) -> Option<(String, serde_json::Value)> {
-    let test: serde_json::Value = serde_json::from_str(test_json).ok()?;
-    let id = test.get("rig_id")?.as_str()?.to_owned();
-    let rig = test
-        .get("rig")
-        .cloned()
-        .filter(|r| !r.is_null())
-        .unwrap_or_else(|| serde_json::json!({}));
-    Some((id, rig))
-}
-
-/// The upload's `test.rig_id` against the pantograph's stored recordings of that rig: they
-/// must be the same kind of test, of the same joint, on the same stated rig (body, pin,
-/// attachments). `Err(message)` names what differs; the caller refuses the upload, naming
-/// `test.rig_id`, before anything is written. (Two uploads racing with one new rig id are not
-/// checked against each other: the pooled fit then refuses the pair, logged.)
-pub async fn check_same_rig(
-    store: &Store,
-    serial: &str,
-    kind: &str,
-    joint: Option<&str>,
-    rig_id: &str,
-    rig: Option<&serde_json::Value>,
-    trace_id: Option<&str>,
-) -> Result<Result<(), String>, StoreError> {
-    let empty = serde_json::json!({});
-    let rig = rig.filter(|r| !r.is_null()).unwrap_or(&empty);
-    for k in ["pendulum", "slider"] {
-        for m in store.traces_of_kind(serial, k, RIG_SCAN).await? {
-            if Some(m.trace_id.as_str()) == trace_id {
-                continue;
-            }
-            let Some((id, stored_rig)) = rig_of(&m.test_json) else {
-                continue;
-            };
-            if id != rig_id {
-                continue;
-            }
-            let what = if m.kind != kind {
-                Some("test.kind")
-            } else if m.joint.as_deref() != joint {
-                Some("test.joint")
-            } else if &stored_rig != rig {
-                Some("test.rig")
-            } else {
-                None
-            };
-            if let Some(what) = what {
-                return Ok(Err(format!(
-                    "`{rig_id}` is the rig of trace `{}` of pantograph {serial}, whose {what} \
-                     differs: recordings of one rig share the test kind, the joint and the \
-                     stated rig",
-                    m.trace_id
-                )));
-            }
-        }
-    }
-    Ok(Ok(()))
-}
+use crate::ingest::RIG_SCAN;
 
 /// The model version of a pooled rig fit over `ids` (sorted; a short hash tells sets apart).
 pub fn rig_version(rig_id: &str, ids: &[String]) -> String {
@@ -308,7 +245,9 @@ pub async fn after_rig(
     let Some(meta) = store.get_trace(trace_id).await? else {
         return Ok(None);
     };
-    let (Some(serial), Some((rig_id, rig))) = (meta.serial.clone(), rig_of(&meta.test_json)) else {
+    let (Some(serial), Some((rig_id, rig))) =
+        (meta.serial.clone(), crate::ingest::rig_of(&meta.test_json))
+    else {
         return Ok(None);
     };
     let mut pool = vec![meta.clone()];
@@ -319,7 +258,7 @@ pub async fn after_rig(
         if m.trace_id == meta.trace_id || m.joint != meta.joint {
             continue;
         }
-        if rig_of(&m.test_json).is_some_and(|(id, r)| id == rig_id && r == rig) {
+        if crate::ingest::rig_of(&m.test_json).is_some_and(|(id, r)| id == rig_id && r == rig) {
             pool.push(m);
         }
     }

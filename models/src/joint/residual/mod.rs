@@ -501,7 +501,8 @@ pub fn analyse(
         && !h.holds
     {
         why_not = Some(format!(
-            "it explains {:.0} % of the early half's excess over the noise and {:.0} % of the              late half's (needs {:.0} % in each): not the record's explanation across its range",
+            "it explains {:.0} % of the early half's excess over the noise and {:.0} % of the \
+             late half's (needs {:.0} % in each): not the record's explanation across its range",
             100.0 * h.early_explained_share,
             100.0 * h.late_explained_share,
             100.0 * EXPLAINED_SHARE
@@ -563,18 +564,19 @@ pub fn analyse(
             let k = alt.params["stiffness_nm_per_rad"]
                 .as_f64()
                 .unwrap_or(f64::NAN);
-            if alt.bic <= named.bic - ambiguity::AMBIGUITY_BIC
-                && alt.split.rmse_holdout <= named.split.rmse_holdout
-            {
+            if ambiguity::better(&alt, &named) {
                 why_not = Some(format!(
-                    "a restoring torque beside gravity (outside the vocabulary, {k:.4} N·m/rad)                      fits better: BIC {:.1} lower, held-out RMSE {:.4} against {:.4}",
+                    "a restoring torque beside gravity (outside the vocabulary, {k:.4} N·m/rad) \
+                     fits better: BIC {:.1} lower, held-out RMSE {:.4} against {:.4}",
                     named.bic - alt.bic,
                     alt.split.rmse_holdout,
                     named.split.rmse_holdout
                 ));
                 verdict = Some("unexplained".to_string());
                 chosen = None;
-            } else if ambiguity::equal(&named, &alt) {
+            } else if !ambiguity::better(&named, &alt) {
+                // Neither clearly better (BIC and held-out error agree on neither): the record
+                // cannot tell them apart.
                 rivals.push(alt);
             }
         }
@@ -594,7 +596,6 @@ pub fn analyse(
             ));
             ambiguity_block = Some(block);
             verdict = Some("ambiguous".to_string());
-            chosen = None;
         }
     }
     let (effects, best_split, augmented) = match chosen {
@@ -616,6 +617,14 @@ pub fn analyse(
             (effs, Some(sp), Some(aug))
         }
         None => (Vec::new(), None, None),
+    };
+    // Ambiguous: nothing is named, but the joint's parameters are read with the best
+    // vocabulary explanation (each explanation removes the same misfit; the base model's
+    // friction would carry it).
+    let effects = if ambiguity_block.is_some() {
+        Vec::new()
+    } else {
+        effects
     };
     // One verdict (issue 17, point 5): a candidate reads `accepted` only if it is what the
     // result names. One that passed its own tests but is not named says why, so no report
