@@ -133,7 +133,8 @@ pub struct ResidualResult {
     #[serde(deserialize_with = "nullable::f64")]
     #[cfg_attr(feature = "openapi", schema(nullable))]
     pub holdout_rmse_after: f64,
-    /// `unexplained` when structure remains that no candidate explains; otherwise absent.
+    /// `unexplained` when structure remains that no candidate explains; `ambiguous` (single
+    /// joints) when two explanations fit equally (`ambiguity`); otherwise absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub verdict: Option<String>,
     /// With `unexplained`: the signals the residual correlates with most (name, correlation).

@@ -525,6 +525,8 @@ pub fn analyse(
     // Issue 36, point 3: another explanation that fits as well (a vocabulary effect, or for an
     // inertia error the restoring torque outside the vocabulary) makes the record ambiguous.
     let mut ambiguity_block = None;
+    // For a named inertia error: what it beat (its candidate's reason says so).
+    let mut beat: Option<String> = None;
     if let Some((effs, sp)) = chosen.clone() {
         let params = |effs: &[Effect], fit: &FitOutcome| {
             let mut m = serde_json::Map::new();
@@ -574,7 +576,16 @@ pub fn analyse(
                 ));
                 verdict = Some("unexplained".to_string());
                 chosen = None;
-            } else if !ambiguity::better(&named, &alt) {
+            } else if ambiguity::better(&named, &alt) {
+                beat = Some(format!(
+                    "; clearly better than a restoring torque beside gravity (outside the \
+                     vocabulary, {k:.4} N·m/rad): BIC {:.1} lower, held-out RMSE {:.4} against \
+                     {:.4}",
+                    alt.bic - named.bic,
+                    named.split.rmse_holdout,
+                    alt.split.rmse_holdout
+                ));
+            } else {
                 // Neither clearly better (BIC and held-out error agree on neither): the record
                 // cannot tell them apart.
                 rivals.push(alt);
@@ -630,6 +641,12 @@ pub fn analyse(
     // result names. One that passed its own tests but is not named says why, so no report
     // can show "accepted" beside an `unexplained` verdict or another effect's name.
     for c in &mut candidates {
+        if let Some(b) = &beat
+            && c.accepted
+            && c.effects == effects
+        {
+            c.reason += b;
+        }
         if c.accepted && c.effects != effects {
             c.accepted = false;
             c.reason = if let Some(why) = &why_not {
