@@ -196,3 +196,36 @@ fn a_true_inertia_error_is_still_named() {
     assert!(other.is_empty(), "{other:#?}");
     assert!(named >= 10, "named in {named} of 12");
 }
+
+/// The pooled loop's ties (issue 36, point 3, across recordings): models that pass every rule
+/// with pooled BICs within 10 of each other tie and none is named; one standing 10 or more
+/// below the next, or failing a rule, does not tie.
+#[test]
+fn pooled_models_that_pass_with_equal_bic_tie() {
+    use pantowatch_models::residual::Effect;
+    use pantowatch_models::residual::pooled::{PooledCandidate, tied};
+    let c = |e: Effect, delta_bic: f64, accepted: bool| PooledCandidate {
+        effects: vec![e],
+        delta_bic,
+        rmse: vec![0.05, 0.05],
+        explained_share: vec![0.99, 0.99],
+        remainder_over_noise: vec![1.0, 1.0],
+        plausible: true,
+        accepted,
+        reason: String::new(),
+    };
+    let cands = vec![
+        c(Effect::Stribeck, -400.0, true),
+        c(Effect::PositionFriction, -395.0, true),
+        c(Effect::QuadraticDrag, -390.0, true),
+        c(Effect::InertiaError, -399.0, false),
+    ];
+    assert_eq!(tied(&cands), [0, 1]);
+    let alone = vec![
+        c(Effect::Stribeck, -400.0, true),
+        c(Effect::PositionFriction, -389.0, true),
+    ];
+    assert!(tied(&alone).is_empty());
+    assert!(tied(&[c(Effect::Stribeck, -400.0, true)]).is_empty());
+    assert!(tied(&[]).is_empty());
+}

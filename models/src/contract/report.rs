@@ -427,7 +427,9 @@ pub struct PooledRig {
     /// over the noise in its early and late halves, leaving ≤ 3× the noise).
     pub effects: Vec<String>,
     /// `unexplained` when a misfit above the noise remains that no effect explains on every
-    /// recording; absent when the base model fits them all or an effect is named.
+    /// recording; `ambiguous` when models that pass every rule have pooled BICs within 10 of
+    /// each other (`tried` says which, and what would tell them apart); absent when the base
+    /// model fits them all or an effect is named.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub verdict: Option<String>,
     /// The model whose errors `rmse_pooled_after` are: the named one, else the best tried.

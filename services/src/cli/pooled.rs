@@ -138,8 +138,12 @@ pub fn table(r: &PooledReport) -> String {
             r.effects.join(" + ")
         ),
         (Some(v), true) => format!(
-            "verdict: {v} (no effect explains every recording; 'pooled after' is the best \
-             tried: {})\n",
+            "verdict: {v} ({}; 'pooled after' is the best tried: {})\n",
+            if v == "ambiguous" {
+                "models that explain every recording tie: see their reasons below"
+            } else {
+                "no effect explains every recording"
+            },
             if r.best_tried.is_empty() {
                 "none".to_owned()
             } else {

@@ -206,6 +206,20 @@ fn period_ratio(e: &Fitted, mgd: f64, amplitude_rad: f64) -> Option<f64> {
     }
 }
 
+/// In words, what each named explanation's signature depends on and the record that would tell
+/// them apart (no amplitudes: the pooled loop's ties).
+pub fn telling_apart(names: &[&str]) -> String {
+    let mut s = String::new();
+    for n in names {
+        let (what, _) = signature(n);
+        if !what.is_empty() {
+            s += &format!("{n} {what}; ");
+        }
+    }
+    let (_, record) = signature(names.first().copied().unwrap_or(""));
+    s + record + " would tell them apart"
+}
+
 /// The test that would tell `explanations` apart, from how they differ. For an inertia error
 /// against a restoring torque, their predicted periods at the record's largest swing, at small
 /// swings and at a release of 90° (or 1.5× the record's, if larger; at most 120°).

@@ -65,7 +65,8 @@ pub struct PooledFinding {
     pub recordings: Vec<PooledRecording>,
     pub effects: Vec<Effect>,
     /// `unexplained` when a misfit above the noise remains that no effect explains on every
-    /// recording; `None` when the pooled base model fits them all, or an effect is named.
+    /// recording; `ambiguous` when models that pass tie ([`tied`]); `None` when the pooled base
+    /// model fits them all, or an effect is named.
     pub verdict: Option<String>,
     pub candidates: Vec<PooledCandidate>,
     /// The model whose errors `recordings` show as `rmse_pooled_after`: the named one, else the
@@ -82,6 +83,28 @@ pub struct PooledFinding {
 /// noise has not found the rig's physics (measured: a torsional spring fitted as an inertia
 /// error explains 99 % of the excess at 30° and 90° and leaves 17–20× the noise).
 pub const REMAINDER_MAX: f64 = 3.0;
+
+/// The models that passed every rule and whose pooled BICs lie within
+/// [`super::ambiguity::AMBIGUITY_BIC`] of the lowest such (issue 36, point 3): indices into
+/// `candidates`, the lowest included; empty when one model stands alone (or none passed). A
+/// pair that does not beat its better single by the BIC margin has not passed (it is nested).
+pub fn tied(candidates: &[PooledCandidate]) -> Vec<usize> {
+    let passed: Vec<usize> = (0..candidates.len())
+        .filter(|&i| candidates[i].accepted && candidates[i].delta_bic.is_finite())
+        .collect();
+    let Some(best) = passed
+        .iter()
+        .map(|&i| candidates[i].delta_bic)
+        .min_by(f64::total_cmp)
+    else {
+        return Vec::new();
+    };
+    let ties: Vec<usize> = passed
+        .into_iter()
+        .filter(|&i| candidates[i].delta_bic - best < super::ambiguity::AMBIGUITY_BIC)
+        .collect();
+    if ties.len() > 1 { ties } else { Vec::new() }
+}
 
 /// Share of the excess over σ² that `after` explains (1: all of it; ≤ 0: none).
 fn explained(before: f64, after: f64, sigma: f64) -> f64 {
@@ -311,13 +334,39 @@ pub fn analyse_pooled(tests: &[&JointTest], opts: &FitOptions) -> Result<PooledF
         .filter_map(|c| fits.iter().find(|(e, _)| *e == c.effects))
         .min_by(|a, b| a.1.bic.total_cmp(&b.1.bic))
         .cloned();
+    // Issue 36, point 3: models that pass and whose pooled BICs tie are not told apart by
+    // these recordings; none is named.
+    let ties = tied(&candidates);
+    let best = if ties.is_empty() { best } else { None };
+    if !ties.is_empty() {
+        let names: Vec<String> = ties
+            .iter()
+            .map(|&i| {
+                let n: Vec<&str> = candidates[i].effects.iter().map(|e| e.name()).collect();
+                n.join("+")
+            })
+            .collect();
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        let why = format!(
+            "; not named: the recordings cannot tell apart {} (pooled BICs within {}): {}",
+            names.join(" and "),
+            super::ambiguity::AMBIGUITY_BIC,
+            super::ambiguity::telling_apart(&refs)
+        );
+        for &i in &ties {
+            candidates[i].accepted = false;
+            candidates[i].reason += &why;
+        }
+    }
     for c in &mut candidates {
         if c.accepted && best.as_ref().is_some_and(|(e, _)| *e != c.effects) {
             c.accepted = false;
             c.reason += "; not named: a model with a lower BIC was";
         }
     }
-    let verdict = if best.is_none() && material.iter().any(|m| *m) {
+    let verdict = if !ties.is_empty() {
+        Some("ambiguous".to_string())
+    } else if best.is_none() && material.iter().any(|m| *m) {
         Some("unexplained".to_string())
     } else {
         None

@@ -119,7 +119,12 @@ fn pooled_rig(result: &FitResult) -> Markup {
         format!("named across every recording: {}", p.effects.join(" + "))
     } else if let Some(v) = &p.verdict {
         format!(
-            "{v}: no effect explains every recording (best tried: {})",
+            "{v}: {} (best tried: {})",
+            if v == "ambiguous" {
+                "models that explain every recording tie; none is named"
+            } else {
+                "no effect explains every recording"
+            },
             if p.best_tried.is_empty() {
                 "none".to_owned()
             } else {
