@@ -172,12 +172,21 @@ fn a_stated_inertia_uncertainty_keeps_the_friction_intervals_honest() {
                 .0
         };
         let (r_with, r_without) = (whole(Some(sd)), whole(None));
-        // Named, `inertia_error` estimates J: the stated inertia is then not added again.
+        // Named, `inertia_error` estimates J: the stated inertia is then not added again. So
+        // too when the record is ambiguous (issue 36, point 3) and read with `inertia_error`:
+        // the vocabulary explanation with the lowest BIC, whose fit is reported.
+        let read_with = r_with.residual.ambiguity.as_ref().and_then(|a| {
+            a.explanations
+                .iter()
+                .filter(|e| e.in_vocabulary)
+                .min_by(|x, y| x.delta_bic.total_cmp(&y.delta_bic))
+        });
         let named = r_with
             .residual
             .effects
             .iter()
-            .any(|e| e.name == "inertia_error");
+            .any(|e| e.name == "inertia_error")
+            || read_with.is_some_and(|e| e.name.split('+').any(|n| n == "inertia_error"));
         let echo = r_with.fit.body_uncertainty.as_ref().expect("echoed");
         let (carried, left) = (
             echo.propagated.contains_key("inertia_kgm2"),

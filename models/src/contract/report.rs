@@ -366,8 +366,9 @@ pub struct FitDetails {
 pub struct BodyUncertaintyResult {
     /// Propagated into every parameter's interval (`identify::body_uncertainty`).
     pub propagated: std::collections::BTreeMap<String, f64>,
-    /// Stated but not propagated: the inertia when `inertia_error` is named (the fit estimates
-    /// it, and its interval holds it), or a perturbed model that could not be simulated.
+    /// Stated but not propagated: the inertia when the reported fit estimates it (`inertia_error`
+    /// named, or an `ambiguous` record read with it; its interval holds it), or a perturbed
+    /// model that could not be simulated.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub not_propagated: std::collections::BTreeMap<String, f64>,
 }
