@@ -309,6 +309,28 @@ pub fn fit_lift_trace(
             (&hold, &hold_after),
         ),
     };
+    // The named model, as reported, must leave the record at the noise
+    // (`absorbed::NAMED_MAX_RATIO`): else the name is not the explanation.
+    let left = named.residual.excess_ratio.unwrap_or(f64::INFINITY);
+    if let Some(a) = absorption
+        .as_ref()
+        .filter(|_| left > super::absorbed::NAMED_MAX_RATIO)
+    {
+        let reason = format!(
+            "{} (`{}` was tried: reported with every joint free it left {left:.2}× the noise, \
+             over {}×)",
+            a.reason(),
+            found.name,
+            super::absorbed::NAMED_MAX_RATIO
+        );
+        super::absorbed::withhold_all(&mut result, reason);
+        return Ok(LiftReport {
+            result,
+            fit,
+            fitted_height_m,
+            plain_fitted_height_m: None,
+        });
+    }
     named.residual.autocorrelation_before = result.residual.autocorrelation;
     named.fit.absorption = result.fit.absorption;
     Ok(LiftReport {
