@@ -356,6 +356,34 @@ pub struct FitDetails {
     /// absent when the rig states none (single-joint fits only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub body_uncertainty: Option<BodyUncertaintyResult>,
+    /// Lift fits (issue 36, point 1): what the fit had to do to reach the noise — the trace
+    /// refitted with only the reported parameters free (`lift::absorbed`); absent elsewhere.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub absorption: Option<AbsorptionCheck>,
+}
+
+/// A lift fit's check that no effect was absorbed in silence by the joints it does not report
+/// (`fit.absorption`, `lift::absorbed`).
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct AbsorptionCheck {
+    /// The check: `reported_only_refit`.
+    pub check: String,
+    /// Whether it fired (`ratio` ≥ `threshold`): the lift then names an effect or is
+    /// `unexplained` with its joints withheld, never clean.
+    pub fired: bool,
+    /// The refit's H residual RMS over the sensor noise.
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub ratio: f64,
+    /// The ratio at or above which it fires.
+    pub threshold: f64,
+    /// The plain fit's ratio (every joint free), for comparison.
+    #[serde(deserialize_with = "nullable::f64")]
+    #[cfg_attr(feature = "openapi", schema(nullable))]
+    pub plain_ratio: f64,
+    /// The parameters left free (`J1 dry`, …); every other at its Table 4 value.
+    pub free: Vec<String>,
 }
 
 /// The stated body uncertainties a single-joint fit carried (`fit.body_uncertainty`), each
@@ -751,6 +779,7 @@ pub fn details(
             _ => f64::NAN,
         },
         body_uncertainty: BodyUncertaintyResult::of(fit),
+        absorption: None,
     }
 }
 

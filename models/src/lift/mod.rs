@@ -27,6 +27,7 @@
 //! - [`batch`] — many lift fits on all cores, results in input order, progress by callback.
 //! - `integrate` — DOPRI5 or Rosenbrock-W over a sampled record, dense output at the samples.
 
+pub mod absorbed;
 pub mod attribution;
 pub mod batch;
 pub mod design;

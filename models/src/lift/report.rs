@@ -40,7 +40,9 @@ use crate::contract::report::{
 };
 use crate::numerics::stats::Z95;
 
+mod candidates;
 mod channels;
+use candidates::{Candidate, Named, STOP_RATIO, try_candidate};
 pub use channels::LiftChannels;
 
 /// A lift fit: the contract result, the MAP fit, and the fitted H (for plots).
@@ -114,10 +116,16 @@ pub fn fit_lift_trace(
     let fit = fit_map(model, &[trace], &opts)?;
     let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
     let mut result = fit_result(model, &fit, &trace, &fitted_height_m, &opts, trace_id);
-    let try_effects = result
-        .residual
-        .excess_ratio
-        .is_some_and(|r| r > super::residual::EFFECT_TRY_RATIO);
+    // What the fit had to do (`lift::absorbed`): refitted with only what it reports free.
+    let plain_ratio = result.residual.excess_ratio.unwrap_or(f64::NAN);
+    let absorption = super::absorbed::reported_only(model, &trace, &fit, &opts, plain_ratio)?;
+    result.fit.absorption = absorption.as_ref().map(|a| a.to_result());
+    let absorbed = absorption.as_ref().filter(|a| a.fired());
+    let try_effects = absorbed.is_some()
+        || result
+            .residual
+            .excess_ratio
+            .is_some_and(|r| r > super::residual::EFFECT_TRY_RATIO);
     if !try_effects {
         // Nothing to judge: the held-out test is run only where an effect is tried. Measured
         // (`bench suite --only fits,fleet --lift-seeds 12`): run on every lift it doubled the
@@ -132,7 +140,22 @@ pub fn fit_lift_trace(
     }
     // The held-out test of the plain model (`lift::holdout`): refit without every fourth
     // 0.5 s block, judged on them.
-    let hold = super::holdout::blocks(model, &trace, &fit, &opts)?;
+    // The vocabulary is tried on the model with only the reported parameters free (the others at
+    // Table 4, `lift::absorbed`): a named effect must explain what the unreported joints would
+    // otherwise absorb. Measured (`examples/lift_loop_probe`, raise, seed 0): with every joint
+    // free, a friction fading over the raise was named `drive_compliance` and a 2 % spring-force
+    // gain error `sensor_offset` — wrong names the joints made room for.
+    // Where the plain fit is itself over the residual gate, the record shows the effect without
+    // the check, and the vocabulary is tried as before, every joint free: against the
+    // reported-only model a Stribeck ×1.2 with J3 dry ×2 was named a 41 mm `sensor_offset`
+    // (`residual::tests`), the drift left out of the model taken for an effect.
+    let gated = plain_ratio > super::residual::MODEL_ERROR_RATIO;
+    let restricted = absorption.as_ref().filter(|_| !gated);
+    let (base_fit, base_opts) = match restricted {
+        Some(a) => (&a.fit, &a.opts),
+        None => (&fit, &opts),
+    };
+    let hold = super::holdout::blocks(model, &trace, base_fit, base_opts)?;
     set_holdout(&mut result, &hold, &hold);
     // A model error: try the vocabulary (`lift::effects`), one fit each, in an order and with a
     // stop: `sensor_delay` first where the plain residual correlates most with the strip speed
@@ -145,18 +168,23 @@ pub fn fit_lift_trace(
     // a −10 mm H offset `quadratic_drag` on 2 of 3 lifts (its refit left 1.44–1.71× the
     // noise); trying every candidate on every lift cost 4.1× the plain fit (bench loop row).
     // What none names stays as the plain fit left it (withheld above the gate).
-    let before = result.rmse.value;
+    let before = base_fit
+        .rmse_m
+        .first()
+        .copied()
+        .unwrap_or(result.rmse.value);
     let n = channels.strip_height_m.len() as f64;
+    let base_height_m = base_fit.fitted_height_m.first().unwrap_or(&fitted_height_m);
     let residual: Vec<f64> = channels
         .strip_height_m
         .iter()
-        .zip(&fitted_height_m)
+        .zip(base_height_m)
         .map(|(m, f)| m - f)
         .collect();
     let delay_first = super::residual::diagnose(
         channels.t_s,
         &residual,
-        &fitted_height_m,
+        base_height_m,
         channels.torque_nm,
         opts.h_noise_m.max(super::residual::GATE_FLOOR_M),
     )
@@ -174,11 +202,25 @@ pub fn fit_lift_trace(
     } else {
         Candidate::ALL
     };
-    let mut best: Option<(f64, Named)> = None;
+    let mut best: Option<(f64, Named, Candidate)> = None;
     for candidate in order {
-        let Some(found) = try_candidate(candidate, model, &trace, &fit, &opts)? else {
+        // An H zero offset is not tried against the reported-only model (the plain fit under
+        // the residual gate): the reported parameters (J1+J3 and the torque offset) absorb a
+        // real one (measured, `examples/lift_loop_probe`, seeds 0–1: +5 mm left the
+        // reported-only refit at 0.72–0.80× the noise, +10 mm at 0.81–1.43×, on every protocol)
+        // or the plain fit cannot (−10 mm: 5× the noise, `residual::tests`); tried there, it was
+        // the wrong name for a 2 % spring-force gain error and a 2 % heavier head on the paper's
+        // raise (seeds 0–1 and 200–202).
+        if restricted.is_some() && matches!(candidate, Candidate::Offset) {
+            continue;
+        }
+        let Some(found) = try_candidate(candidate, model, &trace, base_fit, base_opts)? else {
             continue;
         };
+        // The named model must pass the check itself.
+        if found.excess_ratio >= super::absorbed::ABSORBED_RATIO {
+            continue;
+        }
         let hold_after = super::holdout::blocks(model, &trace, &found.fit, &found.opts)?;
         let rmse = found.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
         let noise_m = rmse / found.excess_ratio;
@@ -188,8 +230,8 @@ pub fn fit_lift_trace(
         let k = found.fit.effects.len() as f64;
         let bic = n * (rmse * rmse).ln() + k * n.ln();
         let at_noise = found.excess_ratio <= STOP_RATIO;
-        if best.as_ref().is_none_or(|(b, _)| bic < *b) {
-            best = Some((bic, Named { found, hold_after }));
+        if best.as_ref().is_none_or(|(b, _, _)| bic < *b) {
+            best = Some((bic, Named { found, hold_after }, candidate));
         }
         // Stribeck and a compliant drive both change how the lower arm leaves rest, and are
         // tried last: after a Stribeck at the noise the drive is still tried, the lower BIC
@@ -200,7 +242,11 @@ pub fn fit_lift_trace(
             break;
         }
     }
-    let Some((_, Named { found, hold_after })) = best else {
+    let Some((_, Named { found, hold_after }, chosen)) = best else {
+        // Nothing named: an absorbed effect leaves the lift `unexplained`, never clean.
+        if let Some(a) = absorbed {
+            super::absorbed::withhold_all(&mut result, a.reason());
+        }
         return Ok(LiftReport {
             result,
             fit,
@@ -208,151 +254,97 @@ pub fn fit_lift_trace(
             plain_fitted_height_m: None,
         });
     };
-    // A delay's or an offset's refitted H is the sensor's: what the logger would have recorded.
-    let (mut named, refitted) = named_result(
-        model,
-        &found.fit,
-        &trace,
-        &opts,
-        trace_id,
-        found.name,
-        found.params,
-        before,
-        (&hold, &hold_after),
-    );
+    // The effect named, reported with every joint free: the same candidate refitted from the
+    // plain fit, where it passes the vocabulary's margins and the check's ratio (its effect's
+    // intervals then carry the joints' uncertainty: from the reported-only search a 4 N/(m/s)²
+    // drag read 4.32 [4.11, 4.52]); else a refit with the effect held where the search found it
+    // (`absorbed::fixed_effect_refit`), the effect's own parameters the search's.
+    let mut found = found;
+    let mut fixed = None;
+    if restricted.is_some() {
+        match try_candidate(chosen, model, &trace, &fit, &opts)? {
+            Some(f) if f.excess_ratio < super::absorbed::ABSORBED_RATIO => found = f,
+            _ => {
+                fixed = super::absorbed::fixed_effect_refit(
+                    model,
+                    &trace,
+                    &found.fit,
+                    &found.opts,
+                    &opts,
+                )?
+            }
+        }
+    }
+    let (mut named, refitted) = match &fixed {
+        Some((_, h, full, _)) => {
+            let corrected = LiftTrace {
+                inputs: trace.inputs,
+                strip_height_m: h,
+            };
+            let (named, _) = named_result(
+                model,
+                full,
+                &corrected,
+                &opts,
+                trace_id,
+                found.name,
+                found.params.clone(),
+                before,
+                (&hold, &hold_after),
+            );
+            // The plot shows the search's fit: H as the logger would have recorded it.
+            let sensor_h = found
+                .fit
+                .fitted_height_m
+                .first()
+                .cloned()
+                .unwrap_or_default();
+            (named, sensor_h)
+        }
+        // A delay's or an offset's refitted H is the sensor's: what the logger would have
+        // recorded.
+        None => named_result(
+            model,
+            &found.fit,
+            &trace,
+            &opts,
+            trace_id,
+            found.name,
+            found.params.clone(),
+            before,
+            (&hold, &hold_after),
+        ),
+    };
+    // The named model, as reported, must leave the record at the noise
+    // (`absorbed::NAMED_MAX_RATIO`): else the name is not the explanation.
+    let left = named.residual.excess_ratio.unwrap_or(f64::INFINITY);
+    if let Some(a) = absorption
+        .as_ref()
+        .filter(|_| left > super::absorbed::NAMED_MAX_RATIO)
+    {
+        let reason = format!(
+            "{} (`{}` was tried: reported with every joint free it left {left:.2}× the noise, \
+             over {}×)",
+            a.reason(),
+            found.name,
+            super::absorbed::NAMED_MAX_RATIO
+        );
+        super::absorbed::withhold_all(&mut result, reason);
+        return Ok(LiftReport {
+            result,
+            fit,
+            fitted_height_m,
+            plain_fitted_height_m: None,
+        });
+    }
     named.residual.autocorrelation_before = result.residual.autocorrelation;
+    named.fit.absorption = result.fit.absorption;
     Ok(LiftReport {
         result: named,
-        fit: found.fit,
+        fit: fixed.map_or(found.fit, |(_, _, f, _)| f),
         fitted_height_m: refitted,
         plain_fitted_height_m: Some(fitted_height_m),
     })
-}
-
-/// A candidate that passed, with its held-out test.
-struct Named {
-    found: Found,
-    hold_after: super::holdout::Holdout,
-}
-
-/// An effect a candidate's refit found: its contract name and `params`, the fit and the
-/// options it was fitted with (for its held-out test).
-struct Found {
-    name: &'static str,
-    /// The refit's residual RMS over the noise (`lift::residual::diagnose`).
-    excess_ratio: f64,
-    params: Vec<(&'static str, serde_json::Value)>,
-    fit: LiftFit,
-    opts: LiftFitOptions,
-}
-
-/// Try one candidate of the vocabulary on a lift whose plain fit `base` left a model error.
-fn try_candidate(
-    candidate: Candidate,
-    model: &LiftModel,
-    trace: &LiftTrace,
-    base: &LiftFit,
-    opts: &LiftFitOptions,
-) -> Result<Option<Found>, LiftFitError> {
-    use super::effects as fx;
-    use serde_json::json;
-    Ok(match candidate {
-        Candidate::Drag => fx::try_quadratic_drag(model, trace, base, opts)?.map(|f| Found {
-            name: "quadratic_drag",
-            params: vec![
-                ("c_a_ns2_per_m2", json!(f.c_a_ns2_per_m2)),
-                ("c_a_ns2_per_m2_ci95", json!(f.c_a_ci95)),
-            ],
-            excess_ratio: f.excess_ratio,
-            fit: f.fit,
-            opts: fx::drag_options(opts),
-        }),
-        Candidate::Delay => fx::try_sensor_delay(model, trace, base, opts)?.map(|f| Found {
-            name: "sensor_delay",
-            params: vec![
-                ("delay_s", json!(f.delay_s)),
-                ("delay_s_ci95", json!(f.delay_ci95_s)),
-            ],
-            excess_ratio: f.excess_ratio,
-            fit: f.fit,
-            opts: fx::delay_options(opts),
-        }),
-        Candidate::Offset => fx::try_sensor_offset(model, trace, base, opts)?.map(|f| Found {
-            name: "sensor_offset",
-            params: vec![
-                ("offset_m", json!(f.offset_m)),
-                ("offset_m_ci95", json!(f.offset_ci95_m)),
-            ],
-            excess_ratio: f.excess_ratio,
-            fit: f.fit,
-            opts: fx::offset_options(opts),
-        }),
-        Candidate::Stribeck => fx::try_stribeck(model, trace, base, opts)?.map(|f| Found {
-            name: "stribeck",
-            params: vec![
-                // A lift cannot tell the lower arm's pins apart (their dry friction is one
-                // combination, `lift::attribution`): measured, a Stribeck at J1 is named as
-                // well, fitted at J3.
-                ("joint", json!(fx::STRIBECK_JOINTS)),
-                ("fitted_at", json!(f.joint.name())),
-                ("ratio", json!(f.ratio)),
-                ("ratio_ci95", json!(f.ratio_ci95)),
-                ("stribeck_speed_rad_s", json!(f.speed_rad_s)),
-                ("stribeck_speed_rad_s_ci95", json!(f.speed_ci95_rad_s)),
-            ],
-            excess_ratio: f.excess_ratio,
-            fit: f.fit,
-            opts: fx::stribeck_options(opts),
-        }),
-        Candidate::Compliance => {
-            fx::try_drive_compliance(model, trace, base, opts)?.map(|f| Found {
-                name: "drive_compliance",
-                params: vec![
-                    ("inertia_kgm2", json!(f.inertia_kgm2)),
-                    ("inertia_kgm2_ci95", json!(f.inertia_ci95_kgm2)),
-                    ("stiffness_nm_per_rad", json!(f.stiffness_nm_per_rad)),
-                    (
-                        "stiffness_nm_per_rad_ci95",
-                        json!(f.stiffness_ci95_nm_per_rad),
-                    ),
-                    ("damping_nms_per_rad", json!(f.damping_nms_per_rad)),
-                    (
-                        "damping_nms_per_rad_ci95",
-                        json!(f.damping_ci95_nms_per_rad),
-                    ),
-                ],
-                excess_ratio: f.excess_ratio,
-                fit: f.fit,
-                opts: fx::compliance_options(opts),
-            })
-        }
-    })
-}
-
-/// The vocabulary's lift effects (`lift::effects`).
-#[derive(Debug, Clone, Copy)]
-enum Candidate {
-    Drag,
-    Delay,
-    Offset,
-    Stribeck,
-    Compliance,
-}
-
-/// A passing candidate whose refit leaves its residual within this ratio to the noise ends the
-/// search. Measured (`examples/lift_effects_probe`): right effects leave 0.71–0.88 at the
-/// stand's noise and 0.99–1.10 at twice it; a wrong one that passed the margins, 1.44–1.71
-/// (`quadratic_drag` on a −10 mm H offset).
-const STOP_RATIO: f64 = 1.15;
-
-impl Candidate {
-    const ALL: [Candidate; 5] = [
-        Candidate::Drag,
-        Candidate::Delay,
-        Candidate::Offset,
-        Candidate::Stribeck,
-        Candidate::Compliance,
-    ];
 }
 
 /// The `holdout_note` of a lift whose plain model explains the record (no effect tried).
@@ -735,6 +727,7 @@ fn build_result(
             // in `LiftFit::posterior_correlation`.
             viscous_dry_correlation: f64::NAN,
             body_uncertainty: None,
+            absorption: None,
         },
         pooled: None,
         combinations,

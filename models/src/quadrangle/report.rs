@@ -270,6 +270,7 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
             // Not defined for a many-joint fit (null in JSON).
             viscous_dry_correlation: f64::NAN,
             body_uncertainty: None,
+            absorption: None,
         },
         pooled: None,
         combinations: Vec::new(),

@@ -158,20 +158,22 @@ fn print_table(a: &DesignArgs, pred: [&Prediction; 2], sim: [&SimulatedSpread; 2
             a.fits, a.noise
         );
         println!(
-            "{:<12} | {:^35} | {:^35}",
+            "{:<12} | {:^46} | {:^46}",
             "", "raise and lower", "designed"
         );
         println!(
-            "{:<12} | {:>8} {:>8} {:>9} {:>6} | {:>8} {:>8} {:>9} {:>6}",
+            "{:<12} | {:>8} {:>8} {:>9} {:>6} {:>10} | {:>8} {:>8} {:>9} {:>6} {:>10}",
             "parameter",
             "H only",
             "H+input",
             "simulated",
             "inf.",
+            "fit rep.",
             "H only",
             "H+input",
             "simulated",
-            "inf."
+            "inf.",
+            "fit rep."
         );
     }
     for (i, p) in pred[0].params.iter().enumerate() {
@@ -185,6 +187,10 @@ fn print_table(a: &DesignArgs, pred: [&Prediction; 2], sim: [&SimulatedSpread; 2
                     "fisher_sd": pred[k].sd[i],
                     "sd_h_noise_only": pred[k].sd_h[i],
                     "informed": pred[k].informed[i],
+                    // What the fit will report (issue 36, point 6): the share of the simulated
+                    // fits that report it, and the combination it is reported in.
+                    "reported_by_fit": sim[k].reported[i],
+                    "reported_in": sim[k].reported_in[i],
                 })
             };
             println!(
@@ -198,16 +204,19 @@ fn print_table(a: &DesignArgs, pred: [&Prediction; 2], sim: [&SimulatedSpread; 2
             );
         } else {
             let yn = |b: bool| if b { "yes" } else { "no" };
+            let rep = |k: usize| reported_cell(sim[k].reported[i], &sim[k].reported_in[i]);
             println!(
-                "{name:<12} | {:>8.3} {:>8.3} {:>9.3} {:>6} | {:>8.3} {:>8.3} {:>9.3} {:>6}",
+                "{name:<12} | {:>8.3} {:>8.3} {:>9.3} {:>6} {:>10} | {:>8.3} {:>8.3} {:>9.3} {:>6} {:>10}",
                 pred[0].sd_h[i],
                 pred[0].sd[i],
                 sim[0].sd[i],
                 yn(pred[0].informed[i]),
+                rep(0),
                 pred[1].sd_h[i],
                 pred[1].sd[i],
                 sim[1].sd[i],
-                yn(pred[1].informed[i])
+                yn(pred[1].informed[i]),
+                rep(1)
             );
         }
     }
@@ -221,5 +230,25 @@ fn print_table(a: &DesignArgs, pred: [&Prediction; 2], sim: [&SimulatedSpread; 2
              simulated sd of a parameter the prior holds is small because the lifts are simulated \
              at Table 4, the prior's mean; it does not make the parameter informed."
         );
+        println!(
+            "\"fit rep.\" (what the fit will report): the share of the simulated fits whose result \
+             judges the parameter — alone or in the combination named (J1+J3 = the J1+J3 dry \
+             level). A parameter the information informs but the fit does not report is not \
+             judged by a lift of this protocol: a drift there is never a level or an alert; where \
+             the lift cannot reach the noise without it, the fit ends `unexplained` with its \
+             joints withheld (fit.absorption, lift::absorbed)."
+        );
     }
+}
+
+/// The "fit rep." cell: the combination it is reported in (or "alone"), with the share of the
+/// simulated fits that report it; "no" under half.
+fn reported_cell(share: f64, within: &Option<String>) -> String {
+    if share < 0.5 {
+        return "no".into();
+    }
+    let what = within.as_deref().map_or("alone".to_string(), |l| {
+        l.split(' ').next().unwrap_or(l).to_string()
+    });
+    format!("{what} {:.0}%", share * 100.0)
 }

@@ -48,6 +48,14 @@ pub struct SimulatedSpread {
     /// Mean of each estimate (same units; Table 4 is 1): a mean off 1 by more than sd/√K is
     /// the fit's bias on this protocol.
     pub mean: Vec<f64>,
+    /// Share of the fits that *report* each parameter (issue 36, point 6): informed on its own
+    /// or a member of an informed combination (`lift::absorbed::reported_params`, what a lift's
+    /// result judges and alerts on); the torque offset, a nuisance, 0. The design's `informed`
+    /// is the Fisher information's verdict; this is what the fit will say.
+    pub reported: Vec<f64>,
+    /// The combination a reported parameter was reported in, in most fits (`J1+J3 dry`), if
+    /// any.
+    pub reported_in: Vec<Option<String>>,
     /// Lifts simulated and fitted.
     pub fits: usize,
     /// Of those, fits that failed (left out of the spread).
@@ -107,6 +115,7 @@ pub fn simulated_spread(
                 .collect()
         })
         .collect();
+    let (reported, reported_in) = reported_share(params, &results);
     let n = est.len();
     if n < 3 {
         return Err(DesignError::Statics(format!(
@@ -126,7 +135,48 @@ pub fn simulated_spread(
         params: params.to_vec(),
         sd,
         mean,
+        reported,
+        reported_in,
         fits,
         failed: fits - n,
     })
+}
+
+/// Per parameter of `params`: the share of the fits in `results` that report it
+/// ([`SimulatedSpread::reported`]) and the combination label it was reported in most often.
+fn reported_share(
+    params: &[LiftParam],
+    results: &[Result<crate::lift::fit::LiftFit, crate::lift::fit::LiftFitError>],
+) -> (Vec<f64>, Vec<Option<String>>) {
+    let fits: Vec<_> = results.iter().filter_map(|r| r.as_ref().ok()).collect();
+    let n = fits.len().max(1) as f64;
+    let mut share = Vec::with_capacity(params.len());
+    let mut label = Vec::with_capacity(params.len());
+    for p in params {
+        let mut labels: std::collections::BTreeMap<String, usize> = Default::default();
+        let mut count = 0usize;
+        for f in &fits {
+            if crate::lift::absorbed::reported_params(f).contains(p) {
+                count += 1;
+                if let Some(c) = f
+                    .params
+                    .iter()
+                    .find(|e| e.param == *p)
+                    .and_then(|e| e.combination)
+                    .and_then(|c| f.combinations.get(c))
+                {
+                    *labels.entry(c.label()).or_default() += 1;
+                }
+            }
+        }
+        share.push(count as f64 / n);
+        label.push(
+            labels
+                .into_iter()
+                .max_by_key(|(_, k)| *k)
+                .filter(|(_, k)| 2 * k > count)
+                .map(|(l, _)| l),
+        );
+    }
+    (share, label)
 }

@@ -279,3 +279,82 @@ fn a_j1_drift_on_the_designed_moves_shows_in_the_level_not_in_j1() {
         }
     }
 }
+
+/// Issue 36, point 6: the design says what the fit will report. On the designed moves the
+/// Fisher information informs J3, J5 and J8 dry, but a lift's fit reports only the J1+J3 dry
+/// level (`SimulatedSpread::reported`, printed by `design-test` as "fit rep."); J5 and J8 are
+/// never judged by such a lift. A J5 dry ×2.5 drift is not detectable by it (the reported-only
+/// refit stays at the noise): nothing is flagged, J5 stays unidentified, the level moves ~6 %. And a clean designed lift names no effect
+/// (it named a false 8 mm `sensor_offset` before: an offset is not tried where the fit reports
+/// a level, `report::fit_lift_trace`).
+#[test]
+fn the_design_says_what_the_fit_reports() {
+    use crate::contract::drift::{DriftThresholds, Status};
+    use crate::lift::report::{LiftChannels, fit_lift_trace};
+    let g = builtin_160ec();
+    let m = LiftModel::new(g);
+    let p = rounds_of_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, 1).unwrap();
+    let opts = LiftFitOptions::default();
+    let noise = LiftSensorNoise::realistic();
+    let s = simulated_spread(
+        &m,
+        &p,
+        &opts.friction_params,
+        &noise,
+        &opts,
+        6,
+        SIMULATED_SEED0,
+        None,
+        &|_| {},
+    )
+    .unwrap();
+    let share = |j: &str| {
+        let q = LiftParam::named(j, "dry").unwrap();
+        let i = s.params.iter().position(|x| *x == q).unwrap();
+        (s.reported[i], s.reported_in[i].clone())
+    };
+    for j in ["J1", "J3"] {
+        let (sh, within) = share(j);
+        assert!(sh >= 0.5, "{j}: {sh}");
+        assert_eq!(within.as_deref(), Some("J1+J3 dry"), "{j}");
+    }
+    for j in ["J5", "J8"] {
+        assert_eq!(share(j).0, 0.0, "{j} is not reported by the fit");
+    }
+    let mut j5 = m.clone();
+    let q = LiftParam::named("J5", "dry").unwrap();
+    q.set(&mut j5, &mut 0.0, 2.5 * q.get(&m, 0.0));
+    for (model, seed, drifted) in [(&m, 7100u64, false), (&m, 7101, false), (&j5, 7102, true)] {
+        let clean = record(model, &p, &SimOptions::default()).unwrap();
+        let rec = noise.apply(&clean, seed);
+        let r = fit_lift_trace(&LiftChannels::from(&rec), &DriftThresholds::default(), "d")
+            .unwrap()
+            .result;
+        eprintln!(
+            "seed {seed} J5 drifted {drifted}: effects {:?} verdict {:?} check {:?}",
+            r.residual.effects, r.residual.verdict, r.fit.absorption
+        );
+        assert!(r.residual.effects.is_empty(), "{:?}", r.residual.effects);
+        for j in &r.joints {
+            assert!(!matches!(j.status, Status::Watch | Status::Alarm), "{j:?}");
+            if j.joint == "J5" || j.joint == "J8" {
+                assert!(!j.identifiable, "{j:?}");
+            }
+        }
+        // Clean: the level holds Table 4. With J5 ×2.5 the reported-only refit left 0.89× the
+        // noise (not detectable), and the level read 1.057 [1.002, 1.115]: a J5 drift leans on
+        // the J1+J3 level by ~6 %, inside the watch band, unflagged (the `no flag` above) —
+        // what the design's "fit rep." column tells the user: J5 is not judged by this test.
+        if let Some(c) = r
+            .combinations
+            .iter()
+            .find(|c| c.label == "J1+J3 dry" && c.identifiable)
+        {
+            if drifted {
+                assert!(c.value < 1.1 && c.ci95[0] > 0.9, "{c:?}");
+            } else {
+                assert!(c.ci95[0] <= 1.0 && 1.0 <= c.ci95[1], "{c:?}");
+            }
+        }
+    }
+}

@@ -242,6 +242,7 @@ pub fn gauge_result(
             interval_inflation: fit.noise_n / fit.noise_floor_n,
             viscous_dry_correlation: f64::NAN,
             body_uncertainty: None,
+            absorption: None,
         },
         pooled: None,
         combinations,
