@@ -91,8 +91,176 @@ fn load(path: &str) -> JointTest {
     }
 }
 
+/// A measured-like set (issue 38): J8 sliders released from 18.33 mm (10.5 kg, 4 N/mm, Fn
+/// 4.05 N; viscous 3.99 N·s/m, μ 0.5), 0.05 mm noise and 0.01 mm logger steps, at 500 Hz and
+/// 1 kHz over 4, 10 and 30 s, seeds 1–4; and input-driven axes (`synth::DrivenAxis`, the
+/// bench's: 0.2 N force noise with 0.05 N steps, 0.05 mm / 0.01 mm position) at 1 and 5 kHz over
+/// 5 and 20 s, seeds 1–2. One line per record: its name, the values and standard errors.
+fn measured_like() {
+    use pantowatch_models::friction::FrictionLaw;
+    use pantowatch_models::identify::Readout;
+    use pantowatch_models::synth::{DrivenAxis, Sensor, Truth, grid, measure_truth};
+    let opts = FitOptions::default();
+    let report = |name: String, test: &JointTest| {
+        let t0 = Instant::now();
+        match fit_base(test, &opts) {
+            Ok(f) => println!(
+                "{name:<28} viscous {:.6} ± {:.3e}  dry {:.6} ± {:.3e}  rmse {:.5}  {:.1} ms",
+                f.law.viscous,
+                f.std[0],
+                f.law.dry,
+                f.std[1],
+                f.rmse,
+                1e3 * t0.elapsed().as_secs_f64()
+            ),
+            Err(e) => println!("{name:<28} failed: {e}"),
+        }
+    };
+    for fs in [500.0, 1000.0] {
+        for dur in [4.0, 10.0, 30.0] {
+            for seed in 1..=4u64 {
+                let t = grid(dur, fs);
+                let dof = Dof {
+                    mech: Mechanism::Slider(SliderRig {
+                        moving_mass_kg: 10.5,
+                        stiffness_n_per_m: 4000.0,
+                        normal_force_n: 4.05,
+                    }),
+                    input: None,
+                    torsion: 0.0,
+                };
+                let truth = Truth {
+                    law: FrictionLaw::base(3.99, 0.5),
+                    readout: Readout::default(),
+                    dry_fade: 0.0,
+                };
+                let sensor = Sensor {
+                    scale: 1000.0,
+                    noise_sigma: 0.05,
+                    quantum: 0.01,
+                    offset: 0.0,
+                    seed,
+                };
+                let y = measure_truth(&dof, &truth, 0.01833, 0.0, &t, &sensor).expect("sim");
+                let test = JointTest {
+                    dof,
+                    t_s: t,
+                    y,
+                    scale: 1000.0,
+                    unit: "mm",
+                    initial_rate: None,
+                    release_t_s: None,
+                    body_sd: vec![],
+                };
+                report(format!("slider {fs} Hz {dur} s #{seed}"), &test);
+            }
+        }
+    }
+    for fs in [1000.0, 5000.0] {
+        for dur in [5.0, 20.0] {
+            for seed in 1..=2u64 {
+                let axis = DrivenAxis {
+                    moving_mass_kg: 8.0,
+                    viscous: 204.0,
+                    normal_force_n: 40.8,
+                    dry: 0.5,
+                    input_offset_n: -3.2,
+                    force_n: 150.0,
+                    fs_hz: fs,
+                    duration_s: dur,
+                    force_noise_n: 0.2,
+                    force_step_n: 0.05,
+                    position_noise_mm: 0.05,
+                    position_step_mm: 0.01,
+                    seed,
+                };
+                report(
+                    format!("driven {fs} Hz {dur} s #{seed}"),
+                    &axis.record().expect("record"),
+                );
+            }
+        }
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().map(String::as_str) == Some("--slider") {
+        // --slider FS DURATION SEED: one J8 record of the measured-like set, with its first fit.
+        use pantowatch_models::friction::FrictionLaw;
+        use pantowatch_models::identify::Readout;
+        use pantowatch_models::synth::{Sensor, Truth, grid, measure_truth};
+        let num = |i: usize| args[i].parse::<f64>().unwrap();
+        let t = grid(num(2), num(1));
+        let dof = Dof {
+            mech: Mechanism::Slider(SliderRig {
+                moving_mass_kg: 10.5,
+                stiffness_n_per_m: 4000.0,
+                normal_force_n: 4.05,
+            }),
+            input: None,
+            torsion: 0.0,
+        };
+        let truth = Truth {
+            law: FrictionLaw::base(3.99, 0.5),
+            readout: Readout::default(),
+            dry_fade: 0.0,
+        };
+        let sensor = Sensor {
+            scale: 1000.0,
+            noise_sigma: 0.05,
+            quantum: 0.01,
+            offset: 0.0,
+            seed: num(3) as u64,
+        };
+        let y = measure_truth(&dof, &truth, 0.01833, 0.0, &t, &sensor).unwrap();
+        let test = JointTest {
+            dof,
+            t_s: t,
+            y,
+            scale: 1000.0,
+            unit: "mm",
+            initial_rate: None,
+            release_t_s: None,
+            body_sd: vec![],
+        };
+        use pantowatch_models::identify::{FitSpec, fit_window, initial, offset_identifiable};
+        let fo = offset_identifiable(&test.dof);
+        let init =
+            initial::inverse_dynamics(&test.dof, &test.t_s, &test.y, test.scale, 0, None, fo);
+        let first = fit_window(
+            &test,
+            0,
+            test.t_s.len(),
+            &FitSpec::base(init.viscous, init.dry, fo),
+            &init,
+            &FitOptions::default(),
+        )
+        .unwrap();
+        let r = &first.residual;
+        println!(
+            "first viscous {:.5} dry {:.5} rmse {:.5} LB {:.1} rmse/noise {:.4}",
+            first.law.viscous,
+            first.law.dry,
+            first.rmse,
+            pantowatch_models::stats::ljung_box(r, pantowatch_models::stats::LB_LAGS),
+            first.rmse / pantowatch_models::stats::noise_sigma(r)
+        );
+        let t0 = Instant::now();
+        let fit = fit_base(&test, &FitOptions::default()).unwrap();
+        println!(
+            "fit_base viscous {:.5} dry {:.5} rmse {:.5} {:.1} ms",
+            fit.law.viscous,
+            fit.law.dry,
+            fit.rmse,
+            1e3 * t0.elapsed().as_secs_f64()
+        );
+        return;
+    }
+    if args.first().map(String::as_str) == Some("--measured-like") {
+        measured_like();
+        return;
+    }
     let mut repeat = 5;
     let mut files = vec![];
     let mut i = 0;
