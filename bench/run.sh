@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Time the SciPy peer and `pantowatch-tools bench` on the same example traces and
-# print a markdown table (bench/compare.py) against truth.json.
+# Time the SciPy peer and `pantowatch-tools bench` on the same example traces, plus the
+# bench's own records (a 30 s slider and an input-driven axis, `pantowatch-tools bench
+# records`), and print a markdown table (bench/compare.py) against truth.json.
 #
 #   bench/run.sh [--no-build] [--repeat N]
 #
@@ -53,6 +54,12 @@ fi
 OUT="$ROOT/bench/out"
 mkdir -p "$OUT"
 
+# The records beyond the examples (issue 38): written with their truth merged into the examples'.
+mapfile -t RECORDS < <(PANTOWATCH_EXAMPLES="$EX" "$BIN" bench records "$OUT/records")
+[ "${#RECORDS[@]}" -gt 0 ] || { echo "run.sh: '$BIN bench records' wrote nothing" >&2; exit 1; }
+FILES+=("${RECORDS[@]}")
+TRUTH="$OUT/records/truth.json"
+
 # Single-threaded BLAS for the peer: the fit is one process on one core.
 echo "== SciPy peer (${#FILES[@]} files, repeat $REPEAT)" >&2
 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
@@ -68,5 +75,5 @@ if ! grep -q '^{' "$OUT/rust.jsonl"; then
     exit 1
 fi
 
-python3 bench/compare.py --truth "$EX/truth.json" --peer "$OUT/peer.jsonl" \
+python3 bench/compare.py --truth "$TRUTH" --peer "$OUT/peer.jsonl" \
     --rust "$OUT/rust.jsonl" | tee "$OUT/table.md"

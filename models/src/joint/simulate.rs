@@ -163,10 +163,12 @@ pub fn simulate(
     }
     let ns = opts.sens.len();
     let dim = 2 + 2 * ns;
+    // Filled sample by sample in order (`record`), so not zeroed first (issue 38: the zeroing
+    // was a pass over 2 + n_sens values per sample on every evaluation).
     let mut tr = Trajectory {
-        q: vec![0.0; n],
-        v: vec![0.0; n],
-        dq: vec![0.0; n * ns],
+        q: Vec::with_capacity(n),
+        v: Vec::with_capacity(n),
+        dq: Vec::with_capacity(n * ns),
         n_sens: ns,
         ..Default::default()
     };
@@ -186,10 +188,12 @@ pub fn simulate(
     let t_end = times[n - 1];
     let mut t = times[0];
     let mut k = 0; // next sample to write
+    // Sample k's values; every call is for the next sample (k = the number recorded so far).
     let record = |tr: &mut Trajectory, k: usize, y: &[f64]| {
-        tr.q[k] = y[0];
-        tr.v[k] = y[1];
-        tr.dq[k * ns..(k + 1) * ns].copy_from_slice(&y[2..2 + ns]);
+        debug_assert_eq!(tr.q.len(), k);
+        tr.q.push(y[0]);
+        tr.v.push(y[1]);
+        tr.dq.extend_from_slice(&y[2..2 + ns]);
     };
     let period = dof.period_s((t_end - t).max(1e-3));
     let mut tol = opts.tol;

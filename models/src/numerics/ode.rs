@@ -303,9 +303,19 @@ impl Dopri5 {
     pub fn dense_range(&self, t: f64, range: std::ops::Range<usize>, out: &mut [f64]) {
         let th = (t - self.t_old) / self.h_old;
         let th1 = 1.0 - th;
-        let r = &self.r;
-        for i in range {
-            out[i] = r[0][i] + th * (r[1][i] + th1 * (r[2][i] + th * (r[3][i] + th1 * r[4][i])));
+        // One slice per coefficient: the loop runs without bounds checks (issue 38: a single
+        // joint's fit evaluates it at every sample for q, v and each sensitivity).
+        let [r0, r1, r2, r3, r4] = &self.r;
+        let (r0, r1, r2, r3, r4) = (
+            &r0[range.clone()],
+            &r1[range.clone()],
+            &r2[range.clone()],
+            &r3[range.clone()],
+            &r4[range.clone()],
+        );
+        let out = &mut out[range];
+        for i in 0..out.len() {
+            out[i] = r0[i] + th * (r1[i] + th1 * (r2[i] + th * (r3[i] + th1 * r4[i])));
         }
     }
 }

@@ -58,13 +58,16 @@ pub fn ljung_box(r: &[f64], lags: usize) -> f64 {
         return 0.0;
     }
     let mean = r.iter().sum::<f64>() / n as f64;
-    let c0: f64 = r.iter().map(|x| (x - mean).powi(2)).sum();
+    // Centred once (issue 38: it was recomputed twice per lag and sample); the sums run in the
+    // same order as before, so the statistic is the same to the bit.
+    let d: Vec<f64> = r.iter().map(|x| x - mean).collect();
+    let c0: f64 = d.iter().map(|x| x.powi(2)).sum();
     if c0 == 0.0 {
         return 0.0;
     }
     (1..=lags.min(n - 1))
         .map(|k| {
-            let ck: f64 = (k..n).map(|i| (r[i] - mean) * (r[i - k] - mean)).sum();
+            let ck: f64 = d[k..].iter().zip(&d[..n - k]).map(|(a, b)| a * b).sum();
             (ck / c0).powi(2) / (n - k) as f64
         })
         .sum::<f64>()

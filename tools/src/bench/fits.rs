@@ -1,5 +1,6 @@
-//! Fit time and accuracy per test kind: pendulum and slider against the SciPy peer
-//! (`bench/scipy_peer.py`, run as a subprocess on the same example files), lift per input-noise
+//! Fit time and accuracy per test kind: pendulum, slider and input-driven axis against the SciPy
+//! peer (`bench/scipy_peer.py`, run as a subprocess on the same files: the shared examples and
+//! the bench's own records, `bench::records`), lift per input-noise
 //! level in `bench::lift` (it has no peer). The ratio is the peer's total time over ours on the
 //! same files.
 
@@ -99,8 +100,18 @@ fn example_files(ex: &Path, quick: bool) -> (Vec<PathBuf>, Vec<PathBuf>) {
 
 fn single_joints(a: &SuiteArgs, sizes: &Sizes, ex: &Path) -> anyhow::Result<Vec<Row>> {
     let truth: Value = serde_json::from_slice(&std::fs::read(ex.join("truth.json"))?)?;
-    let (pend, slider) = example_files(ex, a.quick);
-    let all: Vec<PathBuf> = pend.iter().chain(&slider).cloned().collect();
+    let (pend, mut slider) = example_files(ex, a.quick);
+    // The bench's own records (issue 38): a 30 s slider and an input-driven axis, in a fresh
+    // directory of this run.
+    let dir = std::env::temp_dir().join(format!("pantowatch-bench-records-{}", std::process::id()));
+    let records = super::records::write(&dir)?;
+    let truth = super::records::truth_with(truth, &records);
+    let (driven, slid): (Vec<_>, Vec<_>) = records.iter().map(|r| r.path.clone()).partition(|p| {
+        p.file_stem()
+            .is_some_and(|s| s.to_string_lossy().starts_with("driven"))
+    });
+    slider.extend(slid);
+    let all: Vec<PathBuf> = pend.iter().chain(&slider).chain(&driven).cloned().collect();
     let peer = run_peer(a, &all, sizes.repeat);
     let mut timed = HashMap::new();
     for f in &all {
@@ -114,11 +125,17 @@ fn single_joints(a: &SuiteArgs, sizes: &Sizes, ex: &Path) -> anyhow::Result<Vec<
         }
     }
     let peer_note = peer.as_ref().err().cloned();
+    let _ = std::fs::remove_dir_all(&dir);
     let pick =
         |files: &[PathBuf]| -> Vec<Timed> { files.iter().map(|f| timed[f].clone()).collect() };
     Ok(vec![
         kind_row("fit: pendulum", &pick(&pend), peer_note.as_deref()),
         kind_row("fit: slider", &pick(&slider), peer_note.as_deref()),
+        kind_row(
+            "fit: input-driven axis",
+            &pick(&driven),
+            peer_note.as_deref(),
+        ),
     ])
 }
 

@@ -10,6 +10,7 @@ pub mod ingest;
 pub mod lift;
 pub mod machine;
 pub mod query;
+pub mod records;
 pub mod scaling;
 pub mod suite;
 pub mod table;
@@ -28,6 +29,19 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
                 ..LogSettings::default()
             });
             suite::run(s)
+        }
+        Some(BenchCommand::Records { dir }) => {
+            let records = records::write(&dir)?;
+            let truth = pantowatch::cli::examples_dir()
+                .and_then(|ex| std::fs::read(ex.join("truth.json")).ok())
+                .and_then(|b| serde_json::from_slice(&b).ok())
+                .unwrap_or_else(|| serde_json::json!({}));
+            let truth = records::truth_with(truth, &records);
+            std::fs::write(dir.join("truth.json"), serde_json::to_vec_pretty(&truth)?)?;
+            for r in &records {
+                println!("{}", r.path.display());
+            }
+            Ok(())
         }
         None => {
             init_logging(&LogSettings::default());

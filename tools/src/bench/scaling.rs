@@ -1,7 +1,9 @@
-//! Fit time against record length for each single-joint kind (issue 38): a pendulum and a
+//! Fit time against record length for each test kind (issue 38): a pendulum and a
 //! slider released from rest, and a positioning axis driven by a recorded noisy force, each at
 //! 1k, 10k and 100k samples (quick: 1k and 10k) — the identification (`fit_base`) and the whole
-//! fit with its residual loop (`fit_joint_test`, what the worker runs). A row fails when its
+//! fit with its residual loop (`fit_joint_test`, what the worker runs); the quadrangle swing
+//! (1k–100k), the lift (1k–80k: the stand's 10 kHz over its 8 s) and the force gauge (20 and
+//! 200 readings: its whole range) as the worker fits their documents ([`DocKind`]). A row fails when its
 //! time grows faster than linearly with the length; two more rows hold the driven axis to its
 //! targets: a record of the positioning benchmark's size (25k samples) and one of 100k samples
 //! within the worker's fit budget.
@@ -141,6 +143,117 @@ pub fn lengths(quick: bool) -> Vec<usize> {
     }
 }
 
+/// A kind fitted as a whole document (`fitting::fit_document`, what the worker runs): the
+/// complete pantograph's lift, the quadrangle swing and the force gauge's record.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DocKind {
+    /// The lower quadrangle swung on its frame (Fig 12), 30 s, rate raised (1k–100k samples).
+    Swing,
+    /// The raise-and-lower lift (8 s), rate raised: 1k and 10k samples, and 80k (the stand's
+    /// 10 kHz limit) in a full run.
+    Lift,
+    /// The force gauge: 20 and 200 readings raising the strip (and as many lowering it); the
+    /// type's limit is 200, so the 1k–100k lengths do not apply.
+    StaticForce,
+}
+
+impl DocKind {
+    pub const ALL: [DocKind; 3] = [DocKind::Swing, DocKind::Lift, DocKind::StaticForce];
+
+    fn label(self) -> &'static str {
+        match self {
+            DocKind::Swing => "quadrangle swing, 30 s, rate raised",
+            DocKind::Lift => "lift (raise and lower, 8 s), rate raised",
+            DocKind::StaticForce => "static_force (gauge readings up and down)",
+        }
+    }
+
+    /// The lengths of a run: samples (swing, lift) or readings per branch (static_force).
+    pub fn lengths(self, quick: bool) -> Vec<usize> {
+        match (self, quick) {
+            (DocKind::StaticForce, _) => vec![20, 200],
+            (DocKind::Lift, false) => vec![1_000, 10_000, 80_000],
+            (_, true) => vec![1_000, 10_000],
+            (DocKind::Swing, false) => vec![1_000, 10_000, 100_000],
+        }
+    }
+
+    /// A simulated record of this kind with about `n` samples (readings per branch).
+    pub fn record(self, n: usize) -> anyhow::Result<pantowatch::trace::TraceDoc> {
+        let d = simulate_defaults()?;
+        let args = match self {
+            DocKind::Swing => SimulateArgs {
+                kind: "quadrangle_swing".into(),
+                duration: 30.0,
+                fs: (n.max(2) - 1) as f64 / 30.0,
+                seed: 7,
+                ..d
+            },
+            DocKind::Lift => SimulateArgs {
+                kind: "lift".into(),
+                // The protocol's 8 s from t = −0.5 s.
+                fs: n as f64 / 8.0,
+                seed: 7,
+                ..d
+            },
+            DocKind::StaticForce => SimulateArgs {
+                kind: "static_force".into(),
+                gauge_readings: n,
+                seed: 7,
+                ..d
+            },
+        };
+        simulate_doc(&args)
+    }
+}
+
+/// Median seconds of `repeat` whole fits of a document, and its sample count (`t_s`, or the
+/// gauge's readings).
+pub fn time_doc(doc: &pantowatch::trace::TraceDoc, repeat: usize) -> anyhow::Result<(usize, f64)> {
+    let mut times = Vec::new();
+    for _ in 0..repeat.max(1) {
+        let t0 = Instant::now();
+        pantowatch::fitting::fit_document(doc, &DriftThresholds::default())
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        times.push(t0.elapsed().as_secs_f64());
+    }
+    let n = doc
+        .channel("t_s")
+        .or_else(|| doc.channel("H_m"))
+        .map_or(0, <[f64]>::len);
+    Ok((n, median(times)))
+}
+
+fn doc_row(kind: DocKind, quick: bool, repeat: usize) -> anyhow::Result<Row> {
+    let measure = format!("fit time vs length: {}", kind.label());
+    let mut pts = Vec::new();
+    let mut detail = Vec::new();
+    for n in kind.lengths(quick) {
+        eprintln!("   {measure}: {n}");
+        let doc = kind.record(n)?;
+        let (samples, t) = time_doc(&doc, repeat)?;
+        pts.push((samples, t));
+        detail.push(json!({"samples": samples, "fit_s": t,
+            "us_per_sample": 1e6 * t / samples.max(1) as f64}));
+    }
+    let g = growth_exponent(&pts);
+    Ok(Row {
+        measure,
+        measured: format!(
+            "whole fit {}; growth exponent {g:.2}",
+            pts.iter()
+                .map(|(n, t)| format!("{n} {}", ms(*t)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        target: format!("grows at most linearly: exponent ≤ {GROWTH_LIMIT} per step"),
+        pass: Some(g <= GROWTH_LIMIT),
+        value: Some(g),
+        unit: "exponent".into(),
+        detail: json!(detail),
+    })
+}
+
 pub fn rows(sizes: &Sizes, quick: bool) -> Vec<Row> {
     let mut rows = Vec::new();
     for kind in Kind::ALL {
@@ -152,6 +265,14 @@ pub fn rows(sizes: &Sizes, quick: bool) -> Vec<Row> {
             Ok(r) => rows.push(r),
             Err(e) => rows.push(Row::failed(&measure, &target, &format!("{e:#}"))),
         }
+    }
+    for kind in DocKind::ALL {
+        let measure = format!("fit time vs length: {}", kind.label());
+        let target = format!("grows at most linearly: exponent ≤ {GROWTH_LIMIT} per step");
+        rows.push(
+            doc_row(kind, quick, sizes.repeat)
+                .unwrap_or_else(|e| Row::failed(&measure, &target, &format!("{e:#}"))),
+        );
     }
     let emps = "fit: input-driven axis, positioning-benchmark size (25k samples, 1 kHz)";
     let emps_target =

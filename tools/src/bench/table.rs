@@ -26,6 +26,12 @@ pub struct BenchArgs {
 pub enum BenchCommand {
     /// Every measure of the performance targets, one table (docs/PERFORMANCE.md).
     Suite(SuiteArgs),
+    /// Write the peer comparison's own records (a 30 s slider, an input-driven axis) into DIR,
+    /// with `truth.json` (the examples' truth and theirs): `bench/run.sh` times them too.
+    Records {
+        /// Directory to write into (created).
+        dir: PathBuf,
+    },
 }
 
 /// A year of monthly lift tests for 1,000 pantographs.
@@ -49,7 +55,8 @@ pub struct SuiteArgs {
     /// README's table and the per-file figures behind it.
     #[arg(long, value_name = "FILE")]
     pub json_out: Option<PathBuf>,
-    /// Sections to run, comma-separated: fits, fleet, ingest (with storage), query.
+    /// Sections to run, comma-separated: fits, fleet, ingest (with storage), query; or scaling
+    /// (the fit-time-against-length rows alone, which fits includes).
     #[arg(long, value_delimiter = ',', default_value = "fits,fleet,ingest,query")]
     pub only: Vec<Section>,
     /// Fits per file for the per-kind timing (median reported); default 3, quick 1.
@@ -90,6 +97,9 @@ pub enum Section {
     Fleet,
     Ingest,
     Query,
+    /// Fit time against record length per test kind alone (`bench::scaling`; `fits` runs it
+    /// too): issue 38's rows in one short run.
+    Scaling,
 }
 
 /// The sizes of a run after `--quick` and the explicit flags.

@@ -46,7 +46,7 @@ fn pinv_sym(a: &DMatrix<f64>) -> DMatrix<f64> {
 pub fn sandwich(jac: &DMatrix<f64>, r: &[f64]) -> Covariance {
     let (n, p) = (jac.nrows(), jac.ncols());
     let dof = (n as f64 - p as f64).max(1.0);
-    let ainv = pinv_sym(&jac.tr_mul(jac));
+    let ainv = pinv_sym(&super::lm::gram(jac));
     let ssr: f64 = r.iter().map(|v| v * v).sum();
     let classical = &ainv * (ssr / dof);
 
@@ -69,22 +69,37 @@ pub fn sandwich(jac: &DMatrix<f64>, r: &[f64]) -> Covariance {
     let batch = ((1.1447 * (alpha * n as f64).cbrt()).ceil() as usize).clamp(1, (n / 5).max(1));
 
     // Overlapping batch means of the scores via prefix sums: S = n/(n−b+1) · (1/b) Σⱼ BⱼBⱼᵀ.
+    // Over contiguous slices, without index arithmetic and bounds checks per term (issue 38:
+    // this was a sixth of a pendulum's identification); the same sums in the same order as the
+    // indexed loops before, so the same matrix to the bit.
     let mut prefix = vec![0.0; (n + 1) * p];
-    for k in 0..n {
-        for j in 0..p {
-            prefix[(k + 1) * p + j] = prefix[k * p + j] + jac[(k, j)] * r[k];
+    for (j, col) in jac.as_slice().chunks_exact(n.max(1)).enumerate() {
+        let mut acc = 0.0;
+        let out = &mut prefix[j * (n + 1)..(j + 1) * (n + 1)];
+        for ((o, jk), rk) in out[1..].iter_mut().zip(col).zip(r) {
+            acc += jk * rk;
+            *o = acc;
+        }
+    }
+    // Upper triangle of S, row-major: s_up[a·p + b], b ≥ a.
+    let mut s_up = vec![0.0; p * p];
+    let mut bsum = vec![0.0; p];
+    for start in 0..=(n - batch) {
+        for (j, b) in bsum.iter_mut().enumerate() {
+            let col = &prefix[j * (n + 1)..];
+            *b = col[start + batch] - col[start];
+        }
+        for a in 0..p {
+            let ba = bsum[a];
+            for (sab, bb) in s_up[a * p + a..(a + 1) * p].iter_mut().zip(&bsum[a..]) {
+                *sab += ba * bb;
+            }
         }
     }
     let mut s = DMatrix::<f64>::zeros(p, p);
-    let mut bsum = vec![0.0; p];
-    for start in 0..=(n - batch) {
-        for j in 0..p {
-            bsum[j] = prefix[(start + batch) * p + j] - prefix[start * p + j];
-        }
-        for a in 0..p {
-            for b in a..p {
-                s[(a, b)] += bsum[a] * bsum[b];
-            }
+    for a in 0..p {
+        for b in a..p {
+            s[(a, b)] = s_up[a * p + b];
         }
     }
     let scale = n as f64 / ((n - batch + 1) as f64 * batch as f64) * (n as f64 / dof);

@@ -41,18 +41,38 @@ pub fn inverse_dynamics(
     let n = t.len();
     let duration = t[n - 1] - t[0];
     let half = half_window(t, (dof.period_s(duration) / 12.0).clamp(0.01, 0.2));
+    // About 800 points over the record; then, when the motion ended in the record's first half
+    // (a free decay held by dry friction, then a long rest: a 30 s slider record moves for 3 s),
+    // about 800 points over the motion alone (issue 38: with the stride of the whole record
+    // a 30 s slider's estimate rested on ~60 points of motion, and its fit went to the wrong
+    // stick–slip piece, beyond what the restarts reach). A record in motion past its middle keeps
+    // the first points, so its estimate is unchanged (every pendulum example: J6's, moving for
+    // 18 of its 20 s, taken over its motion alone, sent its first fit to the wrong piece).
+    let points = |end: usize, stride: usize| -> (Vec<(f64, f64, f64, f64)>, f64) {
+        let idx: Vec<usize> = (half..end).step_by(stride).collect();
+        let mut vmax: f64 = 0.0;
+        let pts = local_cubic_at(t, y, &idx, half)
+            .into_iter()
+            .zip(&idx)
+            .map(|((q, v, a), &i)| {
+                vmax = vmax.max((v / scale).abs());
+                (t[i], q / scale, v / scale, a / scale)
+            })
+            .collect();
+        (pts, vmax)
+    };
     let stride = (n / 800).max(1);
-    let mut rows: Vec<([f64; 3], f64)> = Vec::with_capacity(n / stride + 1);
-    let mut vmax: f64 = 0.0;
-    let idx: Vec<usize> = (half..n.saturating_sub(half)).step_by(stride).collect();
-    let pts: Vec<(f64, f64, f64, f64)> = local_cubic_at(t, y, &idx, half)
-        .into_iter()
-        .zip(&idx)
-        .map(|((q, v, a), &i)| {
-            vmax = vmax.max((v / scale).abs());
-            (t[i], q / scale, v / scale, a / scale)
-        })
-        .collect();
+    let end = n.saturating_sub(half);
+    let (mut pts, mut vmax) = points(end, stride);
+    let moving_until = pts
+        .iter()
+        .rposition(|p| p.2.abs() >= 0.1 * vmax)
+        .map_or(end, |k| (half + (k + 1) * stride + half).min(end));
+    let motion_stride = (moving_until.saturating_sub(half) / 800).max(1);
+    if 2 * moving_until <= n && motion_stride < stride {
+        (pts, vmax) = points(moving_until, motion_stride);
+    }
+    let mut rows: Vec<([f64; 3], f64)> = Vec::with_capacity(pts.len());
     for &(ti, q, v, a) in &pts {
         if v.abs() < 0.1 * vmax {
             continue;

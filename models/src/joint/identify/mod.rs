@@ -337,13 +337,19 @@ impl lm::Problem for OutputError<'_> {
             r[k] = rd.y[k] - self.y[k];
         }
         // Columns in parameter order; the reading's columns follow the same order minus the offset.
+        // Column by column over the matrix's storage (column-major, `times.len()` rows).
         let mut jr = 0;
-        for (j, p) in self.params.iter().enumerate() {
+        let rows = self.times.len();
+        for (col, p) in jac
+            .as_mut_slice()
+            .chunks_exact_mut(rows.max(1))
+            .zip(&self.params)
+        {
             if *p == Param::Offset {
-                jac.column_mut(j).fill(1.0);
+                col.fill(1.0);
             } else {
-                for (k, c) in jac.column_mut(j).iter_mut().enumerate() {
-                    *c = rd.dy[k * rd.m + jr];
+                for (c, dy) in col.iter_mut().zip(rd.dy.chunks_exact(rd.m.max(1))) {
+                    *c = dy[jr];
                 }
                 jr += 1;
             }
@@ -731,25 +737,76 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
     if driven_to_the_end(test, start) {
         return Ok(first);
     }
-    let r = &first.residual;
-    if crate::numerics::stats::is_white(r)
-        && first.rmse <= 1.08 * crate::numerics::stats::noise_sigma(r)
-    {
+    // A fit is accepted when its residual is white and at the sensor's noise.
+    let accepted = |f: &FitOutcome| {
+        crate::numerics::stats::is_white(&f.residual)
+            && f.rmse <= 1.08 * crate::numerics::stats::noise_sigma(&f.residual)
+    };
+    if accepted(&first) {
         return Ok(first);
     }
-    // A small grid around the first estimate (its viscous part is the less certain one).
-    let mut best = first;
+    // A small grid around the first estimate (its viscous part is the less certain one),
+    // fitted from the start whose simulated motion is closest to the record first (one plain
+    // simulation per start), and stopped at the first restart that improves on the best so far
+    // and passes the test the first fit failed: the rest of the grid could only find another
+    // piece whose residual is also white at the noise (issue 38: the grid in its fixed order
+    // cost twelve more fits whenever the first fit missed; a 30 s slider record, 122 model
+    // evaluations for a fit of three).
+    let mut starts: Vec<(f64, InitialEstimate)> = Vec::with_capacity(12);
     for fv in [0.6, 0.8, 1.25, 1.6] {
         for fd in [0.9, 1.1, 1.25] {
             let mut start_at = init;
             start_at.viscous = (init.viscous * fv).max(1e-9);
             start_at.dry = (init.dry * fd).max(1e-9);
-            if let Ok(f) = fit_window(test, start, n_fit, &spec, &start_at, opts)
-                && f.rmse < best.rmse * (1.0 - 1e-6)
-            {
-                best = f;
+            starts.push((
+                start_cost(test, start, n_fit, &spec, &start_at, opts),
+                start_at,
+            ));
+        }
+    }
+    starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut best = first;
+    for (_, start_at) in &starts {
+        if let Ok(f) = fit_window(test, start, n_fit, &spec, start_at, opts)
+            && f.rmse < best.rmse * (1.0 - 1e-6)
+        {
+            let done = accepted(&f);
+            best = f;
+            if done {
+                break;
             }
         }
     }
     Ok(best)
+}
+
+/// The sum of squared residuals of the model at the starting point `at` (a plain simulation, no
+/// sensitivities); infinite when it cannot be simulated.
+fn start_cost(
+    test: &JointTest,
+    start: usize,
+    n_fit: usize,
+    spec: &FitSpec,
+    at: &InitialEstimate,
+    opts: &FitOptions,
+) -> f64 {
+    let prob = OutputError::new(test, start, n_fit, spec, opts);
+    let x = lm::project(&prob, &start_vector(&prob.params, spec, at));
+    let (law, q0, v0, ro, body) = prob.unpack(&x);
+    let sim = SimOptions {
+        tol: opts.tol,
+        sens: vec![],
+    };
+    let dof = body.apply(&test.dof);
+    match readout::read(
+        &dof, &law, q0, v0, &ro, prob.times, &sim, test.scale, false, false,
+    ) {
+        Ok(rd) => {
+            rd.y.iter()
+                .zip(prob.y)
+                .map(|(m, y)| (m - y) * (m - y))
+                .sum()
+        }
+        Err(_) => f64::INFINITY,
+    }
 }
