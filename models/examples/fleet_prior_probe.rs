@@ -11,7 +11,8 @@
 //! (an informed entry or combination flagged watch/alarm while its truth is inside the watch
 //! band), and the RMS error of the entries the lift does not inform (MAP / truth − 1: what the
 //! unreported joints absorb). With `PW_DRAG` (N/(m/s)², default 0: none) every lifted unit
-//! carries an undeclared head drag the fit does not model.
+//! carries an undeclared head drag the fit does not model. `PW_PRIOR_SD_SCALE` (default 1)
+//! widens every learned sd by that factor.
 //!
 //! `cargo run --release -p pantowatch-models --example fleet_prior_probe -- [SEEDS] [FIRST]`
 
@@ -79,7 +80,12 @@ fn main() {
             });
         }
     }
-    let prior = learn(&est, type_160ec().fleet_prior());
+    let mut prior = learn(&est, type_160ec().fleet_prior());
+    // `PW_PRIOR_SD_SCALE` (default 1): every learned sd multiplied by this (a wider prior).
+    let sd_scale = env_f("PW_PRIOR_SD_SCALE", 1.0);
+    for p in &mut prior.params {
+        p.sd_ratio *= sd_scale;
+    }
     let plain = LiftFitOptions::default();
     let learned = LiftFitOptions::default().with_fleet_prior(&prior);
     let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
@@ -138,7 +144,7 @@ fn main() {
         }
     }
     println!(
-        "fleet: {} coefficients, spread {spread}, workshop {n_workshop} units; lifts {seeds} from seed {first}; head drag {drag}",
+        "fleet: {} coefficients, spread {spread}, workshop {n_workshop} units; lifts {seeds} from seed {first}; head drag {drag}, learned sd × {sd_scale}",
         params.len()
     );
     for (name, t) in ["Table 4 prior", "learned prior"].iter().zip(&tallies) {
