@@ -149,6 +149,25 @@ pub struct PantographType {
     /// borrows the built-in 160EC's ([`PantographType::paper_tests`]).
     #[serde(default, rename = "paper_tests")]
     pub paper_tests_data: Option<PaperTests>,
+    /// How the fleet's prior is learned from workshop fits (`[fleet_prior]`, issue 37); a file
+    /// without the table borrows the built-in 160EC's ([`PantographType::fleet_prior`]).
+    #[serde(default, rename = "fleet_prior")]
+    pub fleet_prior_data: Option<FleetPriorData>,
+}
+
+/// `[fleet_prior]`: how a fleet prior is learned from workshop fits (`lift::fleet_prior`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FleetPriorData {
+    pub source: String,
+    /// Fewest workshop fits of one joint and parameter before the fleet's spread is used.
+    pub min_fits: usize,
+    /// The spread (Table 4 units) of a joint with fewer fits.
+    pub floor_relative_sd: f64,
+    /// The narrowest learned spread, Table 4 units.
+    pub min_relative_sd: f64,
+    /// A new prior version when a mean or sd moves by more than this, Table 4 units.
+    pub version_tolerance_relative: f64,
 }
 
 /// `[static_force]`: where the characteristic is computed and what it must stay within. Limits
@@ -412,6 +431,17 @@ impl PantographType {
         }
     }
 
+    /// This type's fleet-prior settings, or the built-in 160EC's when its file has none.
+    pub fn fleet_prior(&self) -> &FleetPriorData {
+        match &self.fleet_prior_data {
+            Some(p) => p,
+            None => builtin_160ec()
+                .fleet_prior_data
+                .as_ref()
+                .expect("models/data/160ec.toml has [fleet_prior]"),
+        }
+    }
+
     /// This type's paper test protocols, or the built-in 160EC's when its file has none.
     pub fn paper_tests(&self) -> &PaperTests {
         match &self.paper_tests_data {
@@ -441,6 +471,14 @@ impl PantographType {
             ));
         }
         positive("gravity_m_s2", self.gravity_m_s2)?;
+        if let Some(fp) = &self.fleet_prior_data {
+            positive("fleet_prior.floor_relative_sd", fp.floor_relative_sd)?;
+            positive("fleet_prior.min_relative_sd", fp.min_relative_sd)?;
+            positive(
+                "fleet_prior.version_tolerance_relative",
+                fp.version_tolerance_relative,
+            )?;
+        }
         if let Some(sf) = &self.static_force {
             let [a, b] = sf.working_height_m;
             positive("static_force.working_height_m", a)?;

@@ -45,6 +45,11 @@ pub struct LiftFitOptions {
     pub h_noise_m: f64,
     /// Prior sd of every friction coefficient as a fraction of its Table 4 value.
     pub prior_relative_sd: f64,
+    /// Friction parameters whose prior is not Table 4 ± `prior_relative_sd`: (parameter, mean,
+    /// sd), in the fit's units (θ/θ₀), e.g. the fleet's learned prior (issue 37,
+    /// `lift::fleet_prior`, [`LiftFitOptions::with_fleet_prior`]). Empty (the default): Table 4
+    /// for every one. Parameters not in `friction_params` stay at the model's values.
+    pub friction_prior: Vec<(LiftParam, f64, f64)>,
     /// Prior sd of each trace's torque-sensor offset, N·m.
     pub offset_prior_sd_nm: f64,
     /// Informed when posterior sd < prior sd / this.
@@ -85,6 +90,30 @@ pub struct LiftFitOptions {
     /// whose intervals were measured too narrow by that much ([`POOLED_INTERVAL_SCALE`]).
     /// Empty (the default): none.
     pub param_interval_scale: Vec<(LiftParam, f64)>,
+}
+
+impl LiftFitOptions {
+    /// The prior (mean, sd) of friction parameter `p`, θ/θ₀: its `friction_prior` entry, else
+    /// Table 4 (1) ± `prior_relative_sd`.
+    pub fn prior_of(&self, p: LiftParam) -> (f64, f64) {
+        self.friction_prior
+            .iter()
+            .find(|(q, _, _)| *q == p)
+            .map(|&(_, m, s)| (m, s))
+            .unwrap_or((1.0, self.prior_relative_sd))
+    }
+
+    /// These options with the fleet's prior for every friction parameter it covers whose mean
+    /// and sd are finite and the sd > 0 (the rest keep Table 4's).
+    pub fn with_fleet_prior(mut self, prior: &super::fleet_prior::FleetPrior) -> Self {
+        self.friction_prior = prior
+            .params
+            .iter()
+            .filter(|p| p.mean_ratio.is_finite() && p.sd_ratio.is_finite() && p.sd_ratio > 0.0)
+            .filter_map(|p| p.param().map(|q| (q, p.mean_ratio, p.sd_ratio)))
+            .collect();
+        self
+    }
 }
 
 /// A force-gauge record pooled with lift traces ([`LiftFitOptions::gauge_records`]): the
@@ -174,6 +203,7 @@ impl Default for LiftFitOptions {
             // intervals through κ²; a cleaner one keeps this floor.
             h_noise_m: 0.7e-3,
             prior_relative_sd: 0.5,
+            friction_prior: Vec::new(),
             offset_prior_sd_nm: 10.0,
             informed_factor: 2.0,
             thresholds: DriftThresholds::default(),

@@ -183,7 +183,7 @@ pub fn identifiability(
     let fisher = jd.tr_mul(&jd);
     let prior_sd = |i: usize| {
         if i < n_fric {
-            opts.prior_relative_sd
+            opts.prior_of(params[i]).1
         } else {
             opts.offset_prior_sd_nm
         }
@@ -499,7 +499,7 @@ pub fn fit_map_in(
     }
     let prior_sd = |i: usize| {
         if i < pf {
-            opts.prior_relative_sd
+            opts.prior_of(fric[i]).1
         } else if i < e0 {
             opts.offset_prior_sd_nm
         } else if i < z0 {

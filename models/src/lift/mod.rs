@@ -34,6 +34,7 @@ pub mod design;
 pub mod dynamics;
 pub mod effects;
 pub mod fit;
+pub mod fleet_prior;
 pub mod gauge;
 pub mod geometry;
 pub mod holdout;

@@ -246,11 +246,11 @@ impl Problem for MapProblem<'_, '_> {
             }
             row += n;
         }
-        // Prior rows: (x − 1)/s for friction, offset/s_T for the offsets.
-        let s_rel = self.opts.prior_relative_sd;
+        // Prior rows: (x − mean)/sd for friction (`LiftFitOptions::prior_of`), offset/s_T for the offsets.
         for i in 0..pf {
-            r[row] = (x[i] - 1.0) / s_rel;
-            jac[(row, i)] = 1.0 / s_rel;
+            let (mean, sd) = self.opts.prior_of(self.fric[i]);
+            r[row] = (x[i] - mean) / sd;
+            jac[(row, i)] = 1.0 / sd;
             row += 1;
         }
         for ti in 0..self.traces.len() {
