@@ -149,6 +149,25 @@ pub struct PantographType {
     /// borrows the built-in 160EC's ([`PantographType::paper_tests`]).
     #[serde(default, rename = "paper_tests")]
     pub paper_tests_data: Option<PaperTests>,
+    /// What a joint's evidence may age to and how fast it ages (`[test_plan]`, issue 37); a type
+    /// without the table has no test plan.
+    #[serde(default)]
+    pub test_plan: Option<TestPlanData>,
+}
+
+/// `[test_plan]`: the wear-rate spread that widens old evidence (`contract::evidence`), the
+/// prior of a parameter never measured, and how old each joint's evidence may get before a
+/// workshop test is due (a joint not named is never due).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TestPlanData {
+    pub source: String,
+    /// sd of a joint parameter's wear rate across the fleet, × baseline per year.
+    pub fleet_wear_sd_per_year: f64,
+    /// sd of a parameter no test has informed, × baseline.
+    pub unmeasured_relative_sd: f64,
+    /// Per joint, days.
+    pub max_evidence_age_days: BTreeMap<String, f64>,
 }
 
 /// `[static_force]`: where the characteristic is computed and what it must stay within. Limits
@@ -599,6 +618,25 @@ impl PantographType {
                         positive(&format!("{f}.length_m"), *length_m)?;
                     }
                 }
+            }
+        }
+        if let Some(tp) = &self.test_plan {
+            positive(
+                "test_plan.fleet_wear_sd_per_year",
+                tp.fleet_wear_sd_per_year,
+            )?;
+            positive(
+                "test_plan.unmeasured_relative_sd",
+                tp.unmeasured_relative_sd,
+            )?;
+            for (j, d) in &tp.max_evidence_age_days {
+                if !self.joints.contains_key(j) {
+                    return Err(invalid(
+                        "test_plan.max_evidence_age_days",
+                        format!("no joint `{j}`"),
+                    ));
+                }
+                positive("test_plan.max_evidence_age_days", *d)?;
             }
         }
         let s = &self.slider;
