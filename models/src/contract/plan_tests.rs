@@ -1,8 +1,8 @@
 //! The plan's ranking against the truth of a simulated fleet (issue 37, point 2).
 //!
 //! The fleet (parameter level, not traces): every joint parameter of the built-in 160EC's Table 4
-//! on `n` pantographs; one in ten wears linearly at 0.5–2.5 × baseline per year (up), the rest
-//! stay at baseline — a mixture, not the plan's normal rate model. Each parameter's last
+//! on `n` pantographs; one in ten wears linearly at 0.5–2.5 × baseline per year (up) from 0–182 days
+//! before its last test, the rest stay at baseline — a mixture, not the plan's normal rate model. Each parameter's last
 //! workshop test is 0–365 days old and read it with noise sd `MEAS_REL` × baseline (95 %
 //! interval ± 1.96 sd). A swing of a joint informs both its parameters as that test did. Truth:
 //! the parameter's value now past the watch band.
@@ -54,8 +54,8 @@ fn simulate(n: usize, seed: u64) -> Sim {
                     0.0
                 };
                 let age = 365.0 * rng.uniform();
-                // A year of service before the test: the value then.
-                let then = b + rate_per_day * 365.0;
+                // Up to half a year of wear before the test: the value then.
+                let then = b + rate_per_day * 182.0 * rng.uniform();
                 let now = then + rate_per_day * age;
                 crossed |= now > th.watch[1] * b || now < th.watch[0] * b;
                 let sd = MEAS_REL * b;

@@ -267,6 +267,28 @@ impl Store {
         dispatch!(self, s => s.joint_states(serial).await)
     }
 
+    /// Each parameter's latest informing test of each kind, of one serial or (`None`) the fleet
+    /// (`param_evidence`: what the evidence and the test plan read).
+    pub async fn param_evidence(&self, serial: Option<&str>) -> Result<Vec<EvidenceRow>> {
+        dispatch!(self, s => s.param_evidence(serial).await)
+    }
+
+    /// The date of the pantograph's newest test, if it has one.
+    pub async fn latest_test_at(&self, serial: &str) -> Result<Option<DateTime<Utc>>> {
+        dispatch!(self, s => s.latest_test_at(serial).await)
+    }
+
+    /// Writes a parameter's trend on its evidence rows (`None` clears it).
+    pub async fn set_param_trend(
+        &self,
+        serial: &str,
+        joint: &str,
+        param: &str,
+        trend: Option<StoredTrend>,
+    ) -> Result<()> {
+        dispatch!(self, s => s.set_param_trend(serial, joint, param, trend).await)
+    }
+
     /// Opens, escalates or updates the live alert of (serial, joint), with its event and, when
     /// opened or escalated, its webhook deliveries, in one transaction.
     pub async fn raise_alert(&self, a: &NewAlert) -> Result<RaiseOutcome> {
