@@ -13,6 +13,7 @@ mod gauge;
 mod harness;
 mod lift;
 mod openapi;
+mod plan;
 mod quadrangle;
 mod security;
 mod static_force;
@@ -69,6 +70,7 @@ suite!(
     a_gauge_measurement_is_stored_refused_and_drawn,
     a_gauge_record_pools_with_the_next_lift,
     a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,
+    evidence_plan_and_test_due_over_http,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).
