@@ -56,7 +56,7 @@ pub struct EvidenceTest {
 
 /// One parameter's evidence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct ParamEvidence {
+pub struct EvidenceParam {
     pub param: Param,
     pub standing: Standing,
     /// Table 4 baseline.
@@ -80,7 +80,7 @@ pub struct ParamEvidence {
 
 /// One joint's evidence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct JointEvidence {
+pub struct EvidenceJoint {
     pub joint: String,
     /// Age of its older parameter's evidence, days; `null` when one was never measured.
     pub age_days: Option<f64>,
@@ -88,8 +88,8 @@ pub struct JointEvidence {
     pub max_age_days: Option<f64>,
     /// Evidence older than `max_age_days`.
     pub test_due: bool,
-    pub viscous: ParamEvidence,
-    pub dry: ParamEvidence,
+    pub viscous: EvidenceParam,
+    pub dry: EvidenceParam,
 }
 
 /// `GET /v1/pantographs/{serial}/evidence`.
@@ -99,7 +99,7 @@ pub struct PantographEvidence {
     pub model: String,
     /// The time the ages and beliefs are at.
     pub at: DateTime<Utc>,
-    pub joints: Vec<JointEvidence>,
+    pub joints: Vec<EvidenceJoint>,
 }
 
 /// `GET /v1/pantographs/{serial}/plan`.
@@ -173,7 +173,7 @@ pub fn pantograph_evidence(
         .joints
         .keys()
         .filter_map(|joint| {
-            let param = |p: Param| -> Option<ParamEvidence> {
+            let param = |p: Param| -> Option<EvidenceParam> {
                 let baseline = baseline_of(t, joint, p)?;
                 let latest = rows
                     .iter()
@@ -195,7 +195,7 @@ pub fn pantograph_evidence(
                         belief: now,
                     }
                     .p_past(&th);
-                    return Some(ParamEvidence {
+                    return Some(EvidenceParam {
                         param: p,
                         standing: Standing::NeverMeasured,
                         baseline,
@@ -234,7 +234,7 @@ pub fn pantograph_evidence(
                 } else {
                     (Standing::Measured, format!("measured on {date}"))
                 };
-                Some(ParamEvidence {
+                Some(EvidenceParam {
                     param: p,
                     standing,
                     baseline,
@@ -259,7 +259,7 @@ pub fn pantograph_evidence(
             let age_days = viscous.age_days.zip(dry.age_days).map(|(a, b)| a.max(b));
             let max_age_days =
                 plan_data(t).and_then(|d| d.max_evidence_age_days.get(joint).copied());
-            Some(JointEvidence {
+            Some(EvidenceJoint {
                 joint: joint.clone(),
                 test_due: age_days.zip(max_age_days).is_some_and(|(a, m)| a > m),
                 age_days,

@@ -36,7 +36,7 @@ pub struct TestDueEvidence {
     pub trace_id: String,
     pub at: DateTime<Utc>,
     /// The joint's evidence then (`GET /v1/pantographs/{serial}/evidence`'s shape).
-    pub due: crate::evidence::JointEvidence,
+    pub due: crate::evidence::EvidenceJoint,
 }
 
 /// A joint's alert.
