@@ -117,6 +117,10 @@ pub struct FleetPlanEntry {
     pub serial: String,
     /// Age of the pantograph's oldest joint evidence, days (never-measured joints aside).
     pub oldest_evidence_days: Option<f64>,
+    /// The age that joint's evidence may reach before a test is due (`null`: never due).
+    pub oldest_allowed_days: Option<f64>,
+    /// The joints whose test is due.
+    pub tests_due: Vec<String>,
     #[serde(flatten)]
     pub test: PlanItem,
 }
@@ -376,9 +380,25 @@ pub fn fleet_plan(rows: &[EvidenceRow], at: DateTime<Utc>, limit: usize) -> Flee
             let t = type_of(&rs.first()?.model)?;
             let ev = pantograph_evidence(serial, t, rs, at);
             let best = plan_of(&ev, rs, &fleet).into_iter().next()?;
+            let oldest = ev
+                .joints
+                .iter()
+                .filter(|j| j.age_days.is_some())
+                .max_by(|a, b| {
+                    a.age_days
+                        .partial_cmp(&b.age_days)
+                        .unwrap_or(std::cmp::Ordering::Equal)
+                });
             Some(FleetPlanEntry {
                 serial: (*serial).to_owned(),
-                oldest_evidence_days: oldest_days(&ev),
+                oldest_evidence_days: oldest.and_then(|j| j.age_days),
+                oldest_allowed_days: oldest.and_then(|j| j.max_age_days),
+                tests_due: ev
+                    .joints
+                    .iter()
+                    .filter(|j| j.test_due)
+                    .map(|j| j.joint.clone())
+                    .collect(),
                 test: best,
             })
         })

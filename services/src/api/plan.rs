@@ -61,7 +61,7 @@ pub struct FleetPlanQuery {
     pub limit: Option<String>,
 }
 
-fn parse_at(at: Option<&str>) -> Result<DateTime<Utc>, AppError> {
+pub fn parse_at(at: Option<&str>) -> Result<DateTime<Utc>, AppError> {
     match at {
         None => Ok(Utc::now()),
         Some(s) => DateTime::parse_from_rfc3339(s)
