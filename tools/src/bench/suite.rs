@@ -32,6 +32,7 @@ pub fn run(a: SuiteArgs) -> anyhow::Result<()> {
         Section::Fleet,
         Section::Ingest,
         Section::Query,
+        Section::Plan,
     ] {
         if !a.only.contains(&s) {
             continue;
@@ -42,6 +43,7 @@ pub fn run(a: SuiteArgs) -> anyhow::Result<()> {
             Section::Fleet => super::fleet::run(&sizes),
             Section::Ingest => super::ingest::run(&a, &sizes),
             Section::Query => super::query::run(&a, &sizes),
+            Section::Plan => super::plan::run(&a, &sizes),
         };
         rows.extend(r);
     }

@@ -49,8 +49,12 @@ pub struct SuiteArgs {
     /// README's table and the per-file figures behind it.
     #[arg(long, value_name = "FILE")]
     pub json_out: Option<PathBuf>,
-    /// Sections to run, comma-separated: fits, fleet, ingest (with storage), query.
-    #[arg(long, value_delimiter = ',', default_value = "fits,fleet,ingest,query")]
+    /// Sections to run, comma-separated: fits, fleet, ingest (with storage), query, plan.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "fits,fleet,ingest,query,plan"
+    )]
     pub only: Vec<Section>,
     /// Fits per file for the per-kind timing (median reported); default 3, quick 1.
     #[arg(long)]
@@ -90,6 +94,8 @@ pub enum Section {
     Fleet,
     Ingest,
     Query,
+    /// The fleet test plan (issue 37).
+    Plan,
 }
 
 /// The sizes of a run after `--quick` and the explicit flags.
