@@ -197,6 +197,7 @@ pub fn pantograph_evidence(
                         param: p.as_str().into(),
                         baseline,
                         belief: now,
+                        seen: Status::Unknown,
                     }
                     .p_past(&th);
                     return Some(EvidenceParam {
@@ -227,6 +228,7 @@ pub fn pantograph_evidence(
                     param: p.as_str().into(),
                     baseline,
                     belief: now,
+                    seen: r.status,
                 }
                 .p_past(&th);
                 let date = r.recorded_at.format("%Y-%m-%d");
@@ -318,6 +320,7 @@ pub fn plan_of(
             param: p.param.as_str().into(),
             baseline: p.baseline,
             belief: p.now,
+            seen: p.test.as_ref().map_or(Status::Unknown, |t| t.status),
         })
         .collect();
     // What each kind informs: this pantograph's own last test of it, else the fleet's mean.

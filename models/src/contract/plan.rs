@@ -6,19 +6,21 @@
 //! - every joint parameter has a belief now ([`super::evidence`]: the last informing test
 //!   widened by the wear since, or the prior for one never measured); its probability past the
 //!   watch band `p_watch` and past the alarm band `p_alarm` (bands × Table 4 baseline, the drift
-//!   thresholds);
+//!   thresholds); the crossing *unseen* is the one past what its last test already showed:
+//!   `p_watch` for a parameter last judged `ok` or `unknown`, `p_alarm` for one at `watch`, none
+//!   for one at `alarm` (its alert stands; a test shows nothing new);
 //! - a test informs some parameters with Fisher information I each (1/unit²: what that kind of
 //!   test returned on that parameter, read from its interval, [`super::evidence::
 //!   information_of_interval`]); after it the sd is σ' = (1/σ² + I)^−½;
-//! - what the test buys is Σ p_watch · (1 − σ'/σ) over the parameters it informs: the chance a
-//!   crossing is there times the share of the uncertainty the test removes — a test of a joint
+//! - what the test buys is Σ p_unseen · (1 − σ'/σ) over the parameters it informs: the chance
+//!   an unseen crossing is there times the share of the uncertainty the test removes — a test of a joint
 //!   that cannot have crossed buys nothing, nor does a test that cannot see the joint; its
 //!   information, Σ ½·log₂(σ²/σ'²) bits, breaks ties and is reported;
 //! - tests are ranked by what they buy, then by bits, then by kind and joint (stable order).
 
 use serde::{Deserialize, Serialize};
 
-use super::drift::DriftThresholds;
+use super::drift::{DriftThresholds, Status};
 use super::evidence::Belief;
 
 /// One joint parameter's state now.
@@ -30,9 +32,21 @@ pub struct ParamNow {
     /// Table 4 baseline, in the parameter's unit.
     pub baseline: f64,
     pub belief: Belief,
+    /// The status its last informing test gave (`unknown` when never measured).
+    pub seen: Status,
 }
 
 impl ParamNow {
+    /// Probability of a crossing its last test did not show (the module's rule).
+    pub fn p_unseen(&self, th: &DriftThresholds) -> f64 {
+        let [w, a] = self.p_past(th);
+        match self.seen {
+            Status::Unknown | Status::Ok => w,
+            Status::Watch => a,
+            Status::Alarm => 0.0,
+        }
+    }
+
     /// Probabilities past the watch and the alarm band (`[p_watch, p_alarm]`).
     pub fn p_past(&self, th: &DriftThresholds) -> [f64; 2] {
         let band = |b: [f64; 2]| [b[0] * self.baseline, b[1] * self.baseline];
@@ -70,6 +84,8 @@ pub struct PlanParam {
     pub p_watch: f64,
     /// Probability it is past its alarm band now.
     pub p_alarm: f64,
+    /// Probability of a crossing its last test did not show.
+    pub p_unseen: f64,
     pub sd_now: f64,
     pub sd_after: f64,
 }
@@ -81,8 +97,10 @@ pub struct PlanItem {
     pub kind: String,
     /// The joint to swing (single-joint tests); `null` for a whole-pantograph test.
     pub joint: Option<String>,
-    /// What the test buys: Σ p_watch · (1 − sd_after/sd_now) over what it informs.
+    /// What the test buys: Σ p_unseen · (1 − sd_after/sd_now) over what it informs.
     pub buys: f64,
+    /// Largest p_unseen among the parameters it informs.
+    pub p_unseen: f64,
     /// Largest p_watch / p_alarm among the parameters it informs.
     pub p_watch: f64,
     pub p_alarm: f64,
@@ -101,6 +119,7 @@ pub fn rank(params: &[ParamNow], options: &[TestOption], th: &DriftThresholds) -
                 kind: o.kind.clone(),
                 joint: o.joint.clone(),
                 buys: 0.0,
+                p_unseen: 0.0,
                 p_watch: 0.0,
                 p_alarm: 0.0,
                 info_bits: 0.0,
@@ -119,7 +138,9 @@ pub fn rank(params: &[ParamNow], options: &[TestOption], th: &DriftThresholds) -
                     continue;
                 }
                 let [p_watch, p_alarm] = p.p_past(th);
-                item.buys += p_watch * (1.0 - sd_after / sd_now);
+                let p_unseen = p.p_unseen(th);
+                item.buys += p_unseen * (1.0 - sd_after / sd_now);
+                item.p_unseen = item.p_unseen.max(p_unseen);
                 item.info_bits += (sd_now / sd_after).log2();
                 item.p_watch = item.p_watch.max(p_watch);
                 item.p_alarm = item.p_alarm.max(p_alarm);
@@ -128,6 +149,7 @@ pub fn rank(params: &[ParamNow], options: &[TestOption], th: &DriftThresholds) -
                     param: p.param.clone(),
                     p_watch,
                     p_alarm,
+                    p_unseen,
                     sd_now,
                     sd_after,
                 });

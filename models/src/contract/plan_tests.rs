@@ -5,9 +5,10 @@
 //! before its last test, the rest stay at baseline — a mixture, not the plan's normal rate model. Each parameter's last
 //! workshop test is 0–365 days old and read it with noise sd `MEAS_REL` × baseline (95 %
 //! interval ± 1.96 sd). A swing of a joint informs both its parameters as that test did. Truth:
-//! the parameter's value now past the watch band.
+//! a parameter its last test judged `ok` now past the watch band (crossed unseen).
 
 use super::*;
+use crate::contract::drift::Status;
 use crate::contract::evidence::{Belief, WearRate};
 use crate::data::builtin_160ec;
 use crate::numerics::noise::Noise;
@@ -57,17 +58,23 @@ fn simulate(n: usize, seed: u64) -> Sim {
                 // Up to half a year of wear before the test: the value then.
                 let then = b + rate_per_day * 182.0 * rng.uniform();
                 let now = then + rate_per_day * age;
-                crossed |= now > th.watch[1] * b || now < th.watch[0] * b;
                 let sd = MEAS_REL * b;
                 let read = then + sd * rng.normal();
                 let belief =
                     Belief::new(read, sd).widened(age, &WearRate::fleet(b, fleet_sd_per_year()));
+                // What the test showed then (the drift thresholds' verdict on its interval).
+                let seen = th
+                    .judge([read - 1.96 * sd, read + 1.96 * sd], read, Some(b))
+                    .status;
+                // Truth: crossed since, unseen (past watch now, not shown as such then).
+                crossed |= seen == Status::Ok && (now > th.watch[1] * b || now < th.watch[0] * b);
                 age_max = age_max.max(age);
                 params.push(ParamNow {
                     joint: name.clone(),
                     param: param.into(),
                     baseline: b,
                     belief,
+                    seen,
                 });
                 informs.push(Informs {
                     joint: name.clone(),
@@ -133,16 +140,16 @@ fn the_plan_finds_the_joints_that_crossed_unseen_better_than_oldest_first() {
         );
         assert!(k > 20, "{k}");
         assert!(
-            plan > oldest + 0.15,
+            plan > oldest + 0.1,
             "seed {seed}: plan {plan:.3} oldest {oldest:.3}"
         );
         assert!(
-            plan > 4.0 * base,
+            plan > 2.0 * base,
             "seed {seed}: plan {plan:.3} base rate {base:.3}"
         );
         worst_plan = worst_plan.min(plan);
     }
-    assert!(worst_plan >= 0.5, "{worst_plan}");
+    assert!(worst_plan >= 0.2, "{worst_plan}");
 }
 
 #[test]
@@ -153,6 +160,7 @@ fn a_test_that_cannot_see_the_joint_or_a_joint_that_cannot_have_crossed_buys_not
         param: "dry".into(),
         baseline: 1.0,
         belief: Belief::new(mean, sd),
+        seen: Status::Ok,
     };
     let params = vec![p("J5", 1.45, 0.1), p("J1", 1.0, 0.02), p("J3", 1.0, 0.3)];
     let swing = |j: &str, info: f64| TestOption {
@@ -188,6 +196,11 @@ fn a_test_that_cannot_see_the_joint_or_a_joint_that_cannot_have_crossed_buys_not
         ranked[0]
     );
     assert!(ranked.iter().all(|i| i.info_bits > 0.0));
+    // A joint whose last test already showed `alarm` has nothing unseen to find.
+    let mut shown = params.clone();
+    shown[0].seen = Status::Alarm;
+    let r = rank(&shown, &[swing("J5", 400.0)], &th);
+    assert!(r[0].buys == 0.0 && r[0].p_watch > 0.3, "{:?}", r[0]);
     // A test with no information on what it names buys nothing and is left out.
     assert!(rank(&params, &[swing("J5", 0.0)], &th).is_empty());
 }
