@@ -441,6 +441,7 @@ pub async fn refresh_trends(store: &Store, serial: &str) -> Result<(), StoreErro
             .or_default()
             .push(p.clone());
     }
+    let mut trends = Vec::new();
     for (joint, points) in by_joint {
         for p in Param::BOTH {
             let tr = crate::health::param_trend(&points, p, None, [0.5, 2.0]);
@@ -449,12 +450,10 @@ pub async fn refresh_trends(store: &Store, serial: &str) -> Result<(), StoreErro
                 slope_ci95: t.slope_ci95,
                 significant: t.significant,
             });
-            store
-                .set_param_trend(serial, joint, p.as_str(), stored)
-                .await?;
+            trends.push((joint.to_owned(), p.as_str().to_owned(), stored));
         }
     }
-    Ok(())
+    store.set_param_trends(serial, &trends).await
 }
 
 /// Why evidence could not be read for a pantograph.

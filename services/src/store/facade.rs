@@ -278,15 +278,14 @@ impl Store {
         dispatch!(self, s => s.latest_test_at(serial).await)
     }
 
-    /// Writes a parameter's trend on its evidence rows (`None` clears it).
-    pub async fn set_param_trend(
+    /// Writes parameters' trends on their evidence rows (`None` clears one), in one
+    /// transaction: (joint, param, trend).
+    pub async fn set_param_trends(
         &self,
         serial: &str,
-        joint: &str,
-        param: &str,
-        trend: Option<StoredTrend>,
+        trends: &[(String, String, Option<StoredTrend>)],
     ) -> Result<()> {
-        dispatch!(self, s => s.set_param_trend(serial, joint, param, trend).await)
+        dispatch!(self, s => s.set_param_trends(serial, trends).await)
     }
 
     /// Opens, escalates or updates the live alert of (serial, joint), with its event and, when

@@ -395,13 +395,12 @@ pub(crate) trait HealthBackend {
         &self,
         serial: &str,
     ) -> impl Future<Output = Result<Option<DateTime<Utc>>>> + Send;
-    /// Writes a parameter's trend (or clears it) on its `param_evidence` rows.
-    fn set_param_trend(
+    /// Writes parameters' trends (or clears them) on their `param_evidence` rows, in one
+    /// transaction: (joint, param, trend).
+    fn set_param_trends(
         &self,
         serial: &str,
-        joint: &str,
-        param: &str,
-        trend: Option<StoredTrend>,
+        trends: &[(String, String, Option<StoredTrend>)],
     ) -> impl Future<Output = Result<()>> + Send;
 }
 

@@ -165,27 +165,29 @@ impl HealthBackend for Backend {
             .await?
             .opt_ts("last_test")
     }
-    async fn set_param_trend(
+    async fn set_param_trends(
         &self,
         serial: &str,
-        joint: &str,
-        param: &str,
-        trend: Option<StoredTrend>,
+        trends: &[(String, String, Option<StoredTrend>)],
     ) -> Result<()> {
-        query(
-            "UPDATE param_evidence SET slope_per_day = $4, slope_lo_per_day = $5,
-                    slope_hi_per_day = $6, slope_significant = $7
-             WHERE serial = $1 AND joint = $2 AND param = $3",
-        )
-        .bind(serial)
-        .bind(joint)
-        .bind(param)
-        .bind(trend.map(|t| t.slope_per_day))
-        .bind(trend.map(|t| t.slope_ci95[0]))
-        .bind(trend.map(|t| t.slope_ci95[1]))
-        .bind(trend.map(|t| t.significant))
-        .execute(&self.pool)
-        .await?;
+        let mut tx = self.begin().await?;
+        for (joint, param, trend) in trends {
+            query(
+                "UPDATE param_evidence SET slope_per_day = $4, slope_lo_per_day = $5,
+                        slope_hi_per_day = $6, slope_significant = $7
+                 WHERE serial = $1 AND joint = $2 AND param = $3",
+            )
+            .bind(serial)
+            .bind(joint)
+            .bind(param)
+            .bind(trend.map(|t| t.slope_per_day))
+            .bind(trend.map(|t| t.slope_ci95[0]))
+            .bind(trend.map(|t| t.slope_ci95[1]))
+            .bind(trend.map(|t| t.significant))
+            .execute(&mut *tx)
+            .await?;
+        }
+        tx.commit().await?;
         Ok(())
     }
     async fn serial_history(&self, serial: &str) -> Result<Vec<JointPoint>> {
