@@ -117,7 +117,7 @@ impl Belief {
 
     /// Probability that the parameter lies outside `[lo, hi]` (a band, in the parameter's unit).
     pub fn p_outside(&self, band: [f64; 2]) -> f64 {
-        if !(self.sd > 0.0) {
+        if self.sd.is_nan() || self.sd <= 0.0 {
             return if self.mean < band[0] || self.mean > band[1] {
                 1.0
             } else {
@@ -132,7 +132,7 @@ impl Belief {
     /// The sd after a test that gives Fisher information `info` (1/unit²) on the parameter:
     /// 1/σ² adds (a normal prior and a normal likelihood).
     pub fn sd_after(&self, info: f64) -> f64 {
-        if !(info > 0.0) || !info.is_finite() {
+        if !info.is_finite() || info <= 0.0 {
             return self.sd;
         }
         (1.0 / (1.0 / (self.sd * self.sd) + info)).sqrt()

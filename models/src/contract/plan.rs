@@ -134,7 +134,8 @@ pub fn rank(params: &[ParamNow], options: &[TestOption], th: &DriftThresholds) -
                 };
                 let sd_now = p.belief.sd;
                 let sd_after = p.belief.sd_after(inf.info);
-                if !(sd_now > 0.0) || !(sd_after < sd_now) {
+                let shrinks = sd_now > 0.0 && sd_after < sd_now;
+                if !shrinks {
                     continue;
                 }
                 let [p_watch, p_alarm] = p.p_past(th);

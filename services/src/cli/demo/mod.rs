@@ -277,15 +277,19 @@ struct Story {
     plan: crate::evidence::FleetPlan,
     /// Per swing done: serial, joint, its status before (the worst of its parameters' last
     /// informing tests), the true wear then, the swing's trace and the joint's status in it.
-    found: Vec<(
-        String,
-        String,
-        Status,
-        Option<(Param, f64)>,
-        String,
-        Option<Status>,
-    )>,
+    found: Vec<Found>,
 }
+
+/// One follow-up swing: serial, joint, its status before (the worst of its parameters' last
+/// informing tests), the true wear then, the swing's trace and the joint's status in it.
+type Found = (
+    String,
+    String,
+    Status,
+    Option<(Param, f64)>,
+    String,
+    Option<Status>,
+);
 
 /// Swings the plan picks from the top of the fleet plan.
 const STORY_SWINGS: usize = 6;
