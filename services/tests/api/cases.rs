@@ -391,6 +391,27 @@ pub async fn every_route_every_role(b: Backend) {
         ),
         (
             Method::GET,
+            "/v1/pantographs/S-1/evidence".into(),
+            None,
+            Role::Reader,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/pantographs/S-1/plan".into(),
+            None,
+            Role::Reader,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/fleet/plan?limit=5".into(),
+            None,
+            Role::Reader,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
             "/v1/admin/keys".into(),
             None,
             Role::Admin,
