@@ -28,6 +28,14 @@ CREATE TABLE param_evidence (
     PRIMARY KEY (serial, joint, param, kind)
 ) STRICT;
 
+-- A counter every write of `param_evidence` raises (the fit's refresh, the trends after it):
+-- the service keeps the fleet plan's rows in memory until it moves (services::evidence).
+CREATE TABLE evidence_version (
+    id      INTEGER PRIMARY KEY CHECK (id = 1),
+    version INTEGER NOT NULL
+) STRICT;
+INSERT INTO evidence_version (id, version) VALUES (1, 0);
+
 -- Backfill from the fits already stored.
 INSERT INTO param_evidence (serial, joint, param, trace_id, fit_id, kind, recorded_at, value, lo, hi, status)
 SELECT serial, joint, param, trace_id, fit_id, kind, recorded_at, value, lo, hi, status FROM (

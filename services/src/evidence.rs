@@ -18,6 +18,7 @@
 //!   `[test_plan] max_evidence_age_days` for it (`test_due`).
 
 use std::collections::{BTreeMap, HashMap};
+use std::sync::{Arc, Mutex};
 
 use chrono::{DateTime, Utc};
 use pantowatch_models::data::{PantographType, TestPlanData, builtin};
@@ -514,4 +515,62 @@ pub async fn at_newest_test(
     };
     let own: Vec<&EvidenceRow> = rows.iter().collect();
     Ok(Some(pantograph_evidence(serial, t, &own, at)))
+}
+
+/// The fleet's evidence rows and the last fleet plan computed from them, kept in memory until
+/// the store's evidence version moves (a fit's refresh or trends): the fleet plan reads 16–40
+/// rows per pantograph, which costs more than the plan itself. One entry; a plan for another
+/// `at` is computed from the kept rows.
+#[derive(Debug, Clone, Default)]
+pub struct PlanCache(Arc<Mutex<Option<CachedPlan>>>);
+
+#[derive(Debug)]
+struct CachedPlan {
+    version: i64,
+    rows: Arc<Vec<EvidenceRow>>,
+    plan: Option<(DateTime<Utc>, Arc<FleetPlan>)>,
+}
+
+impl PlanCache {
+    /// The fleet plan at `at` (every test, best first; the caller truncates), from the kept rows
+    /// while the evidence version stands, else read again.
+    pub async fn fleet_plan(
+        &self,
+        store: &Store,
+        at: DateTime<Utc>,
+    ) -> Result<Arc<FleetPlan>, StoreError> {
+        let version = store.evidence_version().await?;
+        let rows = {
+            let g = self.0.lock().unwrap_or_else(|e| e.into_inner());
+            match g.as_ref() {
+                Some(c) if c.version == version => {
+                    if let Some((t, p)) = &c.plan
+                        && *t == at
+                    {
+                        return Ok(p.clone());
+                    }
+                    Some(c.rows.clone())
+                }
+                _ => None,
+            }
+        };
+        let rows = match rows {
+            Some(r) => r,
+            None => Arc::new(store.param_evidence(None).await?),
+        };
+        let plan = {
+            let rows = rows.clone();
+            tokio::task::spawn_blocking(move || fleet_plan(&rows, at, usize::MAX))
+                .await
+                .map_err(|e| StoreError::Task(e.to_string()))?
+        };
+        let plan = Arc::new(plan);
+        let mut g = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        *g = Some(CachedPlan {
+            version,
+            rows,
+            plan: Some((at, plan.clone())),
+        });
+        Ok(plan)
+    }
 }

@@ -121,7 +121,9 @@ pub async fn pantograph_plan(
     }))
 }
 
-/// The fleet's plan: each pantograph's best test, ranked across the fleet by what it buys.
+/// The fleet's plan: each pantograph's best test, ranked across the fleet by what it buys
+/// (`at` defaults to now to the minute; the evidence rows are kept in memory until a fit
+/// changes them).
 #[utoipa::path(get, path = "/v1/fleet/plan", tag = "fleet",
     params(FleetPlanQuery),
     responses(
@@ -134,7 +136,15 @@ pub async fn fleet_plan(
     _auth: Reader,
     ApiQuery(q): ApiQuery<FleetPlanQuery>,
 ) -> Result<Json<FleetPlan>, AppError> {
-    let at = parse_at(q.at.as_deref())?;
+    // Default now, to the minute: requests within a minute share one computed plan.
+    let at = match q.at.as_deref() {
+        None => {
+            let now = Utc::now();
+            now - chrono::TimeDelta::nanoseconds(i64::from(now.timestamp_subsec_nanos()))
+                - chrono::TimeDelta::seconds(now.timestamp() % 60)
+        }
+        Some(s) => parse_at(Some(s))?,
+    };
     let limit = match q.limit.as_deref() {
         None => 50,
         Some(v) => v.parse::<usize>().map_err(|_| {
@@ -147,9 +157,10 @@ pub async fn fleet_plan(
             format!("must be from 1 to {MAX_PLAN_LIMIT}"),
         ));
     }
-    let rows = st.store.param_evidence(None).await?;
-    let plan = tokio::task::spawn_blocking(move || evidence::fleet_plan(&rows, at, limit))
-        .await
-        .map_err(|e| AppError::Internal(format!("fleet plan: {e}")))?;
-    Ok(Json(plan))
+    let plan = st.plan_cache.fleet_plan(&st.store, at).await?;
+    Ok(Json(FleetPlan {
+        at: plan.at,
+        pantographs: plan.pantographs,
+        tests: plan.tests.iter().take(limit).cloned().collect(),
+    }))
 }

@@ -273,6 +273,11 @@ impl Store {
         dispatch!(self, s => s.param_evidence(serial).await)
     }
 
+    /// The counter every write of `param_evidence` raises (a fit's refresh, its trends).
+    pub async fn evidence_version(&self) -> Result<i64> {
+        dispatch!(self, s => s.evidence_version().await)
+    }
+
     /// The date of the pantograph's newest test, if it has one.
     pub async fn latest_test_at(&self, serial: &str) -> Result<Option<DateTime<Utc>>> {
         dispatch!(self, s => s.latest_test_at(serial).await)

@@ -390,6 +390,8 @@ pub(crate) trait HealthBackend {
         &self,
         serial: Option<&str>,
     ) -> impl Future<Output = Result<Vec<EvidenceRow>>> + Send;
+    /// The counter every write of `param_evidence` raises.
+    fn evidence_version(&self) -> impl Future<Output = Result<i64>> + Send;
     /// The date of the pantograph's newest test (any kind, fitted or not).
     fn latest_test_at(
         &self,

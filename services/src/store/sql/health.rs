@@ -187,8 +187,17 @@ impl HealthBackend for Backend {
             .execute(&mut *tx)
             .await?;
         }
+        query("UPDATE evidence_version SET version = version + 1 WHERE id = 1")
+            .execute(&mut *tx)
+            .await?;
         tx.commit().await?;
         Ok(())
+    }
+    async fn evidence_version(&self) -> Result<i64> {
+        query("SELECT version FROM evidence_version WHERE id = 1")
+            .fetch_optional(&self.pool)
+            .await?
+            .map_or(Ok(0), |r| r.int("version"))
     }
     async fn serial_history(&self, serial: &str) -> Result<Vec<JointPoint>> {
         query(

@@ -34,6 +34,9 @@ async fn refresh_health(conn: &mut Conn, trace_id: &str) -> Result<()> {
         .bind(&serial)
         .execute(&mut *conn)
         .await?;
+    query("UPDATE evidence_version SET version = version + 1 WHERE id = 1")
+        .execute(&mut *conn)
+        .await?;
     query("DELETE FROM pantograph_health WHERE serial = $1")
         .bind(&serial)
         .execute(&mut *conn)
