@@ -376,14 +376,23 @@ pub fn by_serial(rows: &[EvidenceRow]) -> BTreeMap<&str, Vec<&EvidenceRow>> {
 /// `models` maps the model name of each serial; `pantographs` without a row (never measured at
 /// all) are not in it.
 pub fn fleet_plan(rows: &[EvidenceRow], at: DateTime<Utc>, limit: usize) -> FleetPlan {
-    let fleet = kind_information(rows);
+    fleet_plan_with(rows, &kind_information(rows), at, limit)
+}
+
+/// [`fleet_plan`] with the fleet's information per kind computed already (kept with the rows).
+pub fn fleet_plan_with(
+    rows: &[EvidenceRow],
+    fleet: &KindInformation,
+    at: DateTime<Utc>,
+    limit: usize,
+) -> FleetPlan {
     let grouped = by_serial(rows);
     let mut tests: Vec<FleetPlanEntry> = grouped
         .iter()
         .filter_map(|(serial, rs)| {
             let t = type_of(&rs.first()?.model)?;
             let ev = pantograph_evidence(serial, t, rs, at);
-            let best = plan_of(&ev, rs, &fleet).into_iter().next()?;
+            let best = plan_of(&ev, rs, fleet).into_iter().next()?;
             let oldest = ev
                 .joints
                 .iter()
@@ -528,6 +537,7 @@ pub struct PlanCache(Arc<Mutex<Option<CachedPlan>>>);
 struct CachedPlan {
     version: i64,
     rows: Arc<Vec<EvidenceRow>>,
+    fleet: Arc<KindInformation>,
     plan: Option<(DateTime<Utc>, Arc<FleetPlan>)>,
 }
 
@@ -549,18 +559,22 @@ impl PlanCache {
                     {
                         return Ok(p.clone());
                     }
-                    Some(c.rows.clone())
+                    Some((c.rows.clone(), c.fleet.clone()))
                 }
                 _ => None,
             }
         };
-        let rows = match rows {
+        let (rows, fleet) = match rows {
             Some(r) => r,
-            None => Arc::new(store.param_evidence(None).await?),
+            None => {
+                let rows = Arc::new(store.param_evidence(None).await?);
+                let fleet = Arc::new(kind_information(&rows));
+                (rows, fleet)
+            }
         };
         let plan = {
-            let rows = rows.clone();
-            tokio::task::spawn_blocking(move || fleet_plan(&rows, at, usize::MAX))
+            let (rows, fleet) = (rows.clone(), fleet.clone());
+            tokio::task::spawn_blocking(move || fleet_plan_with(&rows, &fleet, at, usize::MAX))
                 .await
                 .map_err(|e| StoreError::Task(e.to_string()))?
         };
@@ -569,6 +583,7 @@ impl PlanCache {
         *g = Some(CachedPlan {
             version,
             rows,
+            fleet,
             plan: Some((at, plan.clone())),
         });
         Ok(plan)
