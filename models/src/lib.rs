@@ -34,7 +34,7 @@ pub mod lift;
 pub mod numerics;
 pub mod quadrangle;
 
-pub use contract::{drift, report, testspec, trend};
+pub use contract::{drift, evidence, plan, report, testspec, trend};
 pub use joint::{dynamics, friction, identify, residual, rig, simulate, synth};
 pub use numerics::{budget, noise, ode, signal, stats};
 

@@ -15,7 +15,7 @@ use crate::health::{self, Param, ParamTrend};
 use crate::store::{NewAlert, RaiseOutcome, Severity, Status, Store, StoreError};
 
 mod evidence;
-pub use evidence::{EffectEvidence, Evidence, JointEvidence, StaticForceEvidence};
+pub use evidence::{EffectEvidence, Evidence, JointEvidence, StaticForceEvidence, TestDueEvidence};
 
 /// What the alert rules need.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -164,6 +164,57 @@ pub async fn after_fit(
         actions.extend(gauge_findings(store, &meta, serial, trace_id, fit_id, result).await?);
     }
     actions.extend(static_force_finding(store, &meta, serial, trace_id, fit_id).await?);
+    crate::evidence::refresh_trends(store, serial).await?;
+    actions.extend(tests_due(store, &meta, serial, trace_id).await?);
+    Ok(actions)
+}
+
+/// A workshop test due (issue 37, point 2): after every fit of the pantograph, each joint whose
+/// evidence (its older parameter's latest informing test) is older than the type's
+/// `[test_plan] max_evidence_age_days` at the pantograph's newest test opens (or updates) one
+/// `watch` alert named `<joint> test due` (a pseudo-joint, as `static force`: the same alert
+/// table, lifecycle and webhooks); a later fit that leaves it young enough resolves it. Judged
+/// at the newest test's date, not the wall clock: a lift that could not see J5 is the moment
+/// J5's old evidence matters, and a pantograph no test touches raises nothing new.
+async fn tests_due(
+    store: &Store,
+    meta: &crate::store::TraceMeta,
+    serial: &str,
+    trace_id: &str,
+) -> Result<Vec<AlertAction>, StoreError> {
+    let Some(ev) = crate::evidence::at_newest_test(store, serial).await? else {
+        return Ok(Vec::new());
+    };
+    let mut actions = Vec::new();
+    for j in &ev.joints {
+        let name = crate::evidence::test_due_alert(&j.joint);
+        match (j.test_due, j.age_days, j.max_age_days) {
+            (true, Some(age), Some(max)) => {
+                let reason = format!(
+                    "test due: {}'s evidence is {age:.0} days old (allowed {max:.0}); viscous {}, dry {}",
+                    j.joint, j.viscous.summary, j.dry.summary
+                );
+                let evidence = Evidence::TestDue(Box::new(TestDueEvidence {
+                    trace_id: trace_id.to_owned(),
+                    at: ev.at,
+                    due: j.clone(),
+                }))
+                .to_json();
+                let new = finding_alert(serial, &name, meta, trace_id, reason, evidence);
+                actions.push(raise_logged(store, &new).await?);
+            }
+            _ => {
+                let note = format!("evidence young enough after test {trace_id}");
+                if let Some(a) = store
+                    .resolve_joint_alert(serial, &name, trace_id, &note)
+                    .await?
+                {
+                    tracing::info!(alert = a.id, serial, joint = %j.joint, "test due resolved");
+                    actions.push(AlertAction::Resolved { alert_id: a.id });
+                }
+            }
+        }
+    }
     Ok(actions)
 }
 

@@ -6,6 +6,7 @@ pub mod api;
 pub mod app;
 pub mod cli;
 pub mod config;
+pub mod evidence;
 pub mod fitting;
 pub mod health;
 pub mod ids;

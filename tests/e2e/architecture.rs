@@ -839,6 +839,7 @@ fn models_src_is_grouped_by_what_a_reader_looks_for() {
         found,
         [
             "contract",
+            "data",
             "data.rs",
             "joint",
             "lib.rs",

@@ -2,6 +2,8 @@
 //! status against Table 4, and wear trends across tests.
 
 pub mod drift;
+pub mod evidence;
+pub mod plan;
 pub mod report;
 pub mod testspec;
 pub mod trend;

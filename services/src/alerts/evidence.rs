@@ -25,6 +25,18 @@ pub enum Evidence {
     /// (`sensor_delay`, `sensor_offset`), a gauge's zero (`force gauge`), a spring's rate
     /// (`spring rate`).
     Effect(Box<EffectEvidence>),
+    /// A joint whose evidence is older than its type allows (`J5 test due`, issue 37).
+    TestDue(Box<TestDueEvidence>),
+}
+
+/// A joint's test due: its evidence at the pantograph's newest test.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TestDueEvidence {
+    /// The newest test of the pantograph, the time the evidence is judged at.
+    pub trace_id: String,
+    pub at: DateTime<Utc>,
+    /// The joint's evidence then (`GET /v1/pantographs/{serial}/evidence`'s shape).
+    pub due: crate::evidence::EvidenceJoint,
 }
 
 /// A joint's alert.
@@ -105,7 +117,7 @@ impl Evidence {
                 .iter()
                 .filter_map(|t| Some(t.forecast.as_ref()?.date))
                 .min(),
-            Evidence::StaticForce(_) | Evidence::Effect(_) => None,
+            Evidence::StaticForce(_) | Evidence::Effect(_) | Evidence::TestDue(_) => None,
         }
     }
 }

@@ -380,7 +380,8 @@ pub fn add_shared_answers(doc: &mut OpenApi) {
 
 /// The evidence an alert carries, by what raised it (`crate::alerts`): a joint's status or
 /// forecast; the static-force prediction against the type's limits; a finding a fit names on
-/// the measuring chain or the spring (`H sensor`, `force gauge`, `spring rate`). Every part is
+/// the measuring chain or the spring (`H sensor`, `force gauge`, `spring rate`); a joint's test
+/// due (`J5 test due`). Every part is
 /// a schema of its own type (the fit result's, fleet health's, the static force's); this lists
 /// which parts each kind holds, as `crate::alerts` writes them.
 fn alert_evidence() -> Schema {
@@ -444,10 +445,23 @@ fn alert_evidence() -> Schema {
         .required("model_version")
         .required("effect")
         .required("residual");
+    let test_due = ObjectBuilder::new()
+        .title(Some("TestDue"))
+        .description(Some(
+            "A joint's evidence older than its type allows (`J5 test due`, issue 37): the \
+             pantograph's newest test, its time, and the joint's evidence then",
+        ))
+        .property("trace_id", r("TraceId"))
+        .property("at", date_time())
+        .property("due", r("EvidenceJoint"))
+        .required("trace_id")
+        .required("at")
+        .required("due");
     OneOfBuilder::new()
         .item(joint)
         .item(static_force)
         .item(finding)
+        .item(test_due)
         .description(Some(
             "Why the alert stands: model version, fit, parameters with intervals and baseline, \
              residual, trends and forecast — by the kind of alert",

@@ -14,6 +14,7 @@ pub mod extract;
 pub mod fleet;
 pub mod gate;
 pub mod ops;
+pub mod plan;
 pub mod ratelimit;
 pub mod session;
 pub mod state;
@@ -70,6 +71,7 @@ pub fn routes() -> OpenApiRouter<AppState> {
     let mut router = OpenApiRouter::with_openapi(ApiDoc::openapi())
         .merge(traces::router())
         .merge(fleet::router())
+        .merge(plan::router())
         .merge(admin::router())
         .merge(alerts::router())
         .merge(webhooks::router())

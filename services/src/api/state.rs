@@ -36,12 +36,15 @@ pub struct AppState {
     pub rate_limit: Option<RateLimit>,
     /// Origins answered with CORS headers (empty: none).
     pub cors_origins: Vec<HeaderValue>,
+    /// The fleet's evidence rows and the last fleet plan, kept until `param_evidence` changes.
+    pub plan_cache: crate::evidence::PlanCache,
 }
 
 impl AppState {
     pub fn new(store: Store, wake: Arc<Notify>, body_limit: usize, timeout: Duration) -> Self {
         AppState {
             intake: Intake::new(store.clone(), wake.clone()),
+            plan_cache: Default::default(),
             store,
             wake,
             metrics: telemetry::prometheus(),

@@ -278,6 +278,32 @@ impl Store {
         dispatch!(self, s => s.joint_states(serial).await)
     }
 
+    /// Each parameter's latest informing test of each kind, of one serial or (`None`) the fleet
+    /// (`param_evidence`: what the evidence and the test plan read).
+    pub async fn param_evidence(&self, serial: Option<&str>) -> Result<Vec<EvidenceRow>> {
+        dispatch!(self, s => s.param_evidence(serial).await)
+    }
+
+    /// The counter every write of `param_evidence` raises (a fit's refresh, its trends).
+    pub async fn evidence_version(&self) -> Result<i64> {
+        dispatch!(self, s => s.evidence_version().await)
+    }
+
+    /// The date of the pantograph's newest test, if it has one.
+    pub async fn latest_test_at(&self, serial: &str) -> Result<Option<DateTime<Utc>>> {
+        dispatch!(self, s => s.latest_test_at(serial).await)
+    }
+
+    /// Writes parameters' trends on their evidence rows (`None` clears one), in one
+    /// transaction: (joint, param, trend).
+    pub async fn set_param_trends(
+        &self,
+        serial: &str,
+        trends: &[(String, String, Option<StoredTrend>)],
+    ) -> Result<()> {
+        dispatch!(self, s => s.set_param_trends(serial, trends).await)
+    }
+
     /// Opens, escalates or updates the live alert of (serial, joint), with its event and, when
     /// opened or escalated, its webhook deliveries, in one transaction.
     pub async fn raise_alert(&self, a: &NewAlert) -> Result<RaiseOutcome> {

@@ -79,6 +79,27 @@ macro_rules! joint_state_select {
     };
 }
 
+/// One parameter's informing rows of a serial `$1` for `param_evidence` (both dialects): each
+/// trace's current fit that informed `$p` (the rule of [`joint_state_select`]'s `informs`) with
+/// a finite interval.
+macro_rules! evidence_select {
+    ($p:literal) => {
+        concat!(
+            "SELECT t.serial, j.joint, '", $p, "' AS param, t.trace_id, f.id AS fit_id, t.kind,
+                    t.recorded_at, j.", $p, " AS value, j.", $p, "_lo AS lo, j.", $p, "_hi AS hi,
+                    COALESCE(j.", $p, "_status, j.status) AS status
+             FROM traces t
+             JOIN fits f ON f.trace_id = t.trace_id
+                        AND f.id = (SELECT max(f2.id) FROM fits f2 WHERE f2.trace_id = t.trace_id)
+             JOIN fit_joints j ON j.fit_id = f.id
+             WHERE t.serial = $1 AND j.", $p, " IS NOT NULL AND j.", $p, "_lo IS NOT NULL
+               AND j.", $p, "_hi IS NOT NULL AND j.", $p, "_hi > j.", $p, "_lo
+               AND COALESCE(j.", $p, "_informed, j.identifiable)
+               AND COALESCE(j.", $p, "_status, j.status) <> 'unknown'"
+        )
+    };
+}
+
 mod fault;
 pub mod keys;
 pub mod samples;
@@ -369,6 +390,26 @@ pub(crate) trait HealthBackend {
     /// Every joint point of one pantograph (each trace's current fit), by test time.
     fn serial_history(&self, serial: &str) -> impl Future<Output = Result<Vec<JointPoint>>> + Send;
     fn joint_states(&self, serial: &str) -> impl Future<Output = Result<Vec<JointState>>> + Send;
+    /// Each parameter's latest informing test of each kind (`param_evidence`), of one serial
+    /// or (`None`) of the whole fleet.
+    fn param_evidence(
+        &self,
+        serial: Option<&str>,
+    ) -> impl Future<Output = Result<Vec<EvidenceRow>>> + Send;
+    /// The counter every write of `param_evidence` raises.
+    fn evidence_version(&self) -> impl Future<Output = Result<i64>> + Send;
+    /// The date of the pantograph's newest test (any kind, fitted or not).
+    fn latest_test_at(
+        &self,
+        serial: &str,
+    ) -> impl Future<Output = Result<Option<DateTime<Utc>>>> + Send;
+    /// Writes parameters' trends (or clears them) on their `param_evidence` rows, in one
+    /// transaction: (joint, param, trend).
+    fn set_param_trends(
+        &self,
+        serial: &str,
+        trends: &[(String, String, Option<StoredTrend>)],
+    ) -> impl Future<Output = Result<()>> + Send;
 }
 
 pub(crate) trait KeyBackend {

@@ -432,3 +432,32 @@ pub(crate) struct PreparedTrace {
     pub channel_names: String,
     pub model_version: String,
 }
+
+/// A parameter's latest informing test of one kind (`param_evidence`, migration 0008).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvidenceRow {
+    pub serial: String,
+    /// The pantograph's type (`160EC`).
+    pub model: String,
+    pub joint: String,
+    /// `viscous` or `dry`.
+    pub param: String,
+    pub trace_id: String,
+    pub fit_id: i64,
+    pub kind: String,
+    pub recorded_at: DateTime<Utc>,
+    pub value: f64,
+    pub ci95: [f64; 2],
+    pub status: Status,
+    /// The parameter's trend over its informing tests, once the service has written it.
+    pub trend: Option<StoredTrend>,
+}
+
+/// A parameter's trend as `param_evidence` keeps it: slope per day, its 95 % interval, and
+/// whether that interval excludes 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StoredTrend {
+    pub slope_per_day: f64,
+    pub slope_ci95: [f64; 2],
+    pub significant: bool,
+}

@@ -218,6 +218,62 @@ pub(crate) const JOINT_LATEST_REFRESH_SQL: &str = concat!(
     ") s"
 );
 
+/// Rewrites `param_evidence` for the serial `$1` (both dialects; migration 0008 holds the same
+/// rule as text): each parameter's latest informing test of each kind. Trends are cleared and
+/// written again by the service after the fit (`alerts::after_fit`).
+pub(crate) const PARAM_EVIDENCE_REFRESH_SQL: &str = concat!(
+    "INSERT INTO param_evidence (serial, joint, param, trace_id, fit_id, kind, recorded_at, value, lo, hi, status)
+     SELECT serial, joint, param, trace_id, fit_id, kind, recorded_at, value, lo, hi, status FROM (
+        SELECT o.*, ROW_NUMBER() OVER (PARTITION BY joint, param, kind
+                                       ORDER BY recorded_at DESC, trace_id DESC) AS rn
+        FROM (",
+    evidence_select!("viscous"),
+    " UNION ALL ",
+    evidence_select!("dry"),
+    ") o
+     ) x WHERE rn = 1"
+);
+
+/// The SQL of [`Store::param_evidence`] (both backends); `$1` a serial or NULL for the fleet.
+pub(crate) const PARAM_EVIDENCE_SQL: &str = "SELECT e.serial, p.model, e.joint, e.param,
+        e.trace_id, e.fit_id, e.kind, e.recorded_at, e.value, e.lo, e.hi, e.status,
+        e.slope_per_day, e.slope_lo_per_day, e.slope_hi_per_day, e.slope_significant
+    FROM param_evidence e JOIN pantographs p ON p.serial = e.serial
+    WHERE e.serial = $1 OR $1 IS NULL";
+
+pub(crate) fn evidence_row_from<R: RowExt>(r: &R) -> Result<EvidenceRow> {
+    let trend = match (
+        r.opt_real("slope_per_day")?,
+        r.opt_real("slope_lo_per_day")?,
+        r.opt_real("slope_hi_per_day")?,
+        r.opt_flag("slope_significant")?,
+    ) {
+        (Some(s), Some(lo), Some(hi), Some(sig)) => Some(StoredTrend {
+            slope_per_day: s,
+            slope_ci95: [lo, hi],
+            significant: sig,
+        }),
+        _ => None,
+    };
+    Ok(EvidenceRow {
+        serial: r.text("serial")?,
+        model: r.text("model")?,
+        joint: r.text("joint")?,
+        param: r.text("param")?,
+        trace_id: r.text("trace_id")?,
+        fit_id: r.int("fit_id")?,
+        kind: r.text("kind")?,
+        recorded_at: r.ts("recorded_at")?,
+        value: r.opt_real("value")?.unwrap_or(f64::NAN),
+        ci95: [
+            r.opt_real("lo")?.unwrap_or(f64::NAN),
+            r.opt_real("hi")?.unwrap_or(f64::NAN),
+        ],
+        status: parse_enum(&r.text("status")?)?,
+        trend,
+    })
+}
+
 /// A pantograph mount read back: (vehicle, since).
 pub(crate) fn mount_row<R: RowExt>(r: Option<R>) -> Result<Option<(String, DateTime<Utc>)>> {
     r.map(|r| Ok((r.text("vehicle_id")?, r.ts("since")?)))

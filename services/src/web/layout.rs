@@ -22,7 +22,8 @@ table{border-collapse:collapse}th,td{border-bottom:1px solid #ccc;padding:.3em .
 .unknown{background:#757575;color:#fff;fill:#757575;stroke:#757575}\
 .badge{padding:.1em .5em;border-radius:.3em;font-weight:600}\
 .note{color:#555}figure{margin:1em 0}figcaption{font-size:.9em;color:#333}\
-.msg{background:#e3f2fd;padding:.5em;border-left:4px solid #1565c0}";
+.msg{background:#e3f2fd;padding:.5em;border-left:4px solid #1565c0}\
+svg.age{vertical-align:middle;margin-right:.4em}svg.age rect.track{fill:#eee;stroke:none}";
 
 /// A whole page; `user` (the key signed in) adds the navigation and the sign-out button.
 pub fn page(title: &str, user: Option<&ApiKey>, body: Markup) -> Response {
@@ -69,4 +70,40 @@ pub fn badge(s: Option<Status>) -> Markup {
 /// An alert's severity as a badge (the status colours).
 pub fn sev_badge(s: Severity) -> Markup {
     html! { span.badge.(s) { (s) } }
+}
+
+/// A joint's evidence age at a glance: a bar filled to age / allowed age (full past it), green
+/// under half, amber to the limit, red past it (a test due); grey and full when never measured;
+/// then the age in days. SVG attributes, not inline styles (the content security policy).
+pub fn age_bar(age_days: Option<f64>, max_age_days: Option<f64>) -> Markup {
+    let (fill, class) = match (age_days, max_age_days) {
+        (None, _) => (1.0, "unknown"),
+        (Some(a), Some(m)) if m > 0.0 => {
+            let f = a / m;
+            (
+                f.min(1.0),
+                if f > 1.0 {
+                    "alarm"
+                } else if f > 0.5 {
+                    "watch"
+                } else {
+                    "ok"
+                },
+            )
+        }
+        (Some(_), _) => (0.0, "ok"),
+    };
+    let w = format!("{:.1}", 80.0 * fill);
+    html! {
+        svg.age width="80" height="10" role="img" aria-label="evidence age" {
+            rect.track x="0" y="0" width="80" height="10" {}
+            rect.(class) x="0" y="0" width=(w) height="10" {}
+        }
+        span.age-days {
+            @match age_days {
+                Some(a) => { (format!("{a:.0} d")) },
+                None => { "never measured" },
+            }
+        }
+    }
 }

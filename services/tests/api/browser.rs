@@ -461,6 +461,45 @@ pub async fn web_pages_in_headless_chromium() {
         "03-pantograph.png",
     )
     .await;
+    // Issue 37: what each joint rests on — a row per joint of the type with its evidence's age
+    // as a bar (J2' is never swung: never measured) — and the ranked workshop tests; the fleet
+    // table's oldest-evidence column. At the demo year's end (its tests run 2025-05 to 2026-04).
+    let at = "at=2026-05-01T00:00:00Z";
+    let edom = dom(profile.path(), &format!("{base}/pantographs/{first}?{at}")).await;
+    let table = edom
+        .split("id=\"evidence-table\"")
+        .nth(1)
+        .and_then(|t| t.split("</table>").next())
+        .expect("evidence table");
+    assert_eq!(table.matches("<tr data-joint=").count(), 9, "{table}");
+    for j in ["J1", "J2", "J3", "J4", "J5", "J6", "J7", "J8"] {
+        assert!(
+            table.contains(&format!("data-joint=\"{j}\"")),
+            "{j}: {table}"
+        );
+    }
+    assert_eq!(table.matches("class=\"age\"").count(), 9, "{table}");
+    assert!(table.contains("never measured"), "J2' never swung: {table}");
+    assert!(table.contains(" d</span>"), "ages in days: {table}");
+    let plan = edom
+        .split("id=\"plan-table\"")
+        .nth(1)
+        .and_then(|t| t.split("</table>").next())
+        .expect("plan table");
+    assert!(plan.contains("swing J"), "{plan}");
+    screenshot(
+        profile.path(),
+        &format!("{base}/pantographs/{first}?{at}"),
+        "03b-evidence.png",
+    )
+    .await;
+    let fdom = dom(profile.path(), &format!("{base}/fleet?{at}")).await;
+    assert!(fdom.contains("oldest evidence"), "fleet column");
+    assert_eq!(
+        fdom.matches("class=\"oldest\"").count(),
+        8,
+        "a cell per pantograph: {fdom}"
+    );
     // A gauged pantograph (every fourth, `demo::fleet::gauged`): its static-force chart draws the
     // latest force-gauge test's readings, a marker per reading and a class per branch (issue 20).
     let gauged = "160EC-0102";

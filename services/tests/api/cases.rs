@@ -27,6 +27,7 @@ pub use crate::lift::{
     bad_lift_inputs_are_refused_naming_the_sample, lift_trace_is_fitted_with_every_joint,
     recent_lifts_are_pooled,
 };
+pub use crate::plan::evidence_plan_and_test_due_over_http;
 pub use crate::pooled_rig::recordings_of_one_rig_are_fitted_pooled;
 pub use crate::static_force::{
     a_named_spring_rate_moves_the_static_force_prediction,
@@ -385,6 +386,27 @@ pub async fn every_route_every_role(b: Backend) {
         (
             Method::GET,
             "/v1/fleet/health?status=ok&limit=5".into(),
+            None,
+            Role::Reader,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/pantographs/S-1/evidence".into(),
+            None,
+            Role::Reader,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/pantographs/S-1/plan".into(),
+            None,
+            Role::Reader,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/fleet/plan?limit=5".into(),
             None,
             Role::Reader,
             StatusCode::OK,

@@ -13,6 +13,7 @@ mod gauge;
 mod harness;
 mod lift;
 mod openapi;
+mod plan;
 mod pooled_rig;
 mod quadrangle;
 mod security;
@@ -71,6 +72,7 @@ suite!(
     a_gauge_record_pools_with_the_next_lift,
     a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,
     recordings_of_one_rig_are_fitted_pooled,
+    evidence_plan_and_test_due_over_http,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).

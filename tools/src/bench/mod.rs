@@ -1,6 +1,6 @@
 //! `pantowatch-tools bench`: `bench FILE…` times the fit of trace files on one core; `bench suite`
 //! runs every measure of issue 8 (fits vs the SciPy peer, fleet re-processing, ingest, storage,
-//! fleet-health query) and prints one table against the targets.
+//! fleet-health query, the fleet test plan) and prints one table against the targets.
 
 pub mod files;
 pub mod fits;
@@ -9,6 +9,7 @@ pub mod harness;
 pub mod ingest;
 pub mod lift;
 pub mod machine;
+pub mod plan;
 pub mod query;
 pub mod records;
 pub mod scaling;

@@ -33,6 +33,7 @@ pub fn run(a: SuiteArgs) -> anyhow::Result<()> {
         Section::Ingest,
         Section::Query,
         Section::Scaling,
+        Section::Plan,
     ] {
         if !a.only.contains(&s) {
             continue;
@@ -44,6 +45,7 @@ pub fn run(a: SuiteArgs) -> anyhow::Result<()> {
             Section::Ingest => super::ingest::run(&a, &sizes),
             Section::Query => super::query::run(&a, &sizes),
             Section::Scaling => super::scaling::rows(&sizes, a.quick),
+            Section::Plan => super::plan::run(&a, &sizes),
         };
         rows.extend(r);
     }

@@ -55,9 +55,13 @@ pub struct SuiteArgs {
     /// README's table and the per-file figures behind it.
     #[arg(long, value_name = "FILE")]
     pub json_out: Option<PathBuf>,
-    /// Sections to run, comma-separated: fits, fleet, ingest (with storage), query; or scaling
-    /// (the fit-time-against-length rows alone, which fits includes).
-    #[arg(long, value_delimiter = ',', default_value = "fits,fleet,ingest,query")]
+    /// Sections to run, comma-separated: fits, fleet, ingest (with storage), query, plan; or
+    /// scaling (the fit-time-against-length rows alone, which fits includes).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "fits,fleet,ingest,query,plan"
+    )]
     pub only: Vec<Section>,
     /// Fits per file for the per-kind timing (median reported); default 3, quick 1.
     #[arg(long)]
@@ -100,6 +104,8 @@ pub enum Section {
     /// Fit time against record length per test kind alone (`bench::scaling`; `fits` runs it
     /// too): issue 38's rows in one short run.
     Scaling,
+    /// The fleet test plan (issue 37).
+    Plan,
 }
 
 /// The sizes of a run after `--quick` and the explicit flags.

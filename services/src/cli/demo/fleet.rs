@@ -167,10 +167,7 @@ pub fn plan_months(vehicles: usize, months: usize) -> anyhow::Result<Vec<Planned
     for p in pantographs(vehicles) {
         let k = p.index;
         for m in 0..months.min(MONTHS) {
-            let (y, mo) = {
-                let z = START.1 as usize - 1 + m;
-                (START.0 + (z / 12) as i32, (z % 12) as u32 + 1)
-            };
+            let (y, mo) = month_start(m);
             let day = 1 + (k / 2 * 7 + m) % 27;
             let hour = 6 + 3 * (k % 2);
             // The periodic on-vehicle test, every month.
@@ -186,52 +183,130 @@ pub fn plan_months(vehicles: usize, months: usize) -> anyhow::Result<Vec<Planned
                 Vec::new()
             };
             for (slot, joint) in joints.into_iter().enumerate() {
-                let (bv, bd) = baselines[joint];
-                let (mut viscous, mut dry) = (bv, bd);
-                let mut true_factor = None;
-                if let Some(w) = p.wear.as_ref().filter(|w| w.joint == joint) {
-                    let f = w.factor(m);
-                    match w.param {
-                        Param::Viscous => viscous *= f,
-                        Param::Dry => dry *= f,
-                    }
-                    true_factor = Some((w.param, f));
-                }
-                let slider = joint == "J8";
-                let args = SimulateArgs {
-                    kind: if slider { "slider" } else { "pendulum" }.into(),
-                    joint: joint.into(),
-                    viscous: Some(viscous),
-                    dry: Some(dry),
-                    // Pendulums: an encoder of 0.05° noise, 250 Hz for 15 s (J7's dry friction
-                    // is not pinned down in 12 s). The head slider rings out in ~2 s: 500 Hz for
-                    // 5 s, a displacement sensor of 0.02 mm noise (at 0.05 mm the slider fit
-                    // falls into a wrong minimum for ~1 trace in 6).
-                    noise: if slider { 0.02 } else { 0.05 },
-                    quantum: if slider { 0.005 } else { 0.01 },
-                    offset: 0.0,
-                    fs: if slider { 500.0 } else { 250.0 },
-                    duration: if slider { 5.0 } else { 15.0 },
-                    seed: (k * 1000 + m * 10 + slot + 1) as u64,
-                    vehicle: p.vehicle_id.clone(),
-                    serial: p.serial.clone(),
-                    trace_id: Some(format!("{}-{y}{mo:02}-{joint}", p.serial)),
-                    recorded_at: {
-                        // One test every 20 min through the workshop session.
-                        let min = 20 * slot;
-                        format!(
-                            "{y}-{mo:02}-{day:02}T{:02}:{:02}:00Z",
-                            hour + min / 60,
-                            min % 60
-                        )
-                    },
-                    ..defaults.clone()
-                };
-                out.push(PlannedTest { args, true_factor });
+                out.push(swing_test(
+                    &p,
+                    joint,
+                    m,
+                    slot,
+                    (y, mo, day),
+                    hour,
+                    &defaults,
+                    &baselines,
+                ));
             }
         }
     }
     Ok(out)
+}
+
+/// The first day of month `m` of the fleet's year (0-based; month 12 is the month after it).
+pub fn month_start(m: usize) -> (i32, u32) {
+    let z = START.1 as usize - 1 + m;
+    (START.0 + (z / 12) as i32, (z % 12) as u32 + 1)
+}
+
+/// The workshop swings a test plan asks for after the year's `months` months (issue 37, point
+/// 4): each (serial, joint) picked, swung on the first day of the next month, the session's
+/// tests of one pantograph 20 min apart, its wear at that month's factor.
+pub fn follow_up(
+    vehicles: usize,
+    months: usize,
+    picks: &[(String, String)],
+) -> anyhow::Result<Vec<PlannedTest>> {
+    let defaults = {
+        #[derive(clap::Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            args: SimulateArgs,
+        }
+        <Defaults as clap::Parser>::try_parse_from(["simulate"])?.args
+    };
+    let mut baselines = std::collections::HashMap::new();
+    for j in PENDULUM_JOINTS.iter().chain(&["J8"]) {
+        baselines.insert(*j, baseline(j)?);
+    }
+    let fleet = pantographs(vehicles);
+    let (y, mo) = month_start(months);
+    let mut out = Vec::new();
+    for (slot, (serial, joint)) in picks.iter().enumerate() {
+        let (Some(p), Some(j)) = (
+            fleet.iter().find(|p| &p.serial == serial),
+            PENDULUM_JOINTS.iter().chain(&["J8"]).find(|j| *j == joint),
+        ) else {
+            continue;
+        };
+        out.push(swing_test(
+            p,
+            j,
+            months,
+            slot,
+            (y, mo, 1),
+            6,
+            &defaults,
+            &baselines,
+        ));
+    }
+    Ok(out)
+}
+
+/// The workshop swing of `joint` (J8: the head's slider drop) on pantograph `p` in month `m`
+/// (0-based; past the year its wear goes on at its rate), the `slot`-th test of the session on
+/// `date` from `hour`: the joint's parameters at this month's factor, the workshop's sensors.
+#[allow(clippy::too_many_arguments)]
+pub fn swing_test(
+    p: &Pantograph,
+    joint: &'static str,
+    m: usize,
+    slot: usize,
+    date: (i32, u32, usize),
+    hour: usize,
+    defaults: &SimulateArgs,
+    baselines: &std::collections::HashMap<&str, (f64, f64)>,
+) -> PlannedTest {
+    let (y, mo, day) = date;
+    let k = p.index;
+    let (bv, bd) = baselines[joint];
+    let (mut viscous, mut dry) = (bv, bd);
+    let mut true_factor = None;
+    if let Some(w) = p.wear.as_ref().filter(|w| w.joint == joint) {
+        let f = w.factor(m);
+        match w.param {
+            Param::Viscous => viscous *= f,
+            Param::Dry => dry *= f,
+        }
+        true_factor = Some((w.param, f));
+    }
+    let slider = joint == "J8";
+    let args = SimulateArgs {
+        kind: if slider { "slider" } else { "pendulum" }.into(),
+        joint: joint.into(),
+        viscous: Some(viscous),
+        dry: Some(dry),
+        // Pendulums: an encoder of 0.05° noise, 250 Hz for 15 s (J7's dry friction
+        // is not pinned down in 12 s). The head slider rings out in ~2 s: 500 Hz for
+        // 5 s, a displacement sensor of 0.02 mm noise (at 0.05 mm the slider fit
+        // falls into a wrong minimum for ~1 trace in 6).
+        noise: if slider { 0.02 } else { 0.05 },
+        quantum: if slider { 0.005 } else { 0.01 },
+        offset: 0.0,
+        fs: if slider { 500.0 } else { 250.0 },
+        duration: if slider { 5.0 } else { 15.0 },
+        seed: (k * 1000 + m * 10 + slot + 1) as u64,
+        vehicle: p.vehicle_id.clone(),
+        serial: p.serial.clone(),
+        trace_id: Some(format!("{}-{y}{mo:02}-{joint}", p.serial)),
+        recorded_at: {
+            // One test every 20 min through the workshop session.
+            let min = 20 * slot;
+            format!(
+                "{y}-{mo:02}-{day:02}T{:02}:{:02}:00Z",
+                hour + min / 60,
+                min % 60
+            )
+        },
+        ..defaults.clone()
+    };
+    PlannedTest { args, true_factor }
 }
 
 /// The lift test of pantograph `p` in month `m`: raise and lower, its worn joint's friction at

@@ -85,6 +85,8 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
 struct Fleet {
     store: Store,
     plan: Vec<PlannedTest>,
+    /// Months of tests (the year: 12).
+    plan_months: usize,
     /// A worn joint's true factor by trace id.
     truth: HashMap<String, (Param, f64)>,
     vehicles: usize,
@@ -129,6 +131,7 @@ async fn demo(a: DemoArgs, bars: MultiProgress) -> anyhow::Result<()> {
     };
     let f = Fleet {
         store: store.clone(),
+        plan_months: months,
         plan,
         truth,
         vehicles,
@@ -260,10 +263,164 @@ async fn serve_while_fitting(f: Fleet, bars: &MultiProgress, t_all: Instant) -> 
     server.await.context("the service task")?
 }
 
-/// What [`fill`] took.
+/// What [`fill`] took, and the story's test plan and its follow-up.
 struct Filled {
     upload: Duration,
     fitted: Duration,
+    story: Story,
+}
+
+/// Issue 37, point 4: the fleet plan at the year's end, the workshop swings it asks for, and
+/// what they found.
+struct Story {
+    at: chrono::DateTime<chrono::Utc>,
+    plan: crate::evidence::FleetPlan,
+    /// Per swing done: serial, joint, its status before (the worst of its parameters' last
+    /// informing tests), the true wear then, the swing's trace and the joint's status in it.
+    found: Vec<Found>,
+}
+
+/// One follow-up swing: serial, joint, its status before (the worst of its parameters' last
+/// informing tests), the true wear then, the swing's trace and the joint's status in it.
+type Found = (
+    String,
+    String,
+    Status,
+    Option<(Param, f64)>,
+    String,
+    Option<Status>,
+);
+
+/// Months after the year the plan is read at.
+const STORY_MONTHS_AFTER: usize = 3;
+
+/// Swings the plan picks from the top of the fleet plan.
+const STORY_SWINGS: usize = 6;
+
+/// The fleet plan [`STORY_MONTHS_AFTER`] months after the year, then the top [`STORY_SWINGS`] swings it
+/// asks for, uploaded and fitted like every test (the plan read from `param_evidence`, as
+/// `GET /v1/fleet/plan?at=` reads it).
+async fn plan_and_follow_up(f: &Fleet, intake: &Intake) -> anyhow::Result<Story> {
+    use chrono::TimeZone;
+    // Three months after the year, before the next workshop cycle: the joints drifting where
+    // the monthly lifts cannot see have had time to cross unseen.
+    let months = f.plan_months + STORY_MONTHS_AFTER;
+    let (y, mo) = fleet::month_start(months);
+    let at = chrono::Utc
+        .with_ymd_and_hms(y, mo, 1, 0, 0, 0)
+        .single()
+        .context("the plan's date")?;
+    let rows = f.store.param_evidence(None).await?;
+    let plan = crate::evidence::fleet_plan(&rows, at, 10);
+    let picks: Vec<(String, String)> = plan
+        .tests
+        .iter()
+        .filter_map(|e| Some((e.serial.clone(), e.test.joint.clone()?)))
+        .take(STORY_SWINGS)
+        .collect();
+    let before: Vec<Status> = {
+        let mut v = Vec::new();
+        for (serial, joint) in &picks {
+            let st = f.store.joint_states(serial).await?;
+            v.push(
+                st.iter()
+                    .find(|s| &s.joint == joint)
+                    .map_or(Status::Unknown, |s| s.status),
+            );
+        }
+        v
+    };
+    let tests = fleet::follow_up(f.vehicles, months, &picks)?;
+    for t in &tests {
+        let doc = simulate_doc(&t.args)?;
+        intake
+            .upload(
+                BodyFormat::Json,
+                serde_json::to_vec(&doc.to_value())?.into(),
+            )
+            .await?;
+    }
+    crate::worker::wait_until_drained(&f.store, Duration::from_millis(50)).await?;
+    let mut found = Vec::new();
+    for ((t, (serial, joint)), was) in tests.iter().zip(&picks).zip(before) {
+        let id = t.args.trace_id.clone().unwrap_or_default();
+        let now = match f.store.get_fit(&id).await? {
+            Some(fit) => fit
+                .result()?
+                .joints
+                .iter()
+                .find(|j| &j.joint == joint)
+                .map(|j| j.status),
+            None => None,
+        };
+        found.push((serial.clone(), joint.clone(), was, t.true_factor, id, now));
+    }
+    Ok(Story { at, plan, found })
+}
+
+/// Prints the story: the plan, then what each swing found against the truth.
+fn print_story(s: &Story) {
+    let at = s.at.format("%Y-%m-%d");
+    println!();
+    println!(
+        "Test plan at {at} (GET /v1/fleet/plan?at={}): each pantograph's workshop test that buys \
+         most — the chance it finds a crossing the joint's last test did not show, times the \
+         uncertainty it removes",
+        s.at.to_rfc3339_opts(chrono::SecondsFormat::Secs, true)
+    );
+    println!(
+        "{:<3} {:<11} {:<16} {:>8} {:>7} {:>10}  due",
+        "#", "serial", "test", "P unseen", "buys", "oldest"
+    );
+    for (i, e) in s.plan.tests.iter().enumerate() {
+        let test = match e.test.joint.as_deref() {
+            Some(j) => format!("swing {j}"),
+            None => e.test.kind.clone(),
+        };
+        println!(
+            "{:<3} {:<11} {:<16} {:>8.2} {:>7.3} {:>8} d  {}",
+            i + 1,
+            e.serial,
+            test,
+            e.test.p_unseen,
+            e.test.buys,
+            e.oldest_evidence_days
+                .map_or("—".into(), |d| format!("{d:.0}")),
+            if e.tests_due.is_empty() {
+                "—".into()
+            } else {
+                e.tests_due.join(", ")
+            }
+        );
+    }
+    println!();
+    println!(
+        "The workshop swings the top {} of them on {at}; what they found:",
+        s.found.len()
+    );
+    println!(
+        "{:<11} {:<6} {:<8} {:<22} {:<9} trace",
+        "serial", "joint", "before", "truth", "swing"
+    );
+    for (serial, joint, was, truth, id, now) in &s.found {
+        let truth = match truth {
+            Some((p, f)) => format!("{} ×{f:.2}", p.as_str()),
+            None => "at baseline".into(),
+        };
+        let verdict = match now {
+            Some(n) if *n > *was && *n >= Status::Watch => " (crossed unseen: confirmed)",
+            Some(_) => "",
+            None => " (not fitted)",
+        };
+        println!(
+            "{:<11} {:<6} {:<8} {:<22} {:<9} {id}{verdict}",
+            serial,
+            joint,
+            was.as_str(),
+            truth,
+            status_str(*now)
+        );
+    }
 }
 
 /// Synthesises the fleet's tests and uploads each through `intake` (the upload path of
@@ -298,9 +455,12 @@ async fn fill(f: &Fleet, intake: &Intake, progress: &Progress) -> anyhow::Result
     let upload = t0.elapsed();
     crate::worker::wait_until_drained(&f.store, Duration::from_millis(50)).await?;
     progress.fit.finish();
+    let fitted = t0.elapsed();
+    let story = plan_and_follow_up(f, intake).await?;
     Ok(Filled {
         upload,
-        fitted: t0.elapsed(),
+        fitted,
+        story,
     })
 }
 
@@ -319,6 +479,7 @@ async fn report(f: &Fleet, progress: &Progress, filled: Filled) -> anyhow::Resul
     );
     print_fleet(&f.store, f.vehicles).await?;
     print_worst(&f.store, &f.truth).await?;
+    print_story(&filled.story);
     Ok(())
 }
 

@@ -149,6 +149,56 @@ impl HealthBackend for Backend {
             .map(joint_state_from)
             .collect()
     }
+    async fn param_evidence(&self, serial: Option<&str>) -> Result<Vec<EvidenceRow>> {
+        query(PARAM_EVIDENCE_SQL)
+            .bind(serial)
+            .fetch_all(&self.pool)
+            .await?
+            .iter()
+            .map(evidence_row_from)
+            .collect()
+    }
+    async fn latest_test_at(&self, serial: &str) -> Result<Option<DateTime<Utc>>> {
+        query("SELECT max(recorded_at) AS last_test FROM traces WHERE serial = $1")
+            .bind(serial)
+            .fetch_one(&self.pool)
+            .await?
+            .opt_ts("last_test")
+    }
+    async fn set_param_trends(
+        &self,
+        serial: &str,
+        trends: &[(String, String, Option<StoredTrend>)],
+    ) -> Result<()> {
+        let mut tx = self.begin().await?;
+        for (joint, param, trend) in trends {
+            query(
+                "UPDATE param_evidence SET slope_per_day = $4, slope_lo_per_day = $5,
+                        slope_hi_per_day = $6, slope_significant = $7
+                 WHERE serial = $1 AND joint = $2 AND param = $3",
+            )
+            .bind(serial)
+            .bind(joint)
+            .bind(param)
+            .bind(trend.map(|t| t.slope_per_day))
+            .bind(trend.map(|t| t.slope_ci95[0]))
+            .bind(trend.map(|t| t.slope_ci95[1]))
+            .bind(trend.map(|t| t.significant))
+            .execute(&mut *tx)
+            .await?;
+        }
+        query("UPDATE evidence_version SET version = version + 1 WHERE id = 1")
+            .execute(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        Ok(())
+    }
+    async fn evidence_version(&self) -> Result<i64> {
+        query("SELECT version FROM evidence_version WHERE id = 1")
+            .fetch_optional(&self.pool)
+            .await?
+            .map_or(Ok(0), |r| r.int("version"))
+    }
     async fn serial_history(&self, serial: &str) -> Result<Vec<JointPoint>> {
         query(
             "WITH cur AS (

@@ -26,6 +26,17 @@ async fn refresh_health(conn: &mut Conn, trace_id: &str) -> Result<()> {
         .bind(&serial)
         .execute(&mut *conn)
         .await?;
+    query("DELETE FROM param_evidence WHERE serial = $1")
+        .bind(&serial)
+        .execute(&mut *conn)
+        .await?;
+    query(PARAM_EVIDENCE_REFRESH_SQL)
+        .bind(&serial)
+        .execute(&mut *conn)
+        .await?;
+    query("UPDATE evidence_version SET version = version + 1 WHERE id = 1")
+        .execute(&mut *conn)
+        .await?;
     query("DELETE FROM pantograph_health WHERE serial = $1")
         .bind(&serial)
         .execute(&mut *conn)

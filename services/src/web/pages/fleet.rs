@@ -12,8 +12,11 @@ use crate::alerts::Evidence;
 use crate::api::auth::WebUser;
 use crate::api::error::AppError;
 use crate::api::state::AppState;
+use crate::evidence::FleetPlanEntry;
 use crate::store::{Alert, AlertFilter, FleetFilter, JobCounts, Page, Status};
-use crate::web::layout::badge;
+use crate::web::error::WebQuery;
+use crate::web::layout::{age_bar, badge};
+use crate::web::pages::pantograph::AtQuery;
 use crate::web::{PageResult, day, seg, signed_in_page};
 
 /// Earliest forecast crossing in a live alert's evidence (typed: `alerts::Evidence`); none
@@ -22,11 +25,15 @@ fn alert_forecast(a: &Alert) -> Option<DateTime<Utc>> {
     Evidence::of(a).ok()?.earliest_forecast()
 }
 
-pub async fn fleet_page(State(st): State<AppState>, user: WebUser) -> PageResult {
+pub async fn fleet_page(
+    State(st): State<AppState>,
+    user: WebUser,
+    WebQuery(q): WebQuery<AtQuery>,
+) -> PageResult {
     let jobs = st.store.job_counts().await;
     let fitting = matches!(&jobs, Ok(c) if c.queued + c.running > 0);
     let body = match jobs {
-        Ok(jobs) => fleet(&st, jobs).await,
+        Ok(jobs) => fleet(&st, jobs, q.at.as_deref()).await,
         Err(e) => Err(e.into()),
     };
     let mut page = signed_in_page(&user, "Fleet", body)?;
@@ -58,7 +65,13 @@ fn fits_in_progress(c: JobCounts) -> Markup {
     }
 }
 
-async fn fleet(st: &AppState, jobs: JobCounts) -> Result<Markup, AppError> {
+async fn fleet(st: &AppState, jobs: JobCounts, at: Option<&str>) -> Result<Markup, AppError> {
+    let at = crate::api::plan::parse_at(at)?;
+    // Each pantograph's oldest evidence and best next test (issue 37), from `param_evidence`.
+    let rows = st.store.param_evidence(None).await?;
+    let plan = crate::evidence::fleet_plan(&rows, at, usize::MAX);
+    let plans: HashMap<&str, &FleetPlanEntry> =
+        plan.tests.iter().map(|e| (e.serial.as_str(), e)).collect();
     let fleet = st
         .store
         .fleet_health(
@@ -113,12 +126,15 @@ async fn fleet(st: &AppState, jobs: JobCounts) -> Result<Markup, AppError> {
         table #fleet {
             caption {
                 "Pantographs by risk: alarm first, then watch, then the earliest forecast date of \
-                 reaching the alarm band."
+                 reaching the alarm band. Oldest evidence: the age of the joint evidence that is \
+                 oldest, against the age allowed before a workshop test is due; next test: the \
+                 one that buys most (the pantograph's page ranks them)."
             }
             thead {
                 tr {
                     th { "#" } th { "serial" } th { "vehicle" } th { "worst" }
                     th { "joints not ok" } th { "alerts" } th { "forecast alarm" } th { "last test" }
+                    th { "oldest evidence" } th { "next test" }
                 }
             }
             tbody {
@@ -139,6 +155,24 @@ async fn fleet(st: &AppState, jobs: JobCounts) -> Result<Markup, AppError> {
                         }
                         td { (forecast.map_or("—".to_owned(), day)) }
                         td { (r.last_test.map_or("—".to_owned(), day)) }
+                        @match plans.get(r.serial.as_str()) {
+                            Some(e) => {
+                                td.oldest {
+                                    (age_bar(e.oldest_evidence_days, e.oldest_allowed_days))
+                                    @if !e.tests_due.is_empty() {
+                                        " " span.badge.alarm { "due: " (e.tests_due.join(", ")) }
+                                    }
+                                }
+                                td.next {
+                                    @match e.test.joint.as_deref() {
+                                        Some(j) => { "swing " (j) },
+                                        None => { (e.test.kind) },
+                                    }
+                                    (format!(" (P past watch {:.0} %)", 100.0 * e.test.p_watch))
+                                }
+                            },
+                            None => { td { "—" } td { "—" } },
+                        }
                     }
                 }
             }

@@ -11,15 +11,17 @@ use axum::extract::State;
 use chrono::{DateTime, Utc};
 use maud::{Markup, html};
 use pantowatch_models::drift::DriftThresholds;
+use pantowatch_models::plan::PlanItem;
 
 use crate::api::auth::WebUser;
 use crate::api::error::AppError;
 use crate::api::state::AppState;
+use crate::evidence::{EvidenceParam, PantographEvidence, Standing};
 use crate::health::{self, Param, ParamTrend};
 use crate::ids::Serial;
 use crate::store::{AlertFilter, JointPoint, Status};
-use crate::web::error::WebPath;
-use crate::web::layout::{badge, sev_badge};
+use crate::web::error::{WebPath, WebQuery};
+use crate::web::layout::{age_bar, badge, sev_badge};
 use crate::web::svg::{Frame, fmt_num, legend_entry};
 use crate::web::{PageResult, day, seg, signed_in_page};
 
@@ -391,19 +393,103 @@ fn static_force_chart(
     }
 }
 
+/// A page's `?at=` (RFC 3339): the time evidence ages are read at (default now).
+#[derive(Debug, Default, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AtQuery {
+    pub at: Option<String>,
+}
+
 pub async fn pantograph_page(
     State(st): State<AppState>,
     user: WebUser,
     WebPath(raw): WebPath<String>,
+    WebQuery(q): WebQuery<AtQuery>,
 ) -> PageResult {
-    signed_in_page(&user, &raw, pantograph(&st, &raw).await)
+    signed_in_page(&user, &raw, pantograph(&st, &raw, q.at.as_deref()).await)
 }
 
-async fn pantograph(st: &AppState, raw: &str) -> Result<Markup, AppError> {
+/// What each joint rests on (issue 37): a row per joint with its evidence's age at a glance,
+/// each parameter's test, interval then and now; then the ranked workshop tests.
+fn evidence_section(ev: &PantographEvidence, plan: &[PlanItem]) -> Markup {
+    let param = |p: &EvidenceParam| {
+        html! {
+            @if let Some(t) = &p.test {
+                a href={ "/traces/" (seg(&t.trace_id)) } { (t.kind) } " " (day(t.recorded_at)) ": "
+                (fmt_num(t.value)) " [" (fmt_num(t.ci95[0])) ", " (fmt_num(t.ci95[1])) "] → now ["
+                (fmt_num(p.now.ci95[0])) ", " (fmt_num(p.now.ci95[1])) "] "
+            } @else {
+                "never measured "
+            }
+            (badge(Some(p.status_now)))
+            @if p.standing == Standing::Uncertain { " now uncertain" }
+        }
+    };
+    html! {
+        section #evidence {
+            h2 { "What each joint rests on" }
+            p.note {
+                "At " (day(ev.at)) ": per parameter the test that last informed it, its 95 % \
+                 interval then and now — widened by the time since at the joint's trend or the \
+                 fleet's wear rate. The bar: the evidence's age against the age the type allows \
+                 before a workshop test is due (red: due)."
+            }
+            table #evidence-table {
+                thead { tr { th { "joint" } th { "age" } th { "viscous" } th { "dry" } th { "test due" } } }
+                tbody {
+                    @for j in &ev.joints {
+                        tr data-joint=(j.joint) {
+                            td { (j.joint) }
+                            td { (age_bar(j.age_days, j.max_age_days)) }
+                            td { (param(&j.viscous)) }
+                            td { (param(&j.dry)) }
+                            td { @if j.test_due { span.badge.alarm { "due" } } @else { "—" } }
+                        }
+                    }
+                }
+            }
+            h2 { "Next workshop tests" }
+            p.note {
+                "Ranked by what each test buys: the probability that a joint it informs has \
+                 crossed its watch band unseen, times the share of that uncertainty the test \
+                 removes (the information its kind of test gave, from the fits' own intervals)."
+            }
+            table #plan-table {
+                thead { tr { th { "#" } th { "test" } th { "buys" } th { "P(past watch)" } th { "P(past alarm)" } th { "information" } } }
+                tbody {
+                    @for (i, t) in plan.iter().enumerate() {
+                        tr data-kind=(t.kind) data-joint=(t.joint.as_deref().unwrap_or("")) {
+                            td { (i + 1) }
+                            td {
+                                @match t.joint.as_deref() {
+                                    Some(j) => { "swing " (j) " (" (t.kind) ")" },
+                                    None => { (t.kind) " of the whole pantograph" },
+                                }
+                            }
+                            td { (format!("{:.3}", t.buys)) }
+                            td { (format!("{:.0} %", 100.0 * t.p_watch)) }
+                            td { (format!("{:.0} %", 100.0 * t.p_alarm)) }
+                            td { (format!("{:.1} bits", t.info_bits)) }
+                        }
+                    }
+                }
+            }
+            @if plan.is_empty() { p { "No test kind has informed these joints yet." } }
+        }
+    }
+}
+
+async fn pantograph(st: &AppState, raw: &str, at: Option<&str>) -> Result<Markup, AppError> {
     let serial = Serial::parse("serial", raw)?;
     if !st.store.pantograph_exists(serial.as_str()).await? {
         return Err(AppError::NotFound(format!("no pantograph `{serial}`")));
     }
+    let at = crate::api::plan::parse_at(at)?;
+    let evidence = match crate::evidence::load(&st.store, serial.as_str(), at).await {
+        Ok((ev, plan)) => evidence_section(&ev, &plan),
+        Err(crate::evidence::EvidenceError::Store(e)) => return Err(e.into()),
+        Err(_) => html! {},
+    };
     let points = st.store.serial_history(serial.as_str()).await?;
     // Each joint's health as fleet health and the alerts see it (issue 15).
     let states = st.store.joint_states(serial.as_str()).await?;
@@ -480,6 +566,7 @@ async fn pantograph(st: &AppState, raw: &str) -> Result<Markup, AppError> {
              (dashed green), red dashed lines the alarm band, the blue line the robust trend (grey \
              dashed: no trend), the red marker the forecast date of reaching the alarm band."
         }
+        (evidence)
         @for j in &joints { (j) }
         @if by_joint.is_empty() { p { "No fitted tests yet." } }
         (static_force)
