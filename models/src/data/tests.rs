@@ -66,7 +66,7 @@ fn sampling_outside_the_rig_limits_is_refused_naming_t_s() {
 /// docs/API.md "Input limits" is these values: a row per `[rig_limits]` key with its span.
 #[test]
 fn the_api_doc_lists_every_rig_limit() {
-    let doc = include_str!("../../docs/API.md");
+    let doc = include_str!("../../../docs/API.md");
     let l = builtin_160ec().rig_limits();
     let spans = [
         ("pin_radius_m", l.pin_radius_m),
