@@ -14,7 +14,7 @@ use serde_json::{Value, json};
 use tokio::sync::Notify;
 
 use crate::harness::{Backend, fresh_db};
-use crate::procs::{self, held_slider, shared_json, wait_until, with_id};
+use crate::procs::{self, runaway_lift, shared_json, wait_until, with_id};
 
 /// Stores `doc` straight into the store, past the upload's validation (a trace stored before
 /// a rule existed, or by a bug): the worker must still end its job.
@@ -82,8 +82,8 @@ async fn every_job_ends(b: Backend) {
         "recorded_at": "2026-03-02T07:15:00Z", "test": {"kind": "lift", "rig": {}},
         "channels": {"t_s": [0.0, 0.1], "H_m": [1.0, 1.0], "T_Nm": [0.0, 0.0], "Fs_N": [0.0, 0.0]}});
     store_unchecked(&store, &two_samples, "unfittable").await;
-    let slider = held_slider();
-    for (doc, id) in [(&slider, "runaway"), (&pendulum, "valid")] {
+    let lift = runaway_lift();
+    for (doc, id) in [(&lift, "runaway"), (&pendulum, "valid")] {
         intake
             .upload(BodyFormat::Json, with_id(doc, id).into())
             .await
@@ -164,7 +164,7 @@ async fn every_job_ends(b: Backend) {
     // A fit stopped by SIGTERM (grace 0) at every attempt: its attempts are counted when
     // claimed, so at the limit the job fails instead of blocking the queue after each restart.
     intake
-        .upload(BodyFormat::Json, with_id(&slider, "stopped").into())
+        .upload(BodyFormat::Json, with_id(&lift, "stopped").into())
         .await
         .expect("upload");
     let env = [("PANTOWATCH__WORKER__SHUTDOWN_GRACE_MS", "0")];
