@@ -839,7 +839,9 @@ async fn demo_serves_at_once_and_its_fleet_fills_in() {
         assert_eq!(failed, 0);
         assert!(done >= *counts.last().unwrap(), "{counts:?} then {done}");
         counts.push(done);
-        if done == total && pending == 0 {
+        // `total` is the year's tests; the demo then adds the fleet plan's follow-up swings
+        // (up to six), so the count may pass it.
+        if done >= total && pending == 0 {
             break;
         }
         let (refresh, page) = fleet().await;
@@ -847,7 +849,7 @@ async fn demo_serves_at_once_and_its_fleet_fills_in() {
             let words: Vec<&str> = page[at..].split_whitespace().collect();
             let (n, m): (i64, i64) = (words[1].parse().unwrap(), words[3].parse().unwrap());
             assert_eq!(words[4..6], ["fits", "done"], "{}", &page[at..]);
-            assert!(n < m && m <= total, "{n} of {m} of {total}");
+            assert!(n < m, "{n} of {m} (the year: {total})");
             assert!(refresh, "a page with fits to come reloads itself");
             banners += 1;
         }
