@@ -75,13 +75,19 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
         "| storage",
         "| query: fleet health, PostgreSQL (12 pantographs, 144 fits)",
         "| query: fleet health, SQLite (12 pantographs, 144 fits)",
+        "| fit: input-driven axis (1 trace)",
+        "| fit time vs length: quadrangle swing",
+        "| fit time vs length: lift (raise and lower, 8 s)",
+        "| fit time vs length: static_force",
+        "| plan: fleet test plan, PostgreSQL (12 pantographs, 240 fits)",
+        "| plan: fleet test plan, SQLite (12 pantographs, 240 fits)",
     ] {
         assert!(stdout.contains(measure), "no row {measure:?} in\n{stdout}");
     }
     assert!(!stdout.contains("not measured"), "{stdout}");
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let rows = v["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 15, "{v}");
+    assert_eq!(rows.len(), 21, "{v}");
     let row = |prefix: &str| {
         rows.iter()
             .find(|r| r["measure"].as_str().unwrap().starts_with(prefix))
@@ -116,7 +122,7 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
             assert!(p["with_loop_s"].as_f64().is_some_and(|t| t > 0.0), "{r}");
         }
     }
-    let emps = row("fit: input-driven axis");
+    let emps = row("fit: input-driven axis, positioning-benchmark");
     assert!(
         emps["detail"]["samples"]
             .as_u64()
