@@ -7,17 +7,14 @@
 //! another `at`), on PostgreSQL and on SQLite; p50 and p99 per path. Target: the service's
 //! p99 ≤ 50 ms.
 
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use chrono::{TimeZone, Utc};
 use pantowatch_models::report::{FitResult, JointResult, ParamResult, Quantity};
 use serde_json::json;
-use tokio::sync::Semaphore;
-use tokio::task::JoinSet;
 
 use super::harness::{FreshPg, Server};
-use super::query::mix;
+use super::query::{fill, mix};
 use super::table::{Row, Sizes, SuiteArgs, quantile};
 use pantowatch::store::{NewFit, NewTrace, Role, Status, Store};
 
@@ -256,30 +253,7 @@ async fn backend(url: &str, sizes: &Sizes, writers: usize) -> anyhow::Result<Mea
         store.kind(),
         LIFTS + SWUNG.len()
     );
-    let t0 = Instant::now();
-    let sem = Arc::new(Semaphore::new(writers));
-    let mut set = JoinSet::new();
-    for p in 0..n {
-        let permit = sem.clone().acquire_owned().await?;
-        let s = store.clone();
-        set.spawn(async move {
-            let r = fill_one(s, p).await;
-            drop(permit);
-            r
-        });
-    }
-    while let Some(r) = set.join_next().await {
-        r??;
-    }
-    let fill_s = t0.elapsed().as_secs_f64();
-    match &store {
-        Store::Postgres(s) => {
-            sqlx::query("ANALYZE").execute(s.pool()).await?;
-        }
-        Store::Sqlite(s) => {
-            sqlx::query("ANALYZE").execute(s.pool()).await?;
-        }
-    }
+    let fill_s = fill(&store, n, writers, fill_one).await?;
     // The plan at the year's end, as a depot would read it.
     let at = Utc
         .with_ymd_and_hms(2026, 1, 15, 0, 0, 0)

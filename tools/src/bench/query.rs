@@ -237,21 +237,27 @@ fn variant(i: usize, pantographs: usize) -> (FleetFilter, Page, String) {
     }
 }
 
-async fn backend(url: &str, sizes: &Sizes, writers: usize) -> anyhow::Result<Measured> {
-    let store = Store::connect(url).await?;
-    let n = sizes.pantographs;
-    eprintln!(
-        "   {:?}: writing {n} pantographs × {FITS_EACH} traces and fits",
-        store.kind()
-    );
+/// Writes pantographs `0..n` with `fill_one`, `writers` at a time, then refreshes the planner's
+/// statistics, as autovacuum (PostgreSQL) or `PRAGMA optimize` (SQLite) would give a store that
+/// was not written a minute ago. Returns the writing's seconds.
+pub(super) async fn fill<F, Fut>(
+    store: &Store,
+    n: usize,
+    writers: usize,
+    fill_one: F,
+) -> anyhow::Result<f64>
+where
+    F: Fn(Store, usize) -> Fut,
+    Fut: std::future::Future<Output = anyhow::Result<()>> + Send + 'static,
+{
     let t0 = Instant::now();
     let sem = Arc::new(Semaphore::new(writers));
     let mut set = JoinSet::new();
     for p in 0..n {
         let permit = sem.clone().acquire_owned().await?;
-        let s = store.clone();
+        let fut = fill_one(store.clone(), p);
         set.spawn(async move {
-            let r = fill_one(s, p).await;
+            let r = fut.await;
             drop(permit);
             r
         });
@@ -260,9 +266,7 @@ async fn backend(url: &str, sizes: &Sizes, writers: usize) -> anyhow::Result<Mea
         r??;
     }
     let fill_s = t0.elapsed().as_secs_f64();
-    // Fresh planner statistics, as autovacuum (PostgreSQL) or `PRAGMA optimize` (SQLite) would
-    // give a store that was not written a minute ago.
-    match &store {
+    match store {
         Store::Postgres(s) => {
             sqlx::query("ANALYZE").execute(s.pool()).await?;
         }
@@ -270,6 +274,17 @@ async fn backend(url: &str, sizes: &Sizes, writers: usize) -> anyhow::Result<Mea
             sqlx::query("ANALYZE").execute(s.pool()).await?;
         }
     }
+    Ok(fill_s)
+}
+
+async fn backend(url: &str, sizes: &Sizes, writers: usize) -> anyhow::Result<Measured> {
+    let store = Store::connect(url).await?;
+    let n = sizes.pantographs;
+    eprintln!(
+        "   {:?}: writing {n} pantographs × {FITS_EACH} traces and fits",
+        store.kind()
+    );
+    let fill_s = fill(&store, n, writers, fill_one).await?;
     let check = store
         .fleet_health(&FleetFilter::default(), Page::default())
         .await?;
