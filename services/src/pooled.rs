@@ -177,16 +177,7 @@ pub async fn after_lift(
         })
         .unwrap_or_else(|e| Err(format!("{e} (the worker's fit limits)")))
     });
-    let fitted = match tokio::time::timeout(limits.wall, task).await {
-        Ok(joined) => joined.map_err(|e| StoreError::Task(e.to_string()))?,
-        Err(_) => {
-            stop.cancel();
-            Err(format!(
-                "ran past worker.fit_budget_secs ({} s) and was stopped",
-                limits.wall.as_secs_f64()
-            ))
-        }
-    };
+    let fitted = within_wall(&limits, stop, task).await?;
     // Timed like a job's fit, under its own kind.
     metrics::histogram!("pantowatch_fit_duration_seconds", "kind" => "lift_pooled")
         .record(t0.elapsed().as_secs_f64());
@@ -308,16 +299,7 @@ pub async fn after_rig(
         })
         .unwrap_or_else(|e| Err(format!("{e} (the worker's fit limits)")))
     });
-    let fitted = match tokio::time::timeout(limits.wall, task).await {
-        Ok(joined) => joined.map_err(|e| StoreError::Task(e.to_string()))?,
-        Err(_) => {
-            stop.cancel();
-            Err(format!(
-                "ran past worker.fit_budget_secs ({} s) and was stopped",
-                limits.wall.as_secs_f64()
-            ))
-        }
-    };
+    let fitted = within_wall(&limits, stop, task).await?;
     metrics::histogram!("pantowatch_fit_duration_seconds", "kind" => "rig_pooled")
         .record(t0.elapsed().as_secs_f64());
     let result = match fitted {
@@ -337,4 +319,22 @@ pub async fn after_rig(
         }
     }
     Ok(Some(w.fit_id))
+}
+
+/// The pooled fit's answer, or — past `worker.fit_budget_secs` — the fit cancelled and said so.
+async fn within_wall<T>(
+    limits: &FitLimits,
+    stop: pantowatch_models::budget::Canceller,
+    task: tokio::task::JoinHandle<Result<T, String>>,
+) -> Result<Result<T, String>, StoreError> {
+    match tokio::time::timeout(limits.wall, task).await {
+        Ok(joined) => joined.map_err(|e| StoreError::Task(e.to_string())),
+        Err(_) => {
+            stop.cancel();
+            Ok(Err(format!(
+                "ran past worker.fit_budget_secs ({} s) and was stopped",
+                limits.wall.as_secs_f64()
+            )))
+        }
+    }
 }
