@@ -105,12 +105,13 @@ fn measured_like() {
         let t0 = Instant::now();
         match fit_base(test, &opts) {
             Ok(f) => println!(
-                "{name:<28} viscous {:.6} ± {:.3e}  dry {:.6} ± {:.3e}  rmse {:.5}  {:.1} ms",
+                "{name:<28} viscous {:.6} ± {:.3e}  dry {:.6} ± {:.3e}  rmse {:.5}  restarts {}  {:.1} ms",
                 f.law.viscous,
                 f.std[0],
                 f.law.dry,
                 f.std[1],
                 f.rmse,
+                f.restarts,
                 1e3 * t0.elapsed().as_secs_f64()
             ),
             Err(e) => println!("{name:<28} failed: {e}"),
@@ -226,8 +227,7 @@ fn main() {
         };
         use pantowatch_models::identify::{FitSpec, fit_window, initial, offset_identifiable};
         let fo = offset_identifiable(&test.dof);
-        let init =
-            initial::inverse_dynamics(&test.dof, &test.t_s, &test.y, test.scale, 0, None, fo);
+        let init = initial::first_estimate(&test.dof, &test.t_s, &test.y, test.scale, 0, None, fo);
         let first = fit_window(
             &test,
             0,
@@ -249,10 +249,13 @@ fn main() {
         let t0 = Instant::now();
         let fit = fit_base(&test, &FitOptions::default()).unwrap();
         println!(
-            "fit_base viscous {:.5} dry {:.5} rmse {:.5} {:.1} ms",
+            "init viscous {:.5} dry {:.5}\nfit_base viscous {:.5} dry {:.5} rmse {:.5} restarts {} {:.1} ms",
+            init.viscous,
+            init.dry,
             fit.law.viscous,
             fit.law.dry,
             fit.rmse,
+            fit.restarts,
             1e3 * t0.elapsed().as_secs_f64()
         );
         return;
@@ -293,7 +296,7 @@ fn main() {
             };
             let start = release_of(&test).unwrap().index;
             let fo = offset_identifiable(&test.dof);
-            let init = initial::inverse_dynamics(
+            let init = initial::first_estimate(
                 &test.dof,
                 &test.t_s,
                 &test.y,
@@ -325,7 +328,7 @@ fn main() {
             fit.rmse / pantowatch_models::stats::noise_sigma(r)
         );
         println!(
-            "{name:<24} {:>8.2} ms  n {:>6} start {:>5}  viscous {:.6} ± {:.2e}  dry {:.6} ± {:.2e}  rmse {:.5}  it {} ev {} {:?}",
+            "{name:<24} {:>8.2} ms  n {:>6} start {:>5}  viscous {:.6} ± {:.2e}  dry {:.6} ± {:.2e}  rmse {:.5}  it {} ev {} restarts {} {:?}",
             1e3 * times[times.len() / 2],
             test.t_s.len(),
             fit.start,
@@ -336,6 +339,7 @@ fn main() {
             fit.rmse,
             fit.iterations,
             fit.evaluations,
+            fit.restarts,
             fit.termination
         );
     }

@@ -3,7 +3,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::joint::dynamics::Dof;
+use crate::joint::dynamics::{Dof, Mechanism};
 use crate::joint::friction::{POSITION_KNOTS, PositionFriction};
 use crate::numerics::signal::{half_window, local_cubic, local_cubic_at};
 
@@ -48,29 +48,13 @@ pub fn inverse_dynamics(
     // stick–slip piece, beyond what the restarts reach). A record in motion past its middle keeps
     // the first points, so its estimate is unchanged (every pendulum example: J6's, moving for
     // 18 of its 20 s, taken over its motion alone, sent its first fit to the wrong piece).
-    let points = |end: usize, stride: usize| -> (Vec<(f64, f64, f64, f64)>, f64) {
-        let idx: Vec<usize> = (half..end).step_by(stride).collect();
-        let mut vmax: f64 = 0.0;
-        let pts = local_cubic_at(t, y, &idx, half)
-            .into_iter()
-            .zip(&idx)
-            .map(|((q, v, a), &i)| {
-                vmax = vmax.max((v / scale).abs());
-                (t[i], q / scale, v / scale, a / scale)
-            })
-            .collect();
-        (pts, vmax)
-    };
     let stride = (n / 800).max(1);
     let end = n.saturating_sub(half);
-    let (mut pts, mut vmax) = points(end, stride);
-    let moving_until = pts
-        .iter()
-        .rposition(|p| p.2.abs() >= 0.1 * vmax)
-        .map_or(end, |k| (half + (k + 1) * stride + half).min(end));
+    let (mut pts, mut vmax) = points(t, y, scale, half, end, stride);
+    let moving_until = moving_until(&pts, vmax, half, stride, end);
     let motion_stride = (moving_until.saturating_sub(half) / 800).max(1);
     if 2 * moving_until <= n && motion_stride < stride {
-        (pts, vmax) = points(moving_until, motion_stride);
+        (pts, vmax) = points(t, y, scale, half, moving_until, motion_stride);
     }
     let mut rows: Vec<([f64; 3], f64)> = Vec::with_capacity(pts.len());
     for &(ti, q, v, a) in &pts {
@@ -115,6 +99,134 @@ pub fn inverse_dynamics(
     }
     est.q0 = q_start / scale - est.offset / scale;
     est
+}
+
+
+/// Local-cubic (t, q, v, a) in model units at samples `half, half + stride, …` below `end`, and
+/// the largest |v| among them.
+fn points(
+    t: &[f64],
+    y: &[f64],
+    scale: f64,
+    half: usize,
+    end: usize,
+    stride: usize,
+) -> (Vec<(f64, f64, f64, f64)>, f64) {
+    let idx: Vec<usize> = (half..end).step_by(stride).collect();
+    let mut vmax: f64 = 0.0;
+    let pts = local_cubic_at(t, y, &idx, half)
+        .into_iter()
+        .zip(&idx)
+        .map(|((q, v, a), &i)| {
+            vmax = vmax.max((v / scale).abs());
+            (t[i], q / scale, v / scale, a / scale)
+        })
+        .collect();
+    (pts, vmax)
+}
+
+/// The sample (exclusive) up to which the motion lasts: one half-window past the last of
+/// `pts` (taken every `stride` samples from `half`) at ≥ 10 % of the peak rate; `end` when none.
+fn moving_until(
+    pts: &[(f64, f64, f64, f64)],
+    vmax: f64,
+    half: usize,
+    stride: usize,
+    end: usize,
+) -> usize {
+    pts.iter()
+        .rposition(|p| p.2.abs() >= 0.1 * vmax)
+        .map_or(end, |k| (half + (k + 1) * stride + half).min(end))
+}
+
+/// Energy-balance start for a slider's free decay (a spring, no measured input; issue 38): over
+/// the motion, with E = ½·m·v² + ½·k·(q − o)² and q the measured position,
+/// `E(t) = E(t₀) − μ·N·∫|v| dt − D·∫v² dt`, which is linear in E(t₀) − ½·k·o², o, μ and D once
+/// ½·k·(q − o)² is expanded; least squares over ~1600 local-cubic points of the motion, the
+/// integrals by the trapezoid rule. Only rates enter (no accelerations), and the integrals average
+/// the noise: the inverse-dynamics estimate of a J8 slider ran 15–30 % high in viscous (its
+/// accelerations, smoothed across each reversal's friction step, carry a force error of the
+/// viscous force's size) and sent the first fit to the neighbouring stick–slip piece. Assumes the
+/// slider's constant normal force (`Dof::normal` at rest) and the model's viscous + Coulomb law.
+/// None when the trace is not of this kind, or too short, or the solve fails.
+pub fn energy_balance(
+    dof: &Dof,
+    t: &[f64],
+    y: &[f64],
+    scale: f64,
+    start: usize,
+    v0: Option<f64>,
+) -> Option<InitialEstimate> {
+    if !matches!(dof.mech, Mechanism::Slider(_)) || dof.input.is_some() {
+        return None;
+    }
+    let (t, y) = (t.get(start..)?, y.get(start..)?);
+    let n = t.len();
+    let stiffness = -dof.load(0.0, 0.0).1;
+    if n < 40 || !(stiffness > 0.0) {
+        return None;
+    }
+    let duration = t[n - 1] - t[0];
+    let half = half_window(t, (dof.period_s(duration) / 12.0).clamp(0.01, 0.2));
+    let stride = (n / 800).max(1);
+    let end = n.saturating_sub(half);
+    let (pts, vmax) = points(t, y, scale, half, end, stride);
+    let until = moving_until(&pts, vmax, half, stride, end);
+    let (pts, _) = points(t, y, scale, half, until, (until.saturating_sub(half) / 1600).max(1));
+    if pts.len() < 20 || !(vmax > 0.0) {
+        return None;
+    }
+    let (mass, normal) = (dof.inertia(), dof.lever() * dof.normal_at_rest(0.0));
+    // Rows (1, k·q, −N·∫|v|, −∫v²) · (E₀ − ½·k·o², o, μ, D) = ½·m·v² + ½·k·q².
+    let (mut int_abs, mut int_sq) = (0.0, 0.0);
+    let mut a = DMatrix::zeros(pts.len(), 4);
+    let mut b = DVector::zeros(pts.len());
+    for (r, p) in pts.iter().enumerate() {
+        if r > 0 {
+            let w = &pts[r - 1];
+            let dt = p.0 - w.0;
+            int_abs += 0.5 * dt * (p.2.abs() + w.2.abs());
+            int_sq += 0.5 * dt * (p.2 * p.2 + w.2 * w.2);
+        }
+        a[(r, 0)] = 1.0;
+        a[(r, 1)] = stiffness * p.1;
+        a[(r, 2)] = -normal * int_abs;
+        a[(r, 3)] = -int_sq;
+        b[r] = 0.5 * mass * p.2 * p.2 + 0.5 * stiffness * p.1 * p.1;
+    }
+    let norms: Vec<f64> = (0..4).map(|c| a.column(c).norm().max(1e-300)).collect();
+    for (c, nc) in norms.iter().enumerate() {
+        a.column_mut(c).scale_mut(1.0 / nc);
+    }
+    let x = a.svd(true, true).solve(&b, 1e-10).ok()?;
+    let (o, dry, viscous) = (x[1] / norms[1], x[2] / norms[2], x[3] / norms[3]);
+    if !(o.is_finite() && dry.is_finite() && viscous.is_finite()) {
+        return None;
+    }
+    let (q_start, _, _) = local_cubic(t, y, 0, half);
+    Some(InitialEstimate {
+        viscous: viscous.max(0.0),
+        dry: dry.max(0.0),
+        offset: o * scale,
+        q0: q_start / scale - o,
+        v0: v0.unwrap_or(0.0),
+    })
+}
+
+/// The first estimate of a fit: [`energy_balance`] for a slider's free decay, where it applies;
+/// else [`inverse_dynamics`].
+pub fn first_estimate(
+    dof: &Dof,
+    t: &[f64],
+    y: &[f64],
+    scale: f64,
+    start: usize,
+    v0: Option<f64>,
+    fit_offset: bool,
+) -> InitialEstimate {
+    energy_balance(dof, t, y, scale, start, v0)
+        .filter(|_| fit_offset)
+        .unwrap_or_else(|| inverse_dynamics(dof, t, y, scale, start, v0, fit_offset))
 }
 
 /// Starting values for a fit with position friction ([`PositionFriction`]): the same inverse

@@ -13,6 +13,7 @@ pub mod lm;
 pub mod pooled;
 pub mod readout;
 pub mod release;
+pub mod restart;
 
 use nalgebra::DMatrix;
 
@@ -204,6 +205,8 @@ pub struct FitOutcome {
     pub termination: Termination,
     pub iterations: usize,
     pub evaluations: usize,
+    /// Restart fits run after the first ([`restart::from_grid`]); 0 when the first was kept.
+    pub restarts: usize,
     pub trajectory: Trajectory,
 }
 
@@ -522,6 +525,7 @@ pub fn fit_window(
         termination: rep.termination,
         iterations: rep.iterations,
         evaluations: rep.evaluations,
+        restarts: 0,
         trajectory,
     })
 }
@@ -704,7 +708,7 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
         return Err(FitError::TooShort(n_fit));
     }
     let fit_offset = offset_identifiable(&test.dof);
-    let init = initial::inverse_dynamics(
+    let init = initial::first_estimate(
         &test.dof,
         &test.t_s,
         &test.y,
@@ -722,11 +726,8 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
         spec.input_offset = Some(0.0);
     }
     let first = fit_window(test, start, n_fit, &spec, &init, opts)?;
-    // Stick–slip makes the cost piecewise: which reversal sticks jumps with the parameters, and
-    // the time at rest weighs in. A fit that leaves a structured residual may sit in the wrong
-    // piece: restart from the other sides of the first estimate and keep the best.
-    // Trigger: the residual is structured (Ljung–Box) or its RMS exceeds the sensor noise
-    // (from first differences) by more than 8 %.
+    // A first fit that leaves a structured residual, or one above the noise, may sit in the
+    // wrong stick–slip piece: restarted ([`restart::from_grid`]).
     // Not for a record its measured input drives to the end (issue 38): its motion follows the
     // input, not where a free decay comes to rest, and the input's own noise carried through the
     // model leaves a residual that is never white over a long record, so the trigger fired on
@@ -737,76 +738,5 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
     if driven_to_the_end(test, start) {
         return Ok(first);
     }
-    // A fit is accepted when its residual is white and at the sensor's noise.
-    let accepted = |f: &FitOutcome| {
-        crate::numerics::stats::is_white(&f.residual)
-            && f.rmse <= 1.08 * crate::numerics::stats::noise_sigma(&f.residual)
-    };
-    if accepted(&first) {
-        return Ok(first);
-    }
-    // A small grid around the first estimate (its viscous part is the less certain one),
-    // fitted from the start whose simulated motion is closest to the record first (one plain
-    // simulation per start), and stopped at the first restart that improves on the best so far
-    // and passes the test the first fit failed: the rest of the grid could only find another
-    // piece whose residual is also white at the noise (issue 38: the grid in its fixed order
-    // cost twelve more fits whenever the first fit missed; a 30 s slider record, 122 model
-    // evaluations for a fit of three).
-    let mut starts: Vec<(f64, InitialEstimate)> = Vec::with_capacity(12);
-    for fv in [0.6, 0.8, 1.25, 1.6] {
-        for fd in [0.9, 1.1, 1.25] {
-            let mut start_at = init;
-            start_at.viscous = (init.viscous * fv).max(1e-9);
-            start_at.dry = (init.dry * fd).max(1e-9);
-            starts.push((
-                start_cost(test, start, n_fit, &spec, &start_at, opts),
-                start_at,
-            ));
-        }
-    }
-    starts.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut best = first;
-    for (_, start_at) in &starts {
-        if let Ok(f) = fit_window(test, start, n_fit, &spec, start_at, opts)
-            && f.rmse < best.rmse * (1.0 - 1e-6)
-        {
-            let done = accepted(&f);
-            best = f;
-            if done {
-                break;
-            }
-        }
-    }
-    Ok(best)
-}
-
-/// The sum of squared residuals of the model at the starting point `at` (a plain simulation, no
-/// sensitivities); infinite when it cannot be simulated.
-fn start_cost(
-    test: &JointTest,
-    start: usize,
-    n_fit: usize,
-    spec: &FitSpec,
-    at: &InitialEstimate,
-    opts: &FitOptions,
-) -> f64 {
-    let prob = OutputError::new(test, start, n_fit, spec, opts);
-    let x = lm::project(&prob, &start_vector(&prob.params, spec, at));
-    let (law, q0, v0, ro, body) = prob.unpack(&x);
-    let sim = SimOptions {
-        tol: opts.tol,
-        sens: vec![],
-    };
-    let dof = body.apply(&test.dof);
-    match readout::read(
-        &dof, &law, q0, v0, &ro, prob.times, &sim, test.scale, false, false,
-    ) {
-        Ok(rd) => {
-            rd.y.iter()
-                .zip(prob.y)
-                .map(|(m, y)| (m - y) * (m - y))
-                .sum()
-        }
-        Err(_) => f64::INFINITY,
-    }
+    Ok(restart::from_grid(test, start, n_fit, &spec, &init, opts, first))
 }
