@@ -224,9 +224,9 @@ impl Dof {
     ) -> Result<Accel, Indeterminate> {
         let m_gen = self.inertia();
         let lever = self.lever();
-        let (g, g_q, _) = self.load(q, t);
         match self.mech {
             Mechanism::Slider(r) => {
+                let (g, g_q, _) = self.load(q, t);
                 // Fn is constant: the equation is linear in a.
                 let fr = law.eval(q, v, s, r.normal_force_n, lever);
                 let a = (g - fr.value) / m_gen;
@@ -249,6 +249,12 @@ impl Dof {
                 // condition for a unique acceleration.
                 let (m, gr, d) = (r.mass_kg, r.gravity_m_s2, r.com_distance_m);
                 let (sq, cq) = q.sin_cos();
+                // `load`'s G and ∂G/∂q from the same sine and cosine (one sincos per state,
+                // not two: session 21).
+                let (f, _) = self.input.as_ref().map_or((0.0, 0.0), |i| i.at(t));
+                let mgd = r.mass_kg * r.gravity_m_s2 * r.com_distance_m;
+                let g = -mgd * sq - self.torsion * q + f;
+                let g_q = -mgd * cq - self.torsion;
                 let (md, mg) = (m * d, m * gr);
                 let (p, y) = (mg * sq, md * v * v + mg * cq);
                 let fr0 = law.eval(q, v, s, 0.0, lever);

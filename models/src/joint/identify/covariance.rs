@@ -42,6 +42,24 @@ fn pinv_sym(a: &DMatrix<f64>) -> DMatrix<f64> {
         .unwrap_or_else(|_| DMatrix::zeros(a.nrows(), a.ncols()))
 }
 
+/// Σ aₖ·bₖ over two equal-length slices, in four interleaved partial sums (vectorisable).
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
 /// Covariance of the least-squares estimate at its optimum.
 pub fn sandwich(jac: &DMatrix<f64>, r: &[f64]) -> Covariance {
     let (n, p) = (jac.nrows(), jac.ncols());
@@ -68,38 +86,29 @@ pub fn sandwich(jac: &DMatrix<f64>, r: &[f64]) -> Covariance {
     let alpha = 4.0 * rho1 * rho1 / ((1.0 - rho1).powi(2) * (1.0 + rho1).powi(2));
     let batch = ((1.1447 * (alpha * n as f64).cbrt()).ceil() as usize).clamp(1, (n / 5).max(1));
 
-    // Overlapping batch means of the scores via prefix sums: S = n/(n−b+1) · (1/b) Σⱼ BⱼBⱼᵀ.
-    // Over contiguous slices, without index arithmetic and bounds checks per term (issue 38:
-    // this was a sixth of a pendulum's identification); the same sums in the same order as the
-    // indexed loops before, so the same matrix to the bit.
-    let mut prefix = vec![0.0; (n + 1) * p];
-    for (j, col) in jac.as_slice().chunks_exact(n.max(1)).enumerate() {
+    // Overlapping batch means of the scores via prefix sums: S = n/(n−b+1) · (1/b) Σⱼ BⱼBⱼᵀ,
+    // as BᵀB with B the (n−b+1)×p matrix of the batch sums, one column per parameter: p column
+    // passes and p(p+1)/2 dot products over contiguous slices (issue 38, session 21: the sum
+    // over batches, each adding its p(p+1)/2 products, was a seventh of a pendulum's
+    // identification; the same sums, added in another order).
+    let nb = n + 1 - batch;
+    let mut sums = Vec::with_capacity(nb * p);
+    let mut prefix = Vec::with_capacity(n + 1);
+    for col in jac.as_slice().chunks_exact(n.max(1)) {
+        prefix.clear();
+        prefix.push(0.0);
         let mut acc = 0.0;
-        let out = &mut prefix[j * (n + 1)..(j + 1) * (n + 1)];
-        for ((o, jk), rk) in out[1..].iter_mut().zip(col).zip(r) {
+        for (jk, rk) in col.iter().zip(r) {
             acc += jk * rk;
-            *o = acc;
+            prefix.push(acc);
         }
-    }
-    // Upper triangle of S, row-major: s_up[a·p + b], b ≥ a.
-    let mut s_up = vec![0.0; p * p];
-    let mut bsum = vec![0.0; p];
-    for start in 0..=(n - batch) {
-        for (j, b) in bsum.iter_mut().enumerate() {
-            let col = &prefix[j * (n + 1)..];
-            *b = col[start + batch] - col[start];
-        }
-        for a in 0..p {
-            let ba = bsum[a];
-            for (sab, bb) in s_up[a * p + a..(a + 1) * p].iter_mut().zip(&bsum[a..]) {
-                *sab += ba * bb;
-            }
-        }
+        sums.extend(prefix[batch..].iter().zip(&prefix[..nb]).map(|(hi, lo)| hi - lo));
     }
     let mut s = DMatrix::<f64>::zeros(p, p);
+    let cols: Vec<&[f64]> = sums.chunks_exact(nb.max(1)).collect();
     for a in 0..p {
         for b in a..p {
-            s[(a, b)] = s_up[a * p + b];
+            s[(a, b)] = dot(cols[a], cols[b]);
         }
     }
     let scale = n as f64 / ((n - batch + 1) as f64 * batch as f64) * (n as f64 / dof);
