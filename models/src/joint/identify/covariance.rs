@@ -5,7 +5,7 @@
 //! with the batch length from Andrews' AR(1) plug-in rule. White residuals give batch length 1
 //! and the classical s²(JᵀJ)⁻¹ up to noise; a misfit's slow residual widens the intervals.
 
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVectorView};
 
 /// The covariance and how it was formed.
 #[derive(Debug, Clone)]
@@ -42,22 +42,10 @@ fn pinv_sym(a: &DMatrix<f64>) -> DMatrix<f64> {
         .unwrap_or_else(|_| DMatrix::zeros(a.nrows(), a.ncols()))
 }
 
-/// Σ aₖ·bₖ over two equal-length slices, in four interleaved partial sums (vectorisable).
+/// Σ aₖ·bₖ over two slices (the shorter's length): nalgebra's dot over views of them.
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut acc = [0.0f64; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = ca
-        .remainder()
-        .iter()
-        .zip(cb.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in ca.zip(cb) {
-        for i in 0..4 {
-            acc[i] += x[i] * y[i];
-        }
-    }
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+    let n = a.len().min(b.len());
+    DVectorView::from_slice(&a[..n], n).dot(&DVectorView::from_slice(&b[..n], n))
 }
 
 /// Covariance of the least-squares estimate at its optimum.
