@@ -260,6 +260,66 @@ fn main() {
         );
         return;
     }
+    if args.first().map(String::as_str) == Some("--driven") {
+        // --driven SAMPLES: the bench's input-driven axis (`bench::scaling::driven_axis`, seed
+        // 38) of that length, identified and then fitted with the residual loop.
+        let samples: usize = args[1].parse().unwrap();
+        let axis = pantowatch_models::synth::DrivenAxis {
+            moving_mass_kg: 8.0,
+            viscous: 204.0,
+            normal_force_n: 40.8,
+            dry: 0.5,
+            input_offset_n: -3.2,
+            force_n: 150.0,
+            fs_hz: 1000.0,
+            duration_s: (samples.max(2) - 1) as f64 / 1000.0,
+            force_noise_n: 0.2,
+            force_step_n: 0.05,
+            position_noise_mm: 0.05,
+            position_step_mm: 0.01,
+            seed: 38,
+        };
+        let test = axis.record().unwrap();
+        let opts = FitOptions::default();
+        let t0 = Instant::now();
+        let base = fit_base(&test, &opts).unwrap();
+        let t_id = t0.elapsed().as_secs_f64();
+        let b = pantowatch_models::testspec::Baseline {
+            joint: "custom".into(),
+            viscous: None,
+            dry: None,
+            viscous_unit: "N·s/m",
+        };
+        let t0 = Instant::now();
+        let (result, fit, finding) = pantowatch_models::fit_joint_test_with_finding(
+            &test,
+            &b,
+            &pantowatch_models::drift::DriftThresholds::default(),
+            "probe",
+            &opts,
+        )
+        .unwrap();
+        let t_loop = t0.elapsed().as_secs_f64();
+        println!(
+            "identification {:.1} ms (viscous {:.6}, dry {:.6}, ev {}); with the loop {:.1} ms",
+            1e3 * t_id,
+            base.law.viscous,
+            base.law.dry,
+            base.evaluations,
+            1e3 * t_loop
+        );
+        println!(
+            "reported viscous {:.6} ± {:.3e} dry {:.6} ± {:.3e}; verdict {:?}",
+            fit.law.viscous, fit.std[0], fit.law.dry, fit.std[1], result.residual
+        );
+        for c in &finding.candidates {
+            println!(
+                "  {:?} score {:?} rmse {:.6} holdout {:.6} accepted {} ({})",
+                c.effects, c.score, c.rmse_fit, c.rmse_holdout, c.accepted, c.reason
+            );
+        }
+        return;
+    }
     if args.first().map(String::as_str) == Some("--measured-like") {
         measured_like();
         return;

@@ -17,7 +17,9 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::{BodyTerms, FitOptions, FitOutcome, JointTest, intervals, lower_bounds_of, readout};
 use crate::joint::dynamics::Dof;
+use crate::joint::simulate::SimOptions;
 
 /// Noise draws per fit: one plain simulation each (a single-joint run: ~1 ms).
 pub const DRAWS: usize = 16;
@@ -78,6 +80,48 @@ pub fn covariance(
         used += 1;
     }
     (used > 0).then(|| sum / used as f64)
+}
+
+/// `fit` with its measured input's share of the covariance ([`covariance`]) added and its
+/// standard errors and intervals derived again, when [`super::fit_window_deferred`] left it
+/// pending; else `fit` as it is. The same draws, hence the same covariance, as a fit that added
+/// it at once.
+pub fn carry(test: &JointTest, mut fit: FitOutcome, opts: &FitOptions) -> FitOutcome {
+    let Some(jac) = fit.pending_jacobian.take() else {
+        return fit;
+    };
+    let adjusted = BodyTerms {
+        inertia_log: fit.inertia_log,
+        input_offset: fit.input_offset,
+    }
+    .apply(&test.dof);
+    let times = &test.t_s[fit.start..fit.start + fit.n_fit];
+    let sim = SimOptions {
+        tol: opts.tol,
+        sens: vec![],
+    };
+    let run = |d: &Dof| {
+        readout::read(
+            d,
+            &fit.law,
+            fit.q0,
+            fit.v0,
+            &fit.readout,
+            times,
+            &sim,
+            test.scale,
+            false,
+            false,
+        )
+        .ok()
+        .map(|r| r.y)
+    };
+    if let Some(extra) = covariance(&adjusted, &jac, &fit.model_y, run) {
+        fit.covariance.cov += extra;
+        let lb = lower_bounds_of(&fit.spec_params);
+        (fit.std, fit.ci95) = intervals(&fit.values, &fit.covariance, &lb);
+    }
+    fit
 }
 
 #[cfg(test)]

@@ -207,6 +207,9 @@ pub struct FitOutcome {
     pub evaluations: usize,
     /// Restart fits run after the first ([`restart::from_grid`]); 0 when the first was kept.
     pub restarts: usize,
+    /// The Jacobian at the optimum while a measured input's share of the covariance is still
+    /// to be added ([`fit_window_deferred`], [`input_noise::carry`]); None once it is.
+    pub pending_jacobian: Option<DMatrix<f64>>,
     pub trajectory: Trajectory,
 }
 
@@ -370,23 +373,28 @@ impl lm::Problem for OutputError<'_> {
             .collect()
     }
     fn lower_bounds(&self) -> Vec<f64> {
-        // Friction is dissipative: coefficients ≥ 0; a Stribeck ratio ≥ 0 and speed > 0.
-        self.params
-            .iter()
-            .map(|p| match p {
-                Param::Dyn(DynParam::StribeckSpeed) => 1e-4,
-                // A Stribeck hump: static friction above the Coulomb level.
-                Param::Dyn(DynParam::StribeckRatio) => 1.0,
-                // Position friction: the factor 1 + c at a knot is ≥ 0 (friction never drives).
-                Param::Dyn(DynParam::Position(_)) => -1.0,
-                // μ± = μ·(1 ± δ) ≥ 0 both ways.
-                Param::Dyn(DynParam::DryAsymmetry) => -1.0,
-                Param::Dyn(_) => 0.0,
-                Param::Backlash => 0.0,
-                _ => f64::NEG_INFINITY,
-            })
-            .collect()
+        lower_bounds_of(&self.params)
     }
+}
+
+/// The parameters' lower bounds. Friction is dissipative: coefficients ≥ 0; a Stribeck ratio
+/// ≥ 1 and speed > 0.
+fn lower_bounds_of(params: &[Param]) -> Vec<f64> {
+    params
+        .iter()
+        .map(|p| match p {
+            Param::Dyn(DynParam::StribeckSpeed) => 1e-4,
+            // A Stribeck hump: static friction above the Coulomb level.
+            Param::Dyn(DynParam::StribeckRatio) => 1.0,
+            // Position friction: the factor 1 + c at a knot is ≥ 0 (friction never drives).
+            Param::Dyn(DynParam::Position(_)) => -1.0,
+            // μ± = μ·(1 ± δ) ≥ 0 both ways.
+            Param::Dyn(DynParam::DryAsymmetry) => -1.0,
+            Param::Dyn(_) => 0.0,
+            Param::Backlash => 0.0,
+            _ => f64::NEG_INFINITY,
+        })
+        .collect()
 }
 
 /// The Jacobian of the readings with respect to `spec.params()` at the starting point `init`
@@ -449,6 +457,24 @@ pub fn fit_window(
     init: &InitialEstimate,
     opts: &FitOptions,
 ) -> Result<FitOutcome, FitError> {
+    let fit = fit_window_deferred(test, start, n_fit, spec, init, opts)?;
+    Ok(input_noise::carry(test, fit, opts))
+}
+
+/// [`fit_window`] with a measured input's share of the covariance left for
+/// [`input_noise::carry`] (its Jacobian kept in `pending_jacobian`): for fits of which only
+/// the values and residual are read — the best of several starts before it is chosen, the
+/// residual loop's base split (issue 38, session 21: sixteen simulations per fit, a fifth of a
+/// 25k-sample input-driven record's loop spent on intervals no one read). Without an input
+/// it is [`fit_window`].
+pub fn fit_window_deferred(
+    test: &JointTest,
+    start: usize,
+    n_fit: usize,
+    spec: &FitSpec,
+    init: &InitialEstimate,
+    opts: &FitOptions,
+) -> Result<FitOutcome, FitError> {
     if n_fit < 20 {
         return Err(FitError::TooShort(n_fit));
     }
@@ -460,25 +486,7 @@ pub fn fit_window(
     if let Termination::EvaluationFailed(e) = &rep.termination {
         return Err(FitError::Start(e.clone()));
     }
-    let mut cov = covariance::sandwich(&rep.jacobian, &rep.residuals);
-    // A measured input's noise (issue 17, point 3): the parameters' share of it, added.
-    if test.dof.input.is_some() {
-        let (law, q0, v0, ro, body) = prob.unpack(&rep.x);
-        let adjusted = body.apply(&test.dof);
-        let sim = SimOptions {
-            tol: opts.tol,
-            sens: vec![],
-        };
-        let run = |d: &Dof| {
-            readout::read(d, &law, q0, v0, &ro, times, &sim, test.scale, false, false)
-                .ok()
-                .map(|r| r.y)
-        };
-        let y0: Vec<f64> = rep.residuals.iter().zip(y).map(|(r, y)| r + y).collect();
-        if let Some(extra) = input_noise::covariance(&adjusted, &rep.jacobian, &y0, run) {
-            cov.cov += extra;
-        }
-    }
+    let cov = covariance::sandwich(&rep.jacobian, &rep.residuals);
     let lb = lm::Problem::lower_bounds(&prob);
     let (std, ci95) = intervals(&rep.x, &cov, &lb);
     let (law, q0, v0, readout, body) = prob.unpack(&rep.x);
@@ -526,6 +534,7 @@ pub fn fit_window(
         iterations: rep.iterations,
         evaluations: rep.evaluations,
         restarts: 0,
+        pending_jacobian: test.dof.input.is_some().then_some(rep.jacobian),
         trajectory,
     })
 }
@@ -580,7 +589,7 @@ pub fn carry_body_uncertainty(test: &JointTest, fit: FitOutcome, opts: &FitOptio
             body_sd: Vec::new(),
             ..test.clone()
         };
-        fit_window(&moved, fit.start, fit.n_fit, &spec, &at, opts)
+        fit_window_deferred(&moved, fit.start, fit.n_fit, &spec, &at, opts)
             .ok()
             .map(|f| f.values)
             .filter(|v| v.len() == fit.values.len())
@@ -725,7 +734,7 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
     if test.dof.input.is_some() && !fit_offset {
         spec.input_offset = Some(0.0);
     }
-    let first = fit_window(test, start, n_fit, &spec, &init, opts)?;
+    let first = fit_window_deferred(test, start, n_fit, &spec, &init, opts)?;
     // A first fit that leaves a structured residual, or one above the noise, may sit in the
     // wrong stick–slip piece: restarted ([`restart::from_grid`]).
     // Not for a record its measured input drives to the end (issue 38): its motion follows the
@@ -735,8 +744,10 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
     // (1–5 kHz, 5–60 s, `synth::DrivenAxis`): every one of the twelve restarts came back to the
     // first fit's optimum (RMSE within 1e-10 of it). A head drop (a pull released, then a free
     // decay) keeps the restarts.
-    if driven_to_the_end(test, start) {
-        return Ok(first);
-    }
-    Ok(restart::from_grid(test, start, n_fit, &spec, &init, opts, first))
+    let best = if driven_to_the_end(test, start) {
+        first
+    } else {
+        restart::from_grid(test, start, n_fit, &spec, &init, opts, first)
+    };
+    Ok(input_noise::carry(test, best, opts))
 }

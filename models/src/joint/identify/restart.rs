@@ -2,7 +2,7 @@
 //! a small grid around the first estimate, tried from the start closest to the record first.
 
 use super::{
-    FitOptions, FitOutcome, FitSpec, InitialEstimate, JointTest, OutputError, fit_window, lm,
+    FitOptions, FitOutcome, FitSpec, InitialEstimate, JointTest, OutputError, fit_window_deferred, lm,
     readout, start_vector,
 };
 use crate::joint::simulate::SimOptions;
@@ -15,7 +15,8 @@ pub fn accepted(f: &FitOutcome) -> bool {
 }
 
 /// `first` when [`accepted`]; else the best of `first` and the restarts (its `restarts` the
-/// number of restart fits run).
+/// number of restart fits run). The fits are [`super::fit_window_deferred`]'s: the caller
+/// carries the input's noise into the one it keeps.
 ///
 /// Stick–slip makes the cost piecewise: which reversal sticks jumps with the parameters, and
 /// the time at rest weighs in. A fit that leaves a structured residual may sit in the wrong
@@ -55,7 +56,7 @@ pub(super) fn from_grid(
     let mut restarts = 0;
     for (_, start_at) in &starts {
         restarts += 1;
-        if let Ok(f) = fit_window(test, start, n_fit, spec, start_at, opts)
+        if let Ok(f) = fit_window_deferred(test, start, n_fit, spec, start_at, opts)
             && f.rmse < best.rmse * (1.0 - 1e-6)
         {
             let done = accepted(&f);

@@ -38,6 +38,7 @@ use crate::contract::report::{EffectResult, ResidualResult};
 use crate::joint::friction::{DynParam, FrictionLaw, PositionFriction};
 use crate::joint::identify::{
     FitError, FitOptions, FitOutcome, FitSpec, InitialEstimate, JointTest, Param, fit_window,
+    fit_window_deferred,
     predict,
 };
 
@@ -148,6 +149,13 @@ pub fn split_fit(
     split_fit_from(test, warm.start, &init_from(warm), spec, opts)
 }
 
+/// `sp` with its measured input's share of the covariance carried into its fit
+/// ([`crate::joint::identify::input_noise::carry`]): a split whose intervals are read.
+fn carried(test: &JointTest, mut sp: Split, opts: &FitOptions) -> Split {
+    sp.fit = crate::joint::identify::input_noise::carry(test, sp.fit, opts);
+    sp
+}
+
 /// Samples of the fitted part of the split for free motion from `start`.
 fn split_len(test: &JointTest, start: usize) -> usize {
     let n = test.t_s.len() - start;
@@ -163,7 +171,9 @@ fn split_fit_from(
     opts: &FitOptions,
 ) -> Result<Split, FitError> {
     let n_fit = split_len(test, start);
-    let fit = fit_window(test, start, n_fit, spec, init, opts)?;
+    // A measured input's share of the covariance only where intervals are read: the effects'
+    // fits, once chosen ([`carried`]).
+    let fit = fit_window_deferred(test, start, n_fit, spec, init, opts)?;
     let prediction = predict(test, &fit, test.t_s.len(), opts)?;
     let rmse_holdout = rmse(&prediction[n_fit..], &test.y[start + n_fit..]);
     Ok(Split {
@@ -397,7 +407,7 @@ pub fn analyse(
             }
             let mut spec = base.clone();
             e.add_to(&mut spec, &sc, false);
-            let c = match single_fit(test, &base_split.fit, &spec, *e, opts) {
+            let c = match single_fit(test, &base_split.fit, &spec, *e, opts).map(|sp| carried(test, sp, opts)) {
                 Ok(sp) => {
                     let (ok, reason) = judge(&sp, &base_split, bic_base, &[*e]);
                     let c = Candidate {
@@ -448,7 +458,7 @@ pub fn analyse(
                 .into_iter()
                 .flatten()
                 .min_by(|a, b| a.rmse_fit.total_cmp(&b.rmse_fit));
-            if let Some(sp) = pair {
+            if let Some(sp) = pair.map(|sp| carried(test, sp, opts)) {
                 let effs = vec![first[0], *e2];
                 let (ok, reason) = if sp.rmse_fit > best.rmse_fit * (1.0 + 1e-9) {
                     (
