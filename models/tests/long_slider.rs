@@ -13,7 +13,13 @@ use pantowatch_models::synth::{Sensor, Truth, grid, measure_truth};
 /// Fn 4.05 N), Table 4's friction (viscous 3.99 N·s/m, μ 0.5), released from 18.33 mm; the
 /// stand's 0.05 mm noise and the logger's 0.01 mm steps.
 fn record(fs_hz: f64, duration_s: f64, seed: u64) -> JointTest {
-    record_with(fs_hz, duration_s, seed, FrictionLaw::base(3.99, 0.5), 0.01833)
+    record_with(
+        fs_hz,
+        duration_s,
+        seed,
+        FrictionLaw::base(3.99, 0.5),
+        0.01833,
+    )
 }
 
 /// As [`record`], with the friction `law` and the release deflection `q0_m` given.
@@ -110,6 +116,9 @@ fn the_first_fit_lands_at_the_truth_without_a_restart() {
         }
     }
     let rate = covered as f64 / total as f64;
-    assert!(rate >= 0.88, "95 % intervals cover {rate:.3} (worst {worst:.2} sd)");
+    assert!(
+        rate >= 0.88,
+        "95 % intervals cover {rate:.3} (worst {worst:.2} sd)"
+    );
     eprintln!("covered {covered} of {total}, worst {worst:.2} sd");
 }

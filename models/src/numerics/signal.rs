@@ -153,7 +153,10 @@ pub fn half_window(t: &[f64], seconds: f64) -> usize {
     // calls per fit were 3.5 % of a pendulum's identification).
     let n = t.len();
     let mean = (t[n - 1] - t[0]) / (n - 1) as f64;
-    if mean > 0.0 && t.windows(2).all(|w| ((w[1] - w[0]) - mean).abs() <= 1e-6 * mean) {
+    if mean > 0.0
+        && t.windows(2)
+            .all(|w| ((w[1] - w[0]) - mean).abs() <= 1e-6 * mean)
+    {
         return ((seconds / 2.0 / mean).round() as usize).clamp(2, n / 2);
     }
     let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();

@@ -90,7 +90,12 @@ pub fn sandwich(jac: &DMatrix<f64>, r: &[f64]) -> Covariance {
             acc += jk * rk;
             prefix.push(acc);
         }
-        sums.extend(prefix[batch..].iter().zip(&prefix[..nb]).map(|(hi, lo)| hi - lo));
+        sums.extend(
+            prefix[batch..]
+                .iter()
+                .zip(&prefix[..nb])
+                .map(|(hi, lo)| hi - lo),
+        );
     }
     let mut s = DMatrix::<f64>::zeros(p, p);
     let cols: Vec<&[f64]> = sums.chunks_exact(nb.max(1)).collect();

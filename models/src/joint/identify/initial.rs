@@ -101,7 +101,6 @@ pub fn inverse_dynamics(
     est
 }
 
-
 /// Local-cubic (t, q, v, a) in model units at samples `half, half + stride, …` below `end`, and
 /// the largest |v| among them.
 fn points(
@@ -172,7 +171,14 @@ pub fn energy_balance(
     let end = n.saturating_sub(half);
     let (pts, vmax) = points(t, y, scale, half, end, stride);
     let until = moving_until(&pts, vmax, half, stride, end);
-    let (pts, _) = points(t, y, scale, half, until, (until.saturating_sub(half) / 1600).max(1));
+    let (pts, _) = points(
+        t,
+        y,
+        scale,
+        half,
+        until,
+        (until.saturating_sub(half) / 1600).max(1),
+    );
     if pts.len() < 20 || !(vmax > 0.0) {
         return None;
     }

@@ -2,8 +2,8 @@
 //! a small grid around the first estimate, tried from the start closest to the record first.
 
 use super::{
-    FitOptions, FitOutcome, FitSpec, InitialEstimate, JointTest, OutputError, fit_window_deferred, lm,
-    readout, start_vector,
+    FitOptions, FitOutcome, FitSpec, InitialEstimate, JointTest, OutputError, fit_window_deferred,
+    lm, readout, start_vector,
 };
 use crate::joint::simulate::SimOptions;
 

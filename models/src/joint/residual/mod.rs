@@ -38,8 +38,7 @@ use crate::contract::report::{EffectResult, ResidualResult};
 use crate::joint::friction::{DynParam, FrictionLaw, PositionFriction};
 use crate::joint::identify::{
     FitError, FitOptions, FitOutcome, FitSpec, InitialEstimate, JointTest, Param, fit_window,
-    fit_window_deferred,
-    predict,
+    fit_window_deferred, predict,
 };
 
 pub const HOLDOUT_FRACTION: f64 = 0.25;
@@ -407,7 +406,9 @@ pub fn analyse(
             }
             let mut spec = base.clone();
             e.add_to(&mut spec, &sc, false);
-            let c = match single_fit(test, &base_split.fit, &spec, *e, opts).map(|sp| carried(test, sp, opts)) {
+            let c = match single_fit(test, &base_split.fit, &spec, *e, opts)
+                .map(|sp| carried(test, sp, opts))
+            {
                 Ok(sp) => {
                     let (ok, reason) = judge(&sp, &base_split, bic_base, &[*e]);
                     let c = Candidate {
