@@ -162,7 +162,7 @@ pub fn energy_balance(
     let (t, y) = (t.get(start..)?, y.get(start..)?);
     let n = t.len();
     let stiffness = -dof.load(0.0, 0.0).1;
-    if n < 40 || !(stiffness > 0.0) {
+    if n < 40 || stiffness.is_nan() || stiffness <= 0.0 {
         return None;
     }
     let duration = t[n - 1] - t[0];
@@ -179,7 +179,7 @@ pub fn energy_balance(
         until,
         (until.saturating_sub(half) / 1600).max(1),
     );
-    if pts.len() < 20 || !(vmax > 0.0) {
+    if pts.len() < 20 || vmax.is_nan() || vmax <= 0.0 {
         return None;
     }
     let (mass, normal) = (dof.inertia(), dof.lever() * dof.normal_at_rest(0.0));
