@@ -88,6 +88,9 @@ pub struct FleetIndex {
     entries: Vec<PantographIndex>,
 }
 
+/// A (joint, param, information) an option informs, before it is resolved to an index.
+type Informs<'a> = (&'a str, &'a str, f64);
+
 /// One pantograph's index from its rows (as `evidence::pantograph_evidence` and
 /// `evidence::plan_of` read them).
 fn pantograph(
@@ -163,7 +166,7 @@ fn pantograph(
     }
     // The options, as `evidence::plan_of` builds them: this pantograph's own last test of a
     // kind, else the fleet's mean; grouped by (kind, swung joint), informs by (joint, param).
-    let mut by_kind: BTreeMap<(String, Option<String>), Vec<(&str, &str, f64)>> = BTreeMap::new();
+    let mut by_kind: BTreeMap<(String, Option<String>), Vec<Informs>> = BTreeMap::new();
     for ((kind, joint, param), fleet_info) in fleet {
         let info = rows
             .iter()

@@ -165,7 +165,7 @@ pub fn yearly_joint(k: usize, s: usize) -> &'static str {
 /// (pendulums, then the slider), or none when it has no session that month: every third month,
 /// staggered across the fleet.
 pub fn session_joints(k: usize, m: usize) -> Vec<&'static str> {
-    if (m + k) % 3 != 0 {
+    if !(m + k).is_multiple_of(3) {
         return Vec::new();
     }
     let yearly = yearly_joint(k, m / 3);
