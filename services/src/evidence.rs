@@ -18,7 +18,6 @@
 //!   `[test_plan] max_evidence_age_days` for it (`test_due`).
 
 use std::collections::{BTreeMap, HashMap};
-use std::sync::{Arc, Mutex};
 
 use chrono::{DateTime, Utc};
 use pantowatch_models::data::{PantographType, TestPlanData, builtin};
@@ -136,7 +135,7 @@ pub struct FleetPlan {
 }
 
 /// Single-joint test kinds: a swing of one joint informs that joint.
-const JOINT_KINDS: [&str; 2] = ["pendulum", "slider"];
+pub(crate) const JOINT_KINDS: [&str; 2] = ["pendulum", "slider"];
 
 /// The type's plan data, if any.
 fn plan_data(t: &PantographType) -> Option<&TestPlanData> {
@@ -152,7 +151,7 @@ pub fn fleet_rate(t: &PantographType, baseline: f64) -> WearRate {
     )
 }
 
-fn baseline_of(t: &PantographType, joint: &str, p: Param) -> Option<f64> {
+pub(crate) fn baseline_of(t: &PantographType, joint: &str, p: Param) -> Option<f64> {
     let j = t.joint(joint)?;
     let b = match p {
         Param::Viscous => j.viscous_baseline(),
@@ -161,7 +160,7 @@ fn baseline_of(t: &PantographType, joint: &str, p: Param) -> Option<f64> {
     (b.is_finite() && b > 0.0).then_some(b)
 }
 
-fn days(from: DateTime<Utc>, to: DateTime<Utc>) -> f64 {
+pub(crate) fn days(from: DateTime<Utc>, to: DateTime<Utc>) -> f64 {
     ((to - from).num_milliseconds() as f64 / 86_400_000.0).max(0.0)
 }
 
@@ -524,68 +523,4 @@ pub async fn at_newest_test(
     };
     let own: Vec<&EvidenceRow> = rows.iter().collect();
     Ok(Some(pantograph_evidence(serial, t, &own, at)))
-}
-
-/// The fleet's evidence rows and the last fleet plan computed from them, kept in memory until
-/// the store's evidence version moves (a fit's refresh or trends): the fleet plan reads 16–40
-/// rows per pantograph, which costs more than the plan itself. One entry; a plan for another
-/// `at` is computed from the kept rows.
-#[derive(Debug, Clone, Default)]
-pub struct PlanCache(Arc<Mutex<Option<CachedPlan>>>);
-
-#[derive(Debug)]
-struct CachedPlan {
-    version: i64,
-    rows: Arc<Vec<EvidenceRow>>,
-    fleet: Arc<KindInformation>,
-    plan: Option<(DateTime<Utc>, Arc<FleetPlan>)>,
-}
-
-impl PlanCache {
-    /// The fleet plan at `at` (every test, best first; the caller truncates), from the kept rows
-    /// while the evidence version stands, else read again.
-    pub async fn fleet_plan(
-        &self,
-        store: &Store,
-        at: DateTime<Utc>,
-    ) -> Result<Arc<FleetPlan>, StoreError> {
-        let version = store.evidence_version().await?;
-        let rows = {
-            let g = self.0.lock().unwrap_or_else(|e| e.into_inner());
-            match g.as_ref() {
-                Some(c) if c.version == version => {
-                    if let Some((t, p)) = &c.plan
-                        && *t == at
-                    {
-                        return Ok(p.clone());
-                    }
-                    Some((c.rows.clone(), c.fleet.clone()))
-                }
-                _ => None,
-            }
-        };
-        let (rows, fleet) = match rows {
-            Some(r) => r,
-            None => {
-                let rows = Arc::new(store.param_evidence(None).await?);
-                let fleet = Arc::new(kind_information(&rows));
-                (rows, fleet)
-            }
-        };
-        let plan = {
-            let (rows, fleet) = (rows.clone(), fleet.clone());
-            tokio::task::spawn_blocking(move || fleet_plan_with(&rows, &fleet, at, usize::MAX))
-                .await
-                .map_err(|e| StoreError::Task(e.to_string()))?
-        };
-        let plan = Arc::new(plan);
-        let mut g = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        *g = Some(CachedPlan {
-            version,
-            rows,
-            fleet,
-            plan: Some((at, plan.clone())),
-        });
-        Ok(plan)
-    }
 }

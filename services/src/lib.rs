@@ -12,6 +12,7 @@ pub mod health;
 pub mod ids;
 pub mod ingest;
 pub mod json_keys;
+pub mod plan_index;
 pub mod plot;
 pub mod pooled;
 pub mod server;

@@ -39,21 +39,31 @@ pub struct ParamNow {
 impl ParamNow {
     /// Probability of a crossing its last test did not show (the module's rule).
     pub fn p_unseen(&self, th: &DriftThresholds) -> f64 {
-        let [w, a] = self.p_past(th);
-        match self.seen {
-            Status::Unknown | Status::Ok => w,
-            Status::Watch => a,
-            Status::Alarm => 0.0,
-        }
+        p_unseen_of(self.seen, self.p_past(th))
     }
 
     /// Probabilities past the watch and the alarm band (`[p_watch, p_alarm]`).
     pub fn p_past(&self, th: &DriftThresholds) -> [f64; 2] {
-        let band = |b: [f64; 2]| [b[0] * self.baseline, b[1] * self.baseline];
-        [
-            self.belief.p_outside(band(th.watch)),
-            self.belief.p_outside(band(th.alarm)),
-        ]
+        p_past(&self.belief, self.baseline, th)
+    }
+}
+
+/// [`ParamNow::p_past`] of a belief about a parameter with this `baseline` (the bands × the
+/// baseline): `[p_watch, p_alarm]`.
+pub fn p_past(belief: &Belief, baseline: f64, th: &DriftThresholds) -> [f64; 2] {
+    let band = |b: [f64; 2]| [b[0] * baseline, b[1] * baseline];
+    [
+        belief.p_outside(band(th.watch)),
+        belief.p_outside(band(th.alarm)),
+    ]
+}
+
+/// [`ParamNow::p_unseen`] from `[p_watch, p_alarm]` and the status its last test gave.
+pub fn p_unseen_of(seen: Status, [p_watch, p_alarm]: [f64; 2]) -> f64 {
+    match seen {
+        Status::Unknown | Status::Ok => p_watch,
+        Status::Watch => p_alarm,
+        Status::Alarm => 0.0,
     }
 }
 

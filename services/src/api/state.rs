@@ -37,7 +37,7 @@ pub struct AppState {
     /// Origins answered with CORS headers (empty: none).
     pub cors_origins: Vec<HeaderValue>,
     /// The fleet's evidence rows and the last fleet plan, kept until `param_evidence` changes.
-    pub plan_cache: crate::evidence::PlanCache,
+    pub plan_cache: crate::plan_index::PlanCache,
 }
 
 impl AppState {

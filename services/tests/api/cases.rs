@@ -27,7 +27,9 @@ pub use crate::lift::{
     bad_lift_inputs_are_refused_naming_the_sample, lift_trace_is_fitted_with_every_joint,
     recent_lifts_are_pooled,
 };
-pub use crate::plan::evidence_plan_and_test_due_over_http;
+pub use crate::plan::{
+    evidence_plan_and_test_due_over_http, the_kept_fleet_plan_is_the_plan_from_scratch,
+};
 pub use crate::pooled_rig::recordings_of_one_rig_are_fitted_pooled;
 pub use crate::static_force::{
     a_named_spring_rate_moves_the_static_force_prediction,

@@ -73,6 +73,7 @@ suite!(
     a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,
     recordings_of_one_rig_are_fitted_pooled,
     evidence_plan_and_test_due_over_http,
+    the_kept_fleet_plan_is_the_plan_from_scratch,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).

@@ -1,6 +1,9 @@
 //! Issue 37 over HTTP: each joint's evidence (what it rests on, how old, the interval now), the
 //! test plan of a pantograph and of the fleet, and the `test due` alert's lifecycle.
 
+use chrono::{DateTime, TimeZone, Utc};
+use pantowatch::store::{NewFit, NewTrace, Status, Store};
+use pantowatch_models::report::{FitResult, JointResult, ParamResult, Quantity};
 use reqwest::StatusCode;
 use serde_json::Value;
 
@@ -209,5 +212,187 @@ pub async fn evidence_plan_and_test_due_over_http(b: Backend) {
         .get("/v1/pantographs/160EC-NONE/plan", &app.keys.reader)
         .await;
     assert_eq!(r.status(), 404);
+    app.stop().await;
+}
+
+/// A fit result of `joints` at the 160EC's baselines × a factor in 0.4–2.4 each (from `r`),
+/// a relative interval of 2–40 %, each parameter's status from its interval; a lift's J6 not
+/// informed.
+fn random_fit(trace_id: &str, joints: &[&str], lift: bool, r: &mut u64) -> FitResult {
+    let t = pantowatch_models::data::builtin("160EC").expect("160EC");
+    let mut next = || {
+        *r = r.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = *r;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let th = pantowatch_models::drift::DriftThresholds::default();
+    let joints = joints
+        .iter()
+        .map(|j| {
+            let data = t.joint(j).expect("joint");
+            let informed = !(lift && *j == "J6");
+            let mut param = |base: f64| {
+                let value = base * (0.4 + 2.0 * next());
+                let rel = 0.02 + 0.38 * next();
+                let ci95 = [value * (1.0 - rel), value * (1.0 + rel)];
+                let status = if informed {
+                    th.judge(ci95, value, Some(base)).status
+                } else {
+                    Status::Unknown
+                };
+                ParamResult {
+                    value,
+                    ci95,
+                    baseline: Some(base),
+                    unit: String::new(),
+                    identifiable: informed,
+                    status,
+                    combination: None,
+                }
+            };
+            let viscous = param(data.viscous_baseline());
+            let dry = param(data.dry_mu);
+            let status = viscous.status.max(dry.status);
+            JointResult {
+                joint: (*j).to_owned(),
+                viscous,
+                dry,
+                identifiable: informed,
+                status,
+            }
+        })
+        .collect();
+    FitResult {
+        trace_id: trace_id.to_owned(),
+        joints,
+        rmse: Quantity {
+            value: 0.5,
+            unit: "mm".into(),
+        },
+        ..FitResult::default()
+    }
+}
+
+/// Stores a trace of `kind` and its fit (no fitting: the fit result given).
+async fn put_fit(
+    store: &Store,
+    serial: &str,
+    id: &str,
+    kind: &str,
+    joint: Option<&str>,
+    recorded_at: DateTime<Utc>,
+    fit: FitResult,
+) {
+    let t: Vec<f64> = (0..20).map(|i| f64::from(i) * 0.01).collect();
+    let h: Vec<f64> = (0..20).map(|i| f64::from(i % 5)).collect();
+    let sha = hex_of(id);
+    store
+        .insert_trace(NewTrace {
+            trace_id: Some(id.to_owned()),
+            vehicle_id: "EN57-9001".into(),
+            serial: Some(serial.to_owned()),
+            model: "160EC".into(),
+            recorded_at,
+            kind: kind.into(),
+            joint: joint.map(str::to_owned),
+            test_json: format!(r#"{{"kind":"{kind}"}}"#),
+            content_sha256: sha,
+            channels: vec![("t_s".into(), t), ("H_mm".into(), h)],
+            model_version: "test".into(),
+        })
+        .await
+        .expect("trace");
+    store
+        .insert_fit(id, "test", &NewFit::from_result(fit))
+        .await
+        .expect("fit");
+}
+
+/// A content hash stand-in: 64 hex digits, one per trace id (FNV-1a).
+fn hex_of(s: &str) -> String {
+    let h = s.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    });
+    format!("{h:064x}")
+}
+
+/// `GET /v1/fleet/plan?at=&limit=` answers `evidence::fleet_plan` from every evidence row.
+async fn same_plan(app: &TestApp, at: &str, limit: usize) {
+    let path = format!("/v1/fleet/plan?at={at}&limit={limit}");
+    let (s, served) = app.get_json(&path).await;
+    assert_eq!(s, StatusCode::OK, "{served}");
+    let rows = app.store.param_evidence(None).await.expect("rows");
+    let at = DateTime::parse_from_rfc3339(at)
+        .expect("at")
+        .with_timezone(&Utc);
+    let scratch = pantowatch::evidence::fleet_plan(&rows, at, limit);
+    assert!(scratch.tests.len() > 1, "{path}: {served}");
+    assert_eq!(
+        served,
+        serde_json::to_value(&scratch).expect("json"),
+        "{path}"
+    );
+}
+
+/// `GET /v1/fleet/plan` (the evidence grouped once per evidence version and kept, the plan per
+/// `at`) answers what `evidence::fleet_plan` computes from scratch from every evidence row, on
+/// a random store: pantographs with random tests of random kinds, dates and outcomes, trends on
+/// some; at several times and limits; and again after a new fit moves the evidence.
+pub async fn the_kept_fleet_plan_is_the_plan_from_scratch(b: Backend) {
+    let app = spawn_app(b).await;
+    let store = &app.store.clone();
+    let t0 = Utc
+        .with_ymd_and_hms(2025, 3, 1, 8, 0, 0)
+        .single()
+        .expect("date");
+    let joints = ["J1", "J2", "J3", "J4", "J5", "J6", "J7", "J8"];
+    let mut r = 37u64;
+    let mut pick = |n: u64| {
+        r = r.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+        (r >> 33) % n
+    };
+    let mut seed = 11u64;
+    for p in 0..12 {
+        let serial = format!("160EC-RND{p:02}");
+        for k in 0..(2 + pick(6)) {
+            let id = format!("{serial}-{k}");
+            let at = t0 + chrono::TimeDelta::days(pick(300) as i64);
+            let (kind, joint) = match pick(4) {
+                0 | 1 => ("pendulum", Some(joints[pick(7) as usize])),
+                2 => ("slider", Some("J8")),
+                _ => ("lift", None),
+            };
+            let fit = match joint {
+                Some(j) => random_fit(&id, &[j], false, &mut seed),
+                None => random_fit(&id, &joints, true, &mut seed),
+            };
+            put_fit(store, &serial, &id, kind, joint, at, fit).await;
+        }
+        if p % 3 == 0 {
+            pantowatch::evidence::refresh_trends(store, &serial)
+                .await
+                .expect("trends");
+        }
+    }
+    for (at, limit) in [
+        ("2026-01-15T00:00:00Z", 1000),
+        ("2026-01-15T00:01:00Z", 3),
+        ("2025-06-01T12:00:00Z", 1000),
+        ("2028-01-01T00:00:00Z", 7),
+        ("2026-01-15T00:00:00Z", 5),
+    ] {
+        same_plan(&app, at, limit).await;
+    }
+    // A new fit moves the evidence: the kept plan is dropped, the next answer is the new plan.
+    let id = "160EC-RND00-late";
+    let fit = random_fit(id, &["J4"], false, &mut seed);
+    let late = Utc
+        .with_ymd_and_hms(2026, 1, 10, 8, 0, 0)
+        .single()
+        .expect("date");
+    put_fit(store, "160EC-RND00", id, "pendulum", Some("J4"), late, fit).await;
+    same_plan(&app, "2026-01-15T00:00:00Z", 1000).await;
     app.stop().await;
 }

@@ -1,11 +1,12 @@
 //! Fleet test-plan speed (issue 37): a store filled with `--pantographs` pantographs, each a year
 //! of tests — 12 monthly lifts (every joint in the fit, J6 and J9 not informed) and a workshop
 //! swing of each of J1–J8 in months 0–7 (one joint in each) — written through the Store API
-//! (no fitting), then `--queries` fleet plans timed through `Store::param_evidence` +
-//! `evidence::fleet_plan` (cold: every row read) and through `GET /v1/fleet/plan` of the
-//! in-process service (the rows kept until a fit changes them, the plan computed per request at
-//! another `at`), on PostgreSQL and on SQLite; p50 and p99 per path. Target: the service's
-//! p99 ≤ 50 ms.
+//! (no fitting), then `--queries` fleet plans timed from the grouped rows in process
+//! (`plan_index::FleetIndex::plan`, checked equal to `evidence::fleet_plan` first), through
+//! `Store::param_evidence` + grouping + plan (cold: every row read) and through
+//! `GET /v1/fleet/plan` of the in-process service (the grouped rows kept until a fit changes
+//! them, the plan computed per request at another `at`), on PostgreSQL and on SQLite; p50 and
+//! p99 per path. Target: the service's p99 ≤ 50 ms.
 
 use std::time::{Duration, Instant};
 
@@ -16,6 +17,7 @@ use serde_json::json;
 use super::harness::{FreshPg, Server};
 use super::query::{fill, mix};
 use super::table::{Row, Sizes, SuiteArgs, quantile};
+use pantowatch::plan_index::FleetIndex;
 use pantowatch::store::{NewFit, NewTrace, Role, Status, Store};
 
 /// Target p99 of one fleet plan, s.
@@ -83,6 +85,8 @@ pub fn run(a: &SuiteArgs, sizes: &Sizes) -> Vec<Row> {
 /// Timings of one backend, s.
 struct Measured {
     fill_s: f64,
+    /// The plan computed from the grouped rows, in process (no HTTP, no store).
+    compute: Vec<f64>,
     store: Vec<f64>,
     http: Vec<f64>,
     rows: usize,
@@ -96,9 +100,11 @@ impl Measured {
         Row {
             measure,
             measured: format!(
-                "HTTP (rows kept, plan computed per request) p50 {:.1} ms, p99 **{:.1} ms**; cold (rows read + plan) p50 {:.1} ms, p99 {:.1} ms ({} HTTP, {} cold plans; {} evidence rows)",
+                "HTTP (rows grouped and kept, plan computed per request) p50 {:.1} ms, p99 **{:.1} ms**; the plan alone p50 {:.1} ms, p99 {:.1} ms; cold (rows read, grouped + plan) p50 {:.1} ms, p99 {:.1} ms ({} HTTP, {} cold plans; {} evidence rows)",
                 q(&self.http, 0.5),
                 q(&self.http, 0.99),
+                q(&self.compute, 0.5),
+                q(&self.compute, 0.99),
                 q(&self.store, 0.5),
                 q(&self.store, 0.99),
                 self.http.len(),
@@ -110,6 +116,7 @@ impl Measured {
             value: Some(worst),
             unit: "ms (p99, HTTP)".into(),
             detail: json!({"fill_s": self.fill_s, "evidence_rows": self.rows,
+                "plan_ms": {"p50": q(&self.compute, 0.5), "p99": q(&self.compute, 0.99), "max": q(&self.compute, 1.0)},
                 "store_ms": {"p50": q(&self.store, 0.5), "p99": q(&self.store, 0.99), "max": q(&self.store, 1.0)},
                 "http_ms": {"p50": q(&self.http, 0.5), "p99": q(&self.http, 0.99), "max": q(&self.http, 1.0)}}),
         }
@@ -266,13 +273,28 @@ async fn backend(url: &str, sizes: &Sizes, writers: usize) -> anyhow::Result<Mea
         "the fleet plan covers {} of {n} pantographs",
         check.pantographs
     );
+    // The service's grouped plan is the plan from scratch, entry for entry.
+    let index = FleetIndex::build(&rows);
+    anyhow::ensure!(
+        index.plan(at, 1000) == check,
+        "the grouped fleet plan differs from the plan from scratch"
+    );
     let n_rows = rows.len();
     drop(rows);
+    // The plan alone, from the grouped rows (what a request at a new `at` computes).
+    let mut compute = Vec::with_capacity(sizes.queries);
+    for i in 0..sizes.queries {
+        let t = Instant::now();
+        let p = index.plan(at + chrono::TimeDelta::minutes(i as i64), usize::MAX);
+        std::hint::black_box(p);
+        compute.push(t.elapsed().as_secs_f64());
+    }
+    drop(index);
 
     eprintln!("   timing fleet plans (cold from the Store, then HTTP)");
     let plan = |store: Store| async move {
         let rows = store.param_evidence(None).await?;
-        let p = pantowatch::evidence::fleet_plan(&rows, at, 50);
+        let p = FleetIndex::build(&rows).plan(at, 50);
         anyhow::Ok(p.tests.len())
     };
     for _ in 0..4 {
@@ -316,6 +338,7 @@ async fn backend(url: &str, sizes: &Sizes, writers: usize) -> anyhow::Result<Mea
     store.close().await;
     Ok(Measured {
         fill_s,
+        compute,
         store: direct,
         http,
         rows: n_rows,

@@ -1,21 +1,32 @@
 //! The demo fleet: `vehicles` × 2 pantographs × 12 months over a year. The periodic test is on
 //! the vehicle: every month a lift test of the complete pantograph (raise and lower, 8 s at
 //! 500 Hz: it informs J1, J3, J5 and J8 dry friction — see the lift identifiability table in the
-//! README). Every third month the pantograph also goes to the workshop, where each of J1–J7
-//! swings as a pendulum and the head drops on its slider (J8): the joints and the viscous
-//! damping a lift cannot inform are watched there. A third of the pantographs have one joint
-//! wearing at its own rate; the rest stay at their Table 4 baseline. Every fourth pantograph
-//! (the second, sixth, …) also has its static contact force measured with a force gauge twice in
-//! the year ([`GAUGE_MONTHS`], a `static_force` test, issue 20), its worn joint's dry friction in
-//! the readings. Everything is deterministic (fixed seeds).
+//! README). Every third month the pantograph also goes to the workshop, where the joints that
+//! wear ([`QUARTERLY_JOINTS`]: J1, J2, J6, J7) swing as pendulums every time, and of the joints
+//! that rarely wear ([`YEARLY_JOINTS`]: J3, J4, J5 and the head's slider J8) one in turn — each
+//! is swung once a year, as depots do. A third of the pantographs have one joint wearing at its
+//! own rate; a few more ([`hidden_wear`], issue 37 point 4) have a yearly-swung joint drifting
+//! where lifts cannot see (J5 dry, J4 dry, J8 dry, J3 and J5 viscous), set on the joint their
+//! first session of the year swung, so the drift grows unseen from then on: the test plan must
+//! find it. The rest stay at their Table 4 baseline. Every fourth pantograph (the second, sixth,
+//! …) also has its static contact force measured with a force gauge twice in the year
+//! ([`GAUGE_MONTHS`], a `static_force` test, issue 20), its worn joint's dry friction in the
+//! readings. Everything is deterministic (fixed seeds).
 
 use serde_json::json;
 
 use crate::cli::simulate::SimulateArgs;
 use crate::trace::{FORMAT, TraceDoc};
 
-/// The pendulum joints the sessions rotate through.
+/// The pendulum joints.
 pub const PENDULUM_JOINTS: [&str; 7] = ["J1", "J2", "J3", "J4", "J5", "J6", "J7"];
+/// The joints every workshop session swings (the ones that wear).
+pub const QUARTERLY_JOINTS: [&str; 4] = ["J1", "J2", "J6", "J7"];
+/// The joints swung once a year, one at each workshop session in turn (J8: the slider drop).
+pub const YEARLY_JOINTS: [&str; 4] = ["J3", "J4", "J5", "J8"];
+/// Months from the end of the tests to the test plan the demo reads (three months after the
+/// year, before the next workshop cycle).
+pub const STORY_MONTHS_AFTER: usize = 3;
 /// Months of tests.
 pub const MONTHS: usize = 12;
 /// The months (0-based) of the force-gauge measurements on a gauged pantograph ([`gauged`]).
@@ -89,9 +100,12 @@ pub fn pantographs(vehicles: usize) -> Vec<Pantograph> {
 }
 
 /// The wear plan: dry friction rising on every sixth pantograph (to 1.7–2.5×), viscous damping
-/// on every tenth (to 1.9–2.6×), the head slider's dry friction on every fifteenth (to 1.9×).
+/// on every tenth (to 1.9–2.6×), the head slider's dry friction on every fifteenth (to 1.9×);
+/// and the hidden drifts of [`hidden_wear`].
 fn wear_of(k: usize) -> Option<Wear> {
-    if k % 6 == 1 {
+    if let Some(w) = hidden_wear(k) {
+        Some(w)
+    } else if k % 6 == 1 {
         Some(Wear {
             joint: PENDULUM_JOINTS[(k / 6) % 7],
             param: Param::Dry,
@@ -117,6 +131,50 @@ fn wear_of(k: usize) -> Option<Wear> {
     } else {
         None
     }
+}
+
+/// The drifts a lift cannot see (issue 37's list), on pantographs 1, 4, 7, 10 and 19 of every
+/// twenty: J3 viscous to ×3, J4 dry to ×3, J5 dry to ×2.5, J8 dry to ×2, J5 viscous to ×3 by
+/// the test plan's date ([`STORY_MONTHS_AFTER`] months after the year), linear from the year's
+/// start. In the 20-pantograph fleet each is on the yearly joint the pantograph's first
+/// workshop session swings (at its baseline then), so it grows unseen for a year.
+pub fn hidden_wear(k: usize) -> Option<Wear> {
+    let (joint, param, factor) = match k % 20 {
+        0 => ("J3", Param::Viscous, 3.0),
+        3 => ("J4", Param::Dry, 3.0),
+        6 => ("J5", Param::Dry, 2.5),
+        9 => ("J8", Param::Dry, 2.0),
+        18 => ("J5", Param::Viscous, 3.0),
+        _ => return None,
+    };
+    Some(Wear {
+        joint,
+        param,
+        // factor(m) = 1 + rate·m/(MONTHS − 1) reaches `factor` at the plan's month.
+        rate: (factor - 1.0) * (MONTHS - 1) as f64 / (MONTHS + STORY_MONTHS_AFTER) as f64,
+    })
+}
+
+/// The yearly joint pantograph `k` swings at its `s`-th workshop session of the year (0–3):
+/// each of [`YEARLY_JOINTS`] once a year, the turn staggered across the fleet.
+pub fn yearly_joint(k: usize, s: usize) -> &'static str {
+    YEARLY_JOINTS[(s + k / 3) % YEARLY_JOINTS.len()]
+}
+
+/// The joints of pantograph `k`'s workshop session in month `m`, in the order they are swung
+/// (pendulums, then the slider), or none when it has no session that month: every third month,
+/// staggered across the fleet.
+pub fn session_joints(k: usize, m: usize) -> Vec<&'static str> {
+    if !(m + k).is_multiple_of(3) {
+        return Vec::new();
+    }
+    let yearly = yearly_joint(k, m / 3);
+    PENDULUM_JOINTS
+        .iter()
+        .copied()
+        .filter(|j| QUARTERLY_JOINTS.contains(j) || *j == yearly)
+        .chain((yearly == "J8").then_some("J8"))
+        .collect()
 }
 
 /// One test to synthesise.
@@ -175,14 +233,9 @@ pub fn plan_months(vehicles: usize, months: usize) -> anyhow::Result<Vec<Planned
             if gauged(k) && GAUGE_MONTHS.contains(&m) {
                 out.push(gauge_test(&p, m, (y, mo, day), &defaults));
             }
-            // The workshop session, every third month (staggered across the fleet): every
-            // pendulum joint, then the head slider.
-            let joints: Vec<&'static str> = if (m + k) % 3 == 0 {
-                PENDULUM_JOINTS.iter().copied().chain(["J8"]).collect()
-            } else {
-                Vec::new()
-            };
-            for (slot, joint) in joints.into_iter().enumerate() {
+            // The workshop session, every third month (staggered across the fleet): the
+            // quarterly joints and one yearly joint in turn.
+            for (slot, joint) in session_joints(k, m).into_iter().enumerate() {
                 out.push(swing_test(
                     &p,
                     joint,
@@ -387,7 +440,26 @@ mod tests {
         let ps = pantographs(30);
         assert_eq!(ps.len(), 60);
         let worn = ps.iter().filter(|p| p.wear.is_some()).count();
-        assert!((15..=25).contains(&worn), "{worn} worn");
+        assert!((30..=40).contains(&worn), "{worn} worn");
+        let hidden: Vec<_> = ps
+            .iter()
+            .filter(|p| hidden_wear(p.index).is_some())
+            .collect();
+        assert_eq!(
+            hidden.len(),
+            15,
+            "five of every twenty drift where lifts cannot see"
+        );
+        // A hidden drift is on the yearly joint its pantograph's first session swings (at
+        // baseline then), and reaches its factor three months after the year.
+        for p in hidden.iter().filter(|p| p.index < 20) {
+            let w = p.wear.as_ref().unwrap();
+            let first = (0..3).find(|m| (m + p.index) % 3 == 0).unwrap();
+            assert!(session_joints(p.index, first).contains(&w.joint), "{p:?}");
+            assert!(YEARLY_JOINTS.contains(&w.joint));
+            let at_plan = w.factor(MONTHS + STORY_MONTHS_AFTER);
+            assert!((2.0..=3.0 + 1e-9).contains(&at_plan), "{p:?}: ×{at_plan}");
+        }
         let plan = plan(30).expect("plan");
         let lifts = plan.iter().filter(|t| t.args.kind == "lift").count();
         let sliders = plan.iter().filter(|t| t.args.kind == "slider").count();
@@ -396,13 +468,15 @@ mod tests {
             .filter(|t| t.args.kind == crate::trace::STATIC_FORCE)
             .count();
         assert_eq!(lifts, 60 * 12, "the periodic test is a monthly lift test");
-        assert_eq!(sliders, 60 * 4, "a workshop session every third month");
-        assert_eq!(gauges, 15 * 2, "every fourth pantograph gauged twice");
+        assert_eq!(sliders, 60, "J8 swung once a year");
+        let swings = plan.iter().filter(|t| t.args.kind == "pendulum").count();
         assert_eq!(
-            plan.len(),
-            lifts + sliders * 8 + gauges,
-            "7 pendulums and a slider per session"
+            swings,
+            60 * (4 * 4 + 3),
+            "a session every third month: four quarterly joints, one yearly joint in turn"
         );
+        assert_eq!(gauges, 15 * 2, "every fourth pantograph gauged twice");
+        assert_eq!(plan.len(), lifts + sliders + swings + gauges);
         // The fleet's J3 dry wear is gauged, its readings with J3's friction scaled.
         let worn_j3 = plan
             .iter()
@@ -438,8 +512,15 @@ mod tests {
                 .collect::<Vec<_>>(),
             first
         );
-        // Every pendulum joint is tested on every pantograph during the year.
+        // Every joint is tested on every pantograph during the year; the yearly ones once.
         for p in &ps {
+            for j in YEARLY_JOINTS {
+                let n = plan
+                    .iter()
+                    .filter(|t| t.args.serial == p.serial && t.args.joint == j)
+                    .count();
+                assert_eq!(n, 1, "{} {j}", p.serial);
+            }
             for j in PENDULUM_JOINTS {
                 assert!(
                     plan.iter()

@@ -117,7 +117,7 @@ async fn demo(a: DemoArgs, bars: MultiProgress) -> anyhow::Result<()> {
         .await
         .with_context(|| format!("creating {db}"))?;
     println!(
-        "pantowatch demo: {vehicles} vehicles × 2 pantographs × {months} months (monthly lift, quarterly workshop, force gauge twice on every fourth pantograph) = {n} tests, \
+        "pantowatch demo: {vehicles} vehicles × 2 pantographs × {months} months (monthly lift; quarterly workshop: J1, J2, J6, J7 every time, one of J3, J4, J5, J8 in turn; force gauge twice on every fourth pantograph) = {n} tests, \
          database {db}, {workers} fitting workers"
     );
     let settings = Settings {
@@ -291,20 +291,17 @@ type Found = (
     Option<Status>,
 );
 
-/// Months after the year the plan is read at.
-const STORY_MONTHS_AFTER: usize = 3;
-
 /// Swings the plan picks from the top of the fleet plan.
 const STORY_SWINGS: usize = 6;
 
-/// The fleet plan [`STORY_MONTHS_AFTER`] months after the year, then the top [`STORY_SWINGS`] swings it
+/// The fleet plan [`fleet::STORY_MONTHS_AFTER`] months after the year, then the top [`STORY_SWINGS`] swings it
 /// asks for, uploaded and fitted like every test (the plan read from `param_evidence`, as
 /// `GET /v1/fleet/plan?at=` reads it).
 async fn plan_and_follow_up(f: &Fleet, intake: &Intake) -> anyhow::Result<Story> {
     use chrono::TimeZone;
     // Three months after the year, before the next workshop cycle: the joints drifting where
     // the monthly lifts cannot see have had time to cross unseen.
-    let months = f.plan_months + STORY_MONTHS_AFTER;
+    let months = f.plan_months + fleet::STORY_MONTHS_AFTER;
     let (y, mo) = fleet::month_start(months);
     let at = chrono::Utc
         .with_ymd_and_hms(y, mo, 1, 0, 0, 0)
@@ -478,7 +475,14 @@ async fn report(f: &Fleet, progress: &Progress, filled: Filled) -> anyhow::Resul
         counts.traces as f64 / filled.fitted.as_secs_f64()
     );
     print_fleet(&f.store, f.vehicles).await?;
-    print_worst(&f.store, &f.truth).await?;
+    // The follow-up swings' truths too: the worst joints may be at their follow-up swing.
+    let mut truth = f.truth.clone();
+    for (_, _, _, t, id, _) in &filled.story.found {
+        if let Some(t) = t {
+            truth.insert(id.clone(), *t);
+        }
+    }
+    print_worst(&f.store, &truth).await?;
     print_story(&filled.story);
     Ok(())
 }
