@@ -31,6 +31,7 @@ use std::sync::OnceLock;
 use super::attribution::Combination;
 use super::dynamics::LiftModel;
 use super::identify::{JointEstimate, LiftFit, LiftFitError, LiftFitOptions, LiftTrace, fit_map};
+use super::sensitivity::LiftParam;
 use super::simulate::LiftInputs;
 use super::topology::RevJoint;
 use crate::contract::drift::{DriftThresholds, Status};
@@ -111,8 +112,20 @@ pub fn fit_lift_trace(
     thresholds: &DriftThresholds,
     trace_id: &str,
 ) -> Result<LiftReport, LiftFitError> {
+    fit_lift_trace_with(channels, thresholds, trace_id, &[])
+}
+
+/// [`fit_lift_trace`] with `friction_prior` for the parameters it names
+/// (`LiftFitOptions::friction_prior`: the fleet's, `fleet_prior::FleetPrior::for_fit`).
+pub fn fit_lift_trace_with(
+    channels: &LiftChannels,
+    thresholds: &DriftThresholds,
+    trace_id: &str,
+    friction_prior: &[(LiftParam, f64, f64)],
+) -> Result<LiftReport, LiftFitError> {
     let model = builtin_model();
-    let (trace, opts) = lift_trace(channels, thresholds)?;
+    let (trace, mut opts) = lift_trace(channels, thresholds)?;
+    opts.friction_prior = friction_prior.to_vec();
     let fit = fit_map(model, &[trace], &opts)?;
     let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
     let mut result = fit_result(model, &fit, &trace, &fitted_height_m, &opts, trace_id);
@@ -728,6 +741,7 @@ fn build_result(
             viscous_dry_correlation: f64::NAN,
             body_uncertainty: None,
             absorption: None,
+            prior: None,
         },
         pooled: None,
         combinations,

@@ -27,6 +27,7 @@ pub use crate::lift::{
     bad_lift_inputs_are_refused_naming_the_sample, lift_trace_is_fitted_with_every_joint,
     recent_lifts_are_pooled,
 };
+pub use crate::fleet_prior::a_fleet_prior_is_learned_versioned_recorded_and_refitted;
 pub use crate::plan::evidence_plan_and_test_due_over_http;
 pub use crate::pooled_rig::recordings_of_one_rig_are_fitted_pooled;
 pub use crate::static_force::{
@@ -409,6 +410,21 @@ pub async fn every_route_every_role(b: Backend) {
             "/v1/fleet/plan?limit=5".into(),
             None,
             Role::Reader,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/fleet/prior".into(),
+            None,
+            Role::Reader,
+            StatusCode::OK,
+        ),
+        // No workshop fits: the type file's prior stands (200, nothing published).
+        (
+            Method::POST,
+            "/v1/fleet/prior".into(),
+            Some(json!({})),
+            Role::Admin,
             StatusCode::OK,
         ),
         (

@@ -9,6 +9,7 @@ mod alerts;
 mod browser;
 mod cases;
 mod corpus;
+mod fleet_prior;
 mod gauge;
 mod harness;
 mod lift;
@@ -73,6 +74,7 @@ suite!(
     a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,
     recordings_of_one_rig_are_fitted_pooled,
     evidence_plan_and_test_due_over_http,
+    a_fleet_prior_is_learned_versioned_recorded_and_refitted,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).
