@@ -32,12 +32,12 @@ use pantowatch_models::lift::geometry::builtin_160ec;
 use pantowatch_models::lift::identify::{LiftFit, LiftFitOptions, fit_map};
 use pantowatch_models::lift::protocol::{LiftProtocol, record};
 use pantowatch_models::lift::report::{LiftChannels, fit_lift_trace_with};
-use pantowatch_models::report::CombinationResult;
 use pantowatch_models::lift::sensitivity::LiftParam;
 use pantowatch_models::lift::sensors::LiftSensorNoise;
 use pantowatch_models::lift::simulate::SimOptions;
 use pantowatch_models::lift::topology::RevJoint;
 use pantowatch_models::numerics::noise::Noise;
+use pantowatch_models::report::CombinationResult;
 
 fn env_f(name: &str, default: f64) -> f64 {
     std::env::var(name)
@@ -154,7 +154,9 @@ fn main() {
                 let truth_of = |c: &CombinationResult| -> f64 {
                     c.members
                         .iter()
-                        .filter_map(|m| LiftParam::named(&m.joint, &m.kind).map(|p| m.weight * relative(p)))
+                        .filter_map(|m| {
+                            LiftParam::named(&m.joint, &m.kind).map(|p| m.weight * relative(p))
+                        })
                         .sum()
                 };
                 let mut level_seen = false;
@@ -179,7 +181,11 @@ fn main() {
                         let Some(q) = LiftParam::named(&j.joint, kind) else {
                             continue;
                         };
-                        if p.identifiable && p.combination.is_none() && flagged(p.status) && inside(relative(q)) {
+                        if p.identifiable
+                            && p.combination.is_none()
+                            && flagged(p.status)
+                            && inside(relative(q))
+                        {
                             tally.false_flags += 1;
                         }
                     }
@@ -234,8 +240,16 @@ fn main() {
     println!(
         "fleet: {} coefficients, spread {spread}, workshop {n_workshop} units; lifts {seeds} from seed {first}; head drag {drag}, learned sd × {}{}",
         params.len(),
-        if service { type_160ec().fleet_prior().fit_sd_scale } else { sd_scale },
-        if service { " (service path: fit_lift_trace_with)" } else { "" }
+        if service {
+            type_160ec().fleet_prior().fit_sd_scale
+        } else {
+            sd_scale
+        },
+        if service {
+            " (service path: fit_lift_trace_with)"
+        } else {
+            ""
+        }
     );
     for (name, t) in ["Table 4 prior", "learned prior"].iter().zip(&tallies) {
         println!(

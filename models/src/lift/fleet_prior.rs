@@ -106,8 +106,10 @@ impl FleetPrior {
                 } else {
                     p.sd_ratio
                 };
-                let ok = p.mean_ratio.is_finite() && p.mean_ratio > 0.0 && sd.is_finite() && sd > 0.0;
-                ok.then(|| p.param().map(|q| (q, p.mean_ratio, sd))).flatten()
+                let ok =
+                    p.mean_ratio.is_finite() && p.mean_ratio > 0.0 && sd.is_finite() && sd > 0.0;
+                ok.then(|| p.param().map(|q| (q, p.mean_ratio, sd)))
+                    .flatten()
             })
             .collect()
     }

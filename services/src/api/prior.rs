@@ -65,14 +65,9 @@ pub async fn get_prior(
     let model = q.model.as_deref().unwrap_or(DEFAULT_MODEL);
     let version = match q.version.as_deref() {
         None => None,
-        Some(v) => Some(
-            v.parse::<i64>()
-                .ok()
-                .filter(|n| *n >= 0)
-                .ok_or_else(|| {
-                    AppError::bad_parameter("version", format!("`{v}` is not a whole number ≥ 0"))
-                })?,
-        ),
+        Some(v) => Some(v.parse::<i64>().ok().filter(|n| *n >= 0).ok_or_else(|| {
+            AppError::bad_parameter("version", format!("`{v}` is not a whole number ≥ 0"))
+        })?),
     };
     let view = fleet_prior::view(&st.store, model, version)
         .await

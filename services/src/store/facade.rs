@@ -171,7 +171,11 @@ impl Store {
 
     /// Version `version` of `model`'s fleet prior, or (`None`) its newest; `None` when there
     /// is none (fits then use the type file's, version 0).
-    pub async fn fleet_prior(&self, model: &str, version: Option<i64>) -> Result<Option<StoredPrior>> {
+    pub async fn fleet_prior(
+        &self,
+        model: &str,
+        version: Option<i64>,
+    ) -> Result<Option<StoredPrior>> {
         dispatch!(self, s => s.fleet_prior(model, version).await)
     }
 

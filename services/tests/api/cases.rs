@@ -16,6 +16,7 @@ pub use crate::corpus::{
     corpus_uploads_are_refused_and_store_nothing, edge_dates_never_break_their_vehicle,
     hostile_requests_answer_problems_naming_their_field,
 };
+pub use crate::fleet_prior::a_fleet_prior_is_learned_versioned_recorded_and_refitted;
 pub use crate::gauge::{
     a_gauge_measurement_is_stored_refused_and_drawn, a_gauge_record_pools_with_the_next_lift,
     a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,
@@ -27,7 +28,6 @@ pub use crate::lift::{
     bad_lift_inputs_are_refused_naming_the_sample, lift_trace_is_fitted_with_every_joint,
     recent_lifts_are_pooled,
 };
-pub use crate::fleet_prior::a_fleet_prior_is_learned_versioned_recorded_and_refitted;
 pub use crate::plan::evidence_plan_and_test_due_over_http;
 pub use crate::pooled_rig::recordings_of_one_rig_are_fitted_pooled;
 pub use crate::static_force::{

@@ -158,7 +158,10 @@ pub async fn a_fleet_prior_is_learned_versioned_recorded_and_refitted(b: Backend
         assert_eq!(q["n_fits"], 5, "{q}");
         assert_eq!(q["learned"], true, "{q}");
         // The fleet's mean and spread, from five units' fits at the stand's noise.
-        assert!((f(&q["mean_ratio"]) - m1).abs() < 0.06, "J5 {kind}: {q} (truth {m1})");
+        assert!(
+            (f(&q["mean_ratio"]) - m1).abs() < 0.06,
+            "J5 {kind}: {q} (truth {m1})"
+        );
         let spread = f(&q["spread_ratio"]);
         assert!(
             (spread - sd1).abs() < 0.08,
