@@ -14,6 +14,14 @@
 //! carries an undeclared head drag the fit does not model. `PW_PRIOR_SD_SCALE` (default 1)
 //! widens every learned sd by that factor.
 //!
+//! `PW_SERVICE=1`: each lift is fitted as the service fits it (`report::fit_lift_trace_with`:
+//! the residual loop and the reported-only absorption check after the plain fit), the learned
+//! prior as the service hands it over (`FleetPrior::for_fit` with `[fleet_prior] fit_sd_scale`,
+//! so `PW_PRIOR_SD_SCALE` is not used); the level, its coverage and the flags are read from the
+//! contract's result (a withheld level counts as not reported), the unreported entries' error
+//! from the plain fit, and the mean of `fit.absorption.ratio` (the refit with only the
+//! reported parameters free, over the noise) with how often it fired.
+//!
 //! `cargo run --release -p pantowatch-models --example fleet_prior_probe -- [SEEDS] [FIRST]`
 
 use pantowatch_models::data::builtin_160ec as type_160ec;
@@ -23,11 +31,13 @@ use pantowatch_models::lift::fleet_prior::{WorkshopEstimate, learn, prior_params
 use pantowatch_models::lift::geometry::builtin_160ec;
 use pantowatch_models::lift::identify::{LiftFit, LiftFitOptions, fit_map};
 use pantowatch_models::lift::protocol::{LiftProtocol, record};
+use pantowatch_models::lift::report::{LiftChannels, fit_lift_trace_with};
 use pantowatch_models::lift::sensitivity::LiftParam;
 use pantowatch_models::lift::sensors::LiftSensorNoise;
 use pantowatch_models::lift::simulate::SimOptions;
 use pantowatch_models::lift::topology::RevJoint;
 use pantowatch_models::numerics::noise::Noise;
+use pantowatch_models::report::CombinationResult;
 
 fn env_f(name: &str, default: f64) -> f64 {
     std::env::var(name)
@@ -47,6 +57,12 @@ struct Tally {
     uninformed_sq: f64,
     uninformed_n: usize,
     failed: usize,
+    /// `fit.absorption.ratio` (service path): sum, count, fired.
+    absorption_sum: f64,
+    absorption_n: usize,
+    absorption_fired: usize,
+    /// Lifts whose level was withheld or not reported (service path).
+    level_missing: usize,
 }
 
 fn main() {
@@ -86,6 +102,13 @@ fn main() {
     for p in &mut prior.params {
         p.sd_ratio *= sd_scale;
     }
+    let service = std::env::var("PW_SERVICE").is_ok_and(|v| v == "1");
+    // The service's prior: learned sds × `fit_sd_scale`, floored ones as they are (learned
+    // before the probe's own widening, which the service path does not use).
+    let service_prior = {
+        let unscaled = learn(&est, type_160ec().fleet_prior());
+        unscaled.for_fit(type_160ec().fleet_prior().fit_sd_scale)
+    };
     let plain = LiftFitOptions::default();
     let learned = LiftFitOptions::default().with_fleet_prior(&prior);
     let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
@@ -106,6 +129,77 @@ fn main() {
         let relative = |p: LiftParam| p.get(&m, 0.0) / p.get(&base, 0.0);
         let clean = record(&m, &protocol, &SimOptions::default()).unwrap();
         let rec = LiftSensorNoise::realistic().apply(&clean, 1000 + seed);
+        if service {
+            let channels = LiftChannels::from(&rec);
+            for (tally, fp) in tallies.iter_mut().zip([&[][..], &service_prior[..]]) {
+                let rep = match fit_lift_trace_with(&channels, &plain.thresholds, "probe", fp) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        println!("seed {seed}: fit failed {e:?}");
+                        tally.failed += 1;
+                        continue;
+                    }
+                };
+                let r = &rep.result;
+                if let Some(a) = &r.fit.absorption {
+                    tally.absorption_sum += a.ratio;
+                    tally.absorption_n += 1;
+                    tally.absorption_fired += usize::from(a.fired);
+                }
+                let is_level = |c: &CombinationResult| {
+                    ["J1", "J3"]
+                        .iter()
+                        .all(|j| c.members.iter().any(|m| m.joint == *j && m.kind == "dry"))
+                };
+                let truth_of = |c: &CombinationResult| -> f64 {
+                    c.members
+                        .iter()
+                        .filter_map(|m| {
+                            LiftParam::named(&m.joint, &m.kind).map(|p| m.weight * relative(p))
+                        })
+                        .sum()
+                };
+                let mut level_seen = false;
+                for c in r.combinations.iter().filter(|c| c.identifiable) {
+                    let truth = truth_of(c);
+                    if is_level(c) {
+                        level_seen = true;
+                        tally.level_n += 1;
+                        tally.level_half_width += 0.5 * (c.ci95[1] - c.ci95[0]);
+                        tally.level_err_sq += (c.value - truth).powi(2);
+                        if c.ci95[0] <= truth && truth <= c.ci95[1] {
+                            tally.level_hit += 1;
+                        }
+                    }
+                    if flagged(c.status) && inside(truth) {
+                        tally.false_flags += 1;
+                    }
+                }
+                tally.level_missing += usize::from(!level_seen);
+                for j in &r.joints {
+                    for (kind, p) in [("viscous", &j.viscous), ("dry", &j.dry)] {
+                        let Some(q) = LiftParam::named(&j.joint, kind) else {
+                            continue;
+                        };
+                        if p.identifiable
+                            && p.combination.is_none()
+                            && flagged(p.status)
+                            && inside(relative(q))
+                        {
+                            tally.false_flags += 1;
+                        }
+                    }
+                }
+                for e in rep.fit.params.iter().filter(|e| !e.informed) {
+                    if params.contains(&e.param) {
+                        let err = e.map_value / e.param.get(&m, 0.0) - 1.0;
+                        tally.uninformed_sq += err * err;
+                        tally.uninformed_n += 1;
+                    }
+                }
+            }
+            continue;
+        }
         for (tally, opts) in tallies.iter_mut().zip([&plain, &learned]) {
             let fit: LiftFit = match fit_map(&base, &[rec.trace()], opts) {
                 Ok(f) => f,
@@ -144,8 +238,18 @@ fn main() {
         }
     }
     println!(
-        "fleet: {} coefficients, spread {spread}, workshop {n_workshop} units; lifts {seeds} from seed {first}; head drag {drag}, learned sd × {sd_scale}",
-        params.len()
+        "fleet: {} coefficients, spread {spread}, workshop {n_workshop} units; lifts {seeds} from seed {first}; head drag {drag}, learned sd × {}{}",
+        params.len(),
+        if service {
+            type_160ec().fleet_prior().fit_sd_scale
+        } else {
+            sd_scale
+        },
+        if service {
+            " (service path: fit_lift_trace_with)"
+        } else {
+            ""
+        }
     );
     for (name, t) in ["Table 4 prior", "learned prior"].iter().zip(&tallies) {
         println!(
@@ -160,5 +264,15 @@ fn main() {
             t.uninformed_n,
             t.failed
         );
+        if service {
+            println!(
+                "{:<14} absorption ratio mean {:.3} over {} lifts, fired {}; level withheld or not reported {}",
+                "",
+                t.absorption_sum / t.absorption_n.max(1) as f64,
+                t.absorption_n,
+                t.absorption_fired,
+                t.level_missing
+            );
+        }
     }
 }

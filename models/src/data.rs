@@ -172,6 +172,8 @@ pub struct FleetPriorData {
     pub min_relative_sd: f64,
     /// A new prior version when a mean or sd moves by more than this, Table 4 units.
     pub version_tolerance_relative: f64,
+    /// Every learned sd × this where a fit uses the prior (`FleetPrior::for_fit`).
+    pub fit_sd_scale: f64,
 }
 
 /// `[test_plan]`: the wear-rate spread that widens old evidence (`contract::evidence`), the
@@ -497,6 +499,7 @@ impl PantographType {
                 "fleet_prior.version_tolerance_relative",
                 fp.version_tolerance_relative,
             )?;
+            positive("fleet_prior.fit_sd_scale", fp.fit_sd_scale)?;
         }
         if let Some(sf) = &self.static_force {
             let [a, b] = sf.working_height_m;

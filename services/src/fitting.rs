@@ -7,11 +7,12 @@ use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::identify::{FitOptions, FitOutcome};
 use pantowatch_models::lift::gauge::report::GaugeChannels as ModelGaugeChannels;
 use pantowatch_models::lift::gauge::{GaugeReport, fit_gauge_trace};
-use pantowatch_models::lift::report::{LiftReport, fit_lift_trace};
+use pantowatch_models::lift::report::{LiftReport, fit_lift_trace_with};
 use pantowatch_models::quadrangle::report::{QuadReport, fit_quadrangle_trace};
 use pantowatch_models::report::{FitCurve, FitResult};
 use pantowatch_models::residual::Finding;
 
+use crate::fleet_prior::FitPrior;
 use crate::trace::{Kind, TraceDoc, TraceError};
 
 /// Why a document could not be fitted. None of these improves on retry.
@@ -62,8 +63,21 @@ pub fn fit_document_within(
     thresholds: &DriftThresholds,
     budget: &Budget,
 ) -> Result<Fitted, FitFailure> {
-    pantowatch_models::budget::run(budget, || fit_document_with_curve(doc, thresholds))
-        .unwrap_or_else(|e| Err(FitFailure::Budget(e)))
+    fit_document_within_prior(doc, thresholds, None, budget)
+}
+
+/// [`fit_document_within`] with the fleet prior `prior` for a lift's unreported joints
+/// (`services::fleet_prior`; recorded in `fit.prior`); other kinds ignore it. `None`: Table 4.
+pub fn fit_document_within_prior(
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+    prior: Option<&FitPrior>,
+    budget: &Budget,
+) -> Result<Fitted, FitFailure> {
+    pantowatch_models::budget::run(budget, || {
+        fit_document_with_curve_prior(doc, thresholds, prior)
+    })
+    .unwrap_or_else(|e| Err(FitFailure::Budget(e)))
 }
 
 /// A fit as the worker stores it: the contract's result and the measured-vs-model curve that
@@ -87,9 +101,18 @@ pub fn fit_document_with_curve(
     doc: &TraceDoc,
     thresholds: &DriftThresholds,
 ) -> Result<Fitted, FitFailure> {
+    fit_document_with_curve_prior(doc, thresholds, None)
+}
+
+/// [`fit_document_with_curve`] with a lift's fleet prior (see [`fit_document_within_prior`]).
+pub fn fit_document_with_curve_prior(
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+    prior: Option<&FitPrior>,
+) -> Result<Fitted, FitFailure> {
     match doc.kind {
         Kind::Lift => {
-            let rep = fit_lift(doc, thresholds)?;
+            let rep = fit_lift_with(doc, thresholds, prior)?;
             let ch = doc.lift_channels().map_err(FitFailure::Invalid)?;
             let curve =
                 FitCurve::thinned("H_m", "m", ch.t_s, ch.strip_height_m, &rep.fitted_height_m);
@@ -181,9 +204,23 @@ pub fn fit_static_force(
 /// Fits a `lift` document: the complete-pantograph MAP identification (Table 4 prior), every
 /// joint J1…J9 in the result (`models::lift::report` holds the mapping).
 pub fn fit_lift(doc: &TraceDoc, thresholds: &DriftThresholds) -> Result<LiftReport, FitFailure> {
+    fit_lift_with(doc, thresholds, None)
+}
+
+/// [`fit_lift`] under the fleet prior `prior` for the joints it does not report, recorded in
+/// the result's `fit.prior`; `None`: Table 4 ± `prior_relative_sd`, nothing recorded.
+pub fn fit_lift_with(
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+    prior: Option<&FitPrior>,
+) -> Result<LiftReport, FitFailure> {
     let channels = doc.lift_channels().map_err(FitFailure::Invalid)?;
     let id = doc.trace_id.clone().unwrap_or_default();
-    fit_lift_trace(&channels, thresholds, &id).map_err(|e| FitFailure::Model(e.to_string()))
+    let friction_prior = prior.map_or(&[][..], |p| &p.friction_prior[..]);
+    let mut rep = fit_lift_trace_with(&channels, thresholds, &id, friction_prior)
+        .map_err(|e| FitFailure::Model(e.to_string()))?;
+    rep.result.fit.prior = prior.map(|p| p.used.clone());
+    Ok(rep)
 }
 
 /// Fits a `quadrangle_swing` document: the lower quadrangle's MAP identification (Table 4

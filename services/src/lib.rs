@@ -8,6 +8,7 @@ pub mod cli;
 pub mod config;
 pub mod evidence;
 pub mod fitting;
+pub mod fleet_prior;
 pub mod health;
 pub mod ids;
 pub mod ingest;

@@ -29,6 +29,8 @@ enum Command {
     Migrate(cli::migrate::MigrateArgs),
     /// Queue re-fits by the current model version (all traces, or one vehicle's).
     Refit(cli::refit::RefitArgs),
+    /// Relearn the fleet prior from the workshop fits (refits queued when it moved), or show it.
+    Prior(cli::prior::PriorArgs),
     /// Create, list or revoke API keys.
     Keys(cli::keys::KeysArgs),
     /// Identify a trace's joint friction (viscous and dry, 95 % intervals, drift status).
@@ -61,6 +63,7 @@ fn main() {
         Command::Worker(a) => cli::serve::worker(a),
         Command::Migrate(a) => cli::migrate::run(a),
         Command::Refit(a) => cli::refit::run(a),
+        Command::Prior(a) => cli::prior::run(a),
         Command::Keys(a) => cli::keys::run(a),
         Command::Fit(a) => {
             init_logging(&LogSettings::default());

@@ -244,6 +244,13 @@ pub async fn process_next(
     };
     let thresholds = opts.thresholds;
     let kind = doc.kind.as_str();
+    // A lift is fitted under its type's fleet prior: the version a refit job names, else the
+    // newest (`fleet_prior`; recorded in `fit.prior`).
+    let prior = if crate::fleet_prior::PRIOR_KINDS.contains(&kind) {
+        crate::fleet_prior::for_job(store, &doc.pantograph_model, &job.model_version).await?
+    } else {
+        None
+    };
     let t0 = Instant::now();
     // The fit runs under its evaluation budget; the canceller stops it (within ~1 ms) when
     // the wall-time budget or the shutdown grace runs out, so its thread is freed too.
@@ -251,7 +258,7 @@ pub async fn process_next(
     let stop = budget.canceller();
     let spent = budget.clone();
     let mut fit_task = tokio::task::spawn_blocking(move || {
-        fitting::fit_document_within(&doc, &thresholds, &budget)
+        fitting::fit_document_within_prior(&doc, &thresholds, prior.as_ref(), &budget)
     });
     // The lease is renewed every third of its length while the fit runs.
     let renew_every = (opts.lease / 3).max(Duration::from_millis(100));

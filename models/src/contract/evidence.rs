@@ -152,6 +152,19 @@ pub fn information_of_interval(ci95: [f64; 2]) -> Option<f64> {
     (sd.is_finite() && sd > 0.0).then(|| 1.0 / (sd * sd))
 }
 
+/// The fleet prior a lift or gauge fit rested on for the joints it does not report (issue 37,
+/// point 3; `fit.prior` of the fit result): the audit trail of which version it used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct PriorUsed {
+    /// The stored prior's version; 0: none learned yet, the type file's (Table 4 ± its floor).
+    pub version: i64,
+    /// `learned` (from the store's workshop fits) or `type_file` (no joint had enough of them).
+    pub source: String,
+    /// The factor the learned sds were widened by in the fit (1 for the type file's floor).
+    pub sd_scale: f64,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

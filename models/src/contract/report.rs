@@ -360,6 +360,10 @@ pub struct FitDetails {
     /// refitted with only the reported parameters free (`lift::absorbed`); absent elsewhere.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub absorption: Option<AbsorptionCheck>,
+    /// Lift and gauge fits (issue 37, point 3): the fleet prior the joints it does not report
+    /// were fitted under; absent elsewhere (`contract::evidence::PriorUsed`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prior: Option<super::evidence::PriorUsed>,
 }
 
 /// A lift fit's check that no effect was absorbed in silence by the joints it does not report
@@ -780,6 +784,7 @@ pub fn details(
         },
         body_uncertainty: BodyUncertaintyResult::of(fit),
         absorption: None,
+        prior: None,
     }
 }
 

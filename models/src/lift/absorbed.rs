@@ -8,7 +8,7 @@
 //! moves off its truth. The check here refits the trace with only the *reported* parameters
 //! free — the members of the informed combinations and the separately informed parameters, with
 //! the sensor offset — and every other coefficient at its prior mean (Table 4, the model's
-//! value). Where that refit leaves at least [`ABSORBED_RATIO`] × the noise, the plain fit's
+//! value, or a fleet prior's mean: issue 37). Where that refit leaves at least [`ABSORBED_RATIO`] × the noise, the plain fit's
 //! agreement with the data was bought with parameters nobody reads: the lift must end with an
 //! effect named (`lift::effects`) or `unexplained` with its joints withheld
 //! (`report::fit_lift_trace`).
@@ -62,6 +62,9 @@ pub struct Absorption {
     /// (an effect must explain what the unreported joints absorbed, with them at Table 4).
     pub fit: LiftFit,
     pub opts: LiftFitOptions,
+    /// The model the refit held the unreported joints in: `None` when at Table 4 (the model's
+    /// own values), else at a fleet prior's means (`LiftFitOptions::friction_prior`).
+    pub model: Option<LiftModel>,
 }
 
 impl Absorption {
@@ -89,7 +92,7 @@ impl Absorption {
     /// Why the joints are withheld, in words (when it fired and nothing was named).
     pub fn reason(&self) -> String {
         format!(
-            "refitted with only the reported parameters free ({}; the others at Table 4), the \
+            "refitted with only the reported parameters free ({}; the others at their prior means), the \
              lift leaves {:.1}× the sensor noise in H (RMS {:.2} mm against {:.2} mm; the plain \
              fit {:.1}×): the fit reached the noise by moving joints it does not report — an \
              effect the model lacks, or a drift of an unreported joint, that no named effect \
@@ -149,7 +152,14 @@ pub fn reported_only(
         start: Some(start),
         ..opts.clone()
     };
-    let fit = match fit_map(model, std::slice::from_ref(trace), &restricted) {
+    // The unreported joints held at their prior means: Table 4, or the fleet's
+    // (`LiftFitOptions::friction_prior`, issue 37), on a copy of the model.
+    let held_model = held_at_prior(model, &free, opts);
+    let fit = match fit_map(
+        held_model.as_ref().unwrap_or(model),
+        std::slice::from_ref(trace),
+        &restricted,
+    ) {
         Ok(f) => f,
         Err(LiftFitError::Failed(_) | LiftFitError::Sim(_)) => return Ok(None),
         Err(e) => return Err(e),
@@ -184,7 +194,33 @@ pub fn reported_only(
             ..restricted
         },
         fit,
+        model: held_model,
     }))
+}
+
+/// `model` with every friction parameter of `opts` not in `free` at its prior mean where that
+/// is not Table 4 (a fleet prior, `LiftFitOptions::friction_prior`); `None` when none is.
+fn held_at_prior(
+    model: &LiftModel,
+    free: &[LiftParam],
+    opts: &LiftFitOptions,
+) -> Option<LiftModel> {
+    let moved: Vec<(LiftParam, f64)> = opts
+        .friction_prior
+        .iter()
+        .filter(|(p, m, _)| !free.contains(p) && opts.friction_params.contains(p) && *m != 1.0)
+        .map(|&(p, m, _)| (p, m))
+        .collect();
+    if moved.is_empty() {
+        return None;
+    }
+    let mut m = model.clone();
+    let mut unused = 0.0;
+    for (p, ratio) in moved {
+        let v = p.get(model, 0.0) * ratio;
+        p.set(&mut m, &mut unused, v);
+    }
+    Some(m)
 }
 
 /// Withhold every joint and combination of `r` (not identified, `unknown`: no alert, health
@@ -239,8 +275,8 @@ pub fn fixed_effect_refit(
             p => p.set(&mut m, &mut unused, e.value),
         }
     }
-    // Started where the search's fit ended (its reported values, every other joint at Table 4:
-    // a point already at the noise). From the plain fit's MAP — the basin where the joints had
+    // Started where the search's fit ended (its reported values, every other joint at its
+    // prior mean — Table 4 or the fleet's — as the search held it: a point already at the noise). From the plain fit's MAP — the basin where the joints had
     // absorbed the effect — a 20 ms delay's refit stayed at 3–5× the noise.
     let start: Vec<f64> = full
         .friction_params
@@ -250,7 +286,7 @@ pub fn fixed_effect_refit(
                 .params
                 .iter()
                 .find(|q| q.param == *p)
-                .map_or(1.0, |q| q.map_value / q.baseline)
+                .map_or(full.prior_of(*p).0, |q| q.map_value / q.baseline)
         })
         .chain(found.offsets.iter().map(|o| o.map_value))
         .collect();

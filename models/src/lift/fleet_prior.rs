@@ -82,6 +82,38 @@ impl FleetPrior {
         self.params.iter().map(|p| p.n_fits).sum()
     }
 
+    /// `learned` when any parameter's spread is the fleet's (`ParamPrior::learned`), else
+    /// `type_file`: every parameter at the data file's floor.
+    pub fn source(&self) -> &'static str {
+        if self.params.iter().any(|p| p.learned) {
+            "learned"
+        } else {
+            "type_file"
+        }
+    }
+
+    /// The fit's prior (`LiftFitOptions::friction_prior`): each learned parameter's mean with
+    /// its sd × `sd_scale` (`[fleet_prior] fit_sd_scale`, the widening the probe measured the
+    /// level's coverage needs), a floored one's mean with the floor as it is (the lift fit's own
+    /// Table 4 width, which its intervals were calibrated under). Entries whose mean or sd is
+    /// not finite or not > 0 are left out (Table 4's then).
+    pub fn for_fit(&self, sd_scale: f64) -> Vec<(LiftParam, f64, f64)> {
+        self.params
+            .iter()
+            .filter_map(|p| {
+                let sd = if p.learned {
+                    p.sd_ratio * sd_scale
+                } else {
+                    p.sd_ratio
+                };
+                let ok =
+                    p.mean_ratio.is_finite() && p.mean_ratio > 0.0 && sd.is_finite() && sd > 0.0;
+                ok.then(|| p.param().map(|q| (q, p.mean_ratio, sd)))
+                    .flatten()
+            })
+            .collect()
+    }
+
     /// Whether any parameter's mean or sd differs from `other`'s by more than `tol` (Table 4
     /// units), or the two cover different parameters: a new version is due.
     pub fn differs(&self, other: &FleetPrior, tol: f64) -> bool {

@@ -614,17 +614,23 @@ pub fn fit_map_in(
             };
             (map_value, ci, status)
         } else {
-            // The prior's interval, log-normal for a coefficient likewise.
+            // The prior's interval, log-normal for a coefficient likewise, about the prior's
+            // mean (Table 4, or the fleet's: `LiftFitOptions::friction_prior`).
+            let centre = if i < pf {
+                opts.prior_of(param).0 * base
+            } else {
+                base
+            };
             let (lo, hi) = if param == LiftParam::TorqueOffset {
                 (-Z95 * prior, Z95 * prior)
             } else {
-                let rel = prior / base;
-                (base * (-Z95 * rel).exp(), base * (Z95 * rel).exp())
+                let rel = prior / centre;
+                (centre * (-Z95 * rel).exp(), centre * (Z95 * rel).exp())
             };
             let b = if param == LiftParam::TorqueOffset {
                 0.0
             } else {
-                base
+                centre
             };
             (b, [lo, hi], Status::Unknown)
         };

@@ -31,6 +31,7 @@ use std::sync::OnceLock;
 use super::attribution::Combination;
 use super::dynamics::LiftModel;
 use super::identify::{JointEstimate, LiftFit, LiftFitError, LiftFitOptions, LiftTrace, fit_map};
+use super::sensitivity::LiftParam;
 use super::simulate::LiftInputs;
 use super::topology::RevJoint;
 use crate::contract::drift::{DriftThresholds, Status};
@@ -111,8 +112,20 @@ pub fn fit_lift_trace(
     thresholds: &DriftThresholds,
     trace_id: &str,
 ) -> Result<LiftReport, LiftFitError> {
+    fit_lift_trace_with(channels, thresholds, trace_id, &[])
+}
+
+/// [`fit_lift_trace`] with `friction_prior` for the parameters it names
+/// (`LiftFitOptions::friction_prior`: the fleet's, `fleet_prior::FleetPrior::for_fit`).
+pub fn fit_lift_trace_with(
+    channels: &LiftChannels,
+    thresholds: &DriftThresholds,
+    trace_id: &str,
+    friction_prior: &[(LiftParam, f64, f64)],
+) -> Result<LiftReport, LiftFitError> {
     let model = builtin_model();
-    let (trace, opts) = lift_trace(channels, thresholds)?;
+    let (trace, mut opts) = lift_trace(channels, thresholds)?;
+    opts.friction_prior = friction_prior.to_vec();
     let fit = fit_map(model, &[trace], &opts)?;
     let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
     let mut result = fit_result(model, &fit, &trace, &fitted_height_m, &opts, trace_id);
@@ -151,11 +164,13 @@ pub fn fit_lift_trace(
     // (`residual::tests`), the drift left out of the model taken for an effect.
     let gated = plain_ratio > super::residual::MODEL_ERROR_RATIO;
     let restricted = absorption.as_ref().filter(|_| !gated);
-    let (base_fit, base_opts) = match restricted {
-        Some(a) => (&a.fit, &a.opts),
-        None => (&fit, &opts),
+    // The search runs on the model the reported-only refit held the other joints in (their
+    // prior means: Table 4, or a fleet prior's).
+    let (base_model, base_fit, base_opts) = match restricted {
+        Some(a) => (a.model.as_ref().unwrap_or(model), &a.fit, &a.opts),
+        None => (model, &fit, &opts),
     };
-    let hold = super::holdout::blocks(model, &trace, base_fit, base_opts)?;
+    let hold = super::holdout::blocks(base_model, &trace, base_fit, base_opts)?;
     set_holdout(&mut result, &hold, &hold);
     // A model error: try the vocabulary (`lift::effects`), one fit each, in an order and with a
     // stop: `sensor_delay` first where the plain residual correlates most with the strip speed
@@ -214,14 +229,14 @@ pub fn fit_lift_trace(
         if restricted.is_some() && matches!(candidate, Candidate::Offset) {
             continue;
         }
-        let Some(found) = try_candidate(candidate, model, &trace, base_fit, base_opts)? else {
+        let Some(found) = try_candidate(candidate, base_model, &trace, base_fit, base_opts)? else {
             continue;
         };
         // The named model must pass the check itself.
         if found.excess_ratio >= super::absorbed::ABSORBED_RATIO {
             continue;
         }
-        let hold_after = super::holdout::blocks(model, &trace, &found.fit, &found.opts)?;
+        let hold_after = super::holdout::blocks(base_model, &trace, &found.fit, &found.opts)?;
         let rmse = found.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
         let noise_m = rmse / found.excess_ratio;
         if !super::holdout::improves(&hold, &hold_after, noise_m) {
@@ -728,6 +743,7 @@ fn build_result(
             viscous_dry_correlation: f64::NAN,
             body_uncertainty: None,
             absorption: None,
+            prior: None,
         },
         pooled: None,
         combinations,

@@ -271,6 +271,7 @@ pub fn fit_result(fit: &QuadFit, t_s: &[f64], opts: &QuadFitOptions, trace_id: &
             viscous_dry_correlation: f64::NAN,
             body_uncertainty: None,
             absorption: None,
+            prior: None,
         },
         pooled: None,
         combinations: Vec::new(),

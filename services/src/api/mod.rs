@@ -15,6 +15,7 @@ pub mod fleet;
 pub mod gate;
 pub mod ops;
 pub mod plan;
+pub mod prior;
 pub mod ratelimit;
 pub mod session;
 pub mod state;
@@ -72,6 +73,7 @@ pub fn routes() -> OpenApiRouter<AppState> {
         .merge(traces::router())
         .merge(fleet::router())
         .merge(plan::router())
+        .merge(prior::router())
         .merge(admin::router())
         .merge(alerts::router())
         .merge(webhooks::router())

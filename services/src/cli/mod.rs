@@ -8,6 +8,7 @@ pub mod fit;
 pub mod keys;
 pub mod migrate;
 pub mod pooled;
+pub mod prior;
 pub mod refit;
 pub mod report;
 pub mod serve;

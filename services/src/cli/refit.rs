@@ -52,22 +52,31 @@ pub fn run(a: RefitArgs) -> anyhow::Result<()> {
         };
         println!("queued {n} fits (model version {MODEL_VERSION})");
         if a.run {
-            let opts = worker_options(&s, workers);
-            let done = drain(&store, opts).await?;
-            println!(
-                "fitted {} traces in {:.1} s ({:.2} fits/s on {workers} workers), {} failed",
-                done.fitted,
-                done.seconds,
-                done.fitted as f64 / done.seconds.max(1e-9),
-                done.failed
-            );
-            if let Some(e) = done.first_error {
-                println!("first failure: {e}");
-            }
+            drain_queue(&store, worker_options(&s, workers)).await?;
         }
         store.close().await;
         Ok(())
     })
+}
+
+/// Fits the queue on `store` until it is empty and prints what was done (`prior learn --run`).
+pub(crate) async fn drain_queue(
+    store: &Store,
+    opts: crate::worker::WorkerOptions,
+) -> anyhow::Result<()> {
+    let workers = opts.workers;
+    let done = drain(store, opts).await?;
+    println!(
+        "fitted {} traces in {:.1} s ({:.2} fits/s on {workers} workers), {} failed",
+        done.fitted,
+        done.seconds,
+        done.fitted as f64 / done.seconds.max(1e-9),
+        done.failed
+    );
+    if let Some(e) = done.first_error {
+        println!("first failure: {e}");
+    }
+    Ok(())
 }
 
 /// What [`drain`] did.

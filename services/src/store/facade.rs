@@ -169,6 +169,28 @@ impl Store {
         dispatch!(self, s => s.requeue(Some(vehicle_id), model_version).await)
     }
 
+    /// Version `version` of `model`'s fleet prior, or (`None`) its newest; `None` when there
+    /// is none (fits then use the type file's, version 0).
+    pub async fn fleet_prior(
+        &self,
+        model: &str,
+        version: Option<i64>,
+    ) -> Result<Option<StoredPrior>> {
+        dispatch!(self, s => s.fleet_prior(model, version).await)
+    }
+
+    /// Stores `p` as the next fleet prior version and queues, in the same transaction, a refit
+    /// at model version `refit_prefix` + version of every `kinds` trace of its type whose
+    /// current fit used an older prior (`services::fleet_prior`).
+    pub async fn publish_fleet_prior(
+        &self,
+        p: &NewPrior,
+        kinds: &[&str],
+        refit_prefix: &str,
+    ) -> Result<Published> {
+        dispatch!(self, s => s.publish_fleet_prior(p, kinds, refit_prefix).await)
+    }
+
     /// A job by id.
     pub async fn get_job(&self, job_id: i64) -> Result<Option<Job>> {
         dispatch!(self, s => s.get_job(job_id).await)

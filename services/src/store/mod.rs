@@ -11,7 +11,7 @@
 //! - `mod.rs`: errors, the status/role/job-state words, the concern traits, the joint-state SQL;
 //! - `records.rs`: what callers write and read; `facade.rs`: `Store`'s methods (the callers'
 //!   checks, then the backend); `rows.rs`: rows to records, for both backends;
-//! - `sql/{traces,jobs,health,keys,alerts}.rs`: each concern's statements and steps, once, as a
+//! - `sql/{traces,jobs,health,keys,alerts,priors}.rs`: each concern's statements and steps, once, as a
 //!   macro body (`traces_impl!()` …); `sql/mod.rs`: the SQL fragments they share and the
 //!   dialect they name (why macros: see there);
 //! - `sqlite.rs`, `postgres.rs`: what differs per backend, and nothing else: connection and
@@ -410,6 +410,25 @@ pub(crate) trait HealthBackend {
         serial: &str,
         trends: &[(String, String, Option<StoredTrend>)],
     ) -> impl Future<Output = Result<()>> + Send;
+}
+
+pub(crate) trait PriorBackend {
+    // fleet priors (issue 37, point 3)
+    /// Version `version` of `model`'s prior, or (`None`) its newest.
+    fn fleet_prior(
+        &self,
+        model: &str,
+        version: Option<i64>,
+    ) -> impl Future<Output = Result<Option<StoredPrior>>> + Send;
+    /// Stores `p` as `model`'s next version and, in the same transaction, queues a refit under
+    /// the model version `refit_prefix` + the new version of every `kinds` trace of that type
+    /// whose current fit used an older prior (or none).
+    fn publish_fleet_prior(
+        &self,
+        p: &NewPrior,
+        kinds: &[&str],
+        refit_prefix: &str,
+    ) -> impl Future<Output = Result<Published>> + Send;
 }
 
 pub(crate) trait KeyBackend {

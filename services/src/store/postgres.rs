@@ -236,6 +236,7 @@ jobs_impl!();
 health_impl!();
 keys_impl!();
 alerts_impl!();
+priors_impl!();
 
 #[cfg(test)]
 mod loopback_tests {

@@ -461,3 +461,41 @@ pub struct StoredTrend {
     pub slope_ci95: [f64; 2],
     pub significant: bool,
 }
+
+/// A stored fleet prior version (`fleet_priors`, migration 0009; issue 37, point 3).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StoredPrior {
+    pub version: i64,
+    /// The pantograph type it is for (`160EC`).
+    pub model: String,
+    pub learned_at: DateTime<Utc>,
+    /// `learned` or `type_file`.
+    pub source: String,
+    /// Pantographs whose workshop fits it rests on.
+    pub n_units: i64,
+    /// The type file's floor (Table 4 units) applied where a parameter had few fits.
+    pub floor_relative_sd: f64,
+    /// The widening of learned sds a fit applies (`[fleet_prior] fit_sd_scale`).
+    pub fit_sd_scale: f64,
+    /// Per joint and parameter.
+    pub params: Vec<pantowatch_models::lift::fleet_prior::ParamPrior>,
+}
+
+/// A prior to publish: everything but the version and the time, which the store assigns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NewPrior {
+    pub model: String,
+    pub source: String,
+    pub n_units: i64,
+    pub floor_relative_sd: f64,
+    pub fit_sd_scale: f64,
+    pub params: Vec<pantowatch_models::lift::fleet_prior::ParamPrior>,
+}
+
+/// What publishing a prior did: the version stored and the fits queued again under it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Published {
+    pub prior: StoredPrior,
+    /// Refit jobs queued (lift and gauge traces whose current fit used an older prior).
+    pub queued: u64,
+}

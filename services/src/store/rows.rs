@@ -299,3 +299,19 @@ pub(crate) fn parse_ts_text(s: &str) -> Result<DateTime<Utc>> {
 pub(crate) fn lease_delta(lease: Duration) -> chrono::TimeDelta {
     chrono::TimeDelta::from_std(lease).unwrap_or(chrono::TimeDelta::MAX)
 }
+
+/// One `fleet_prior_params` row.
+pub(crate) fn prior_param_from<R: RowExt>(
+    r: &R,
+) -> Result<pantowatch_models::lift::fleet_prior::ParamPrior> {
+    let real = |c: &str| -> Result<f64> { Ok(r.opt_real(c)?.unwrap_or(f64::NAN)) };
+    Ok(pantowatch_models::lift::fleet_prior::ParamPrior {
+        joint: r.text("joint")?,
+        kind: r.text("param")?,
+        mean_ratio: real("mean_ratio")?,
+        sd_ratio: real("sd_ratio")?,
+        spread_ratio: real("spread_ratio")?,
+        n_fits: usize::try_from(r.int("n_fits")?).unwrap_or(0),
+        learned: r.flag("learned")?,
+    })
+}

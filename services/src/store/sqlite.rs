@@ -229,3 +229,4 @@ jobs_impl!();
 health_impl!();
 keys_impl!();
 alerts_impl!();
+priors_impl!();

@@ -16,6 +16,7 @@ pub use crate::corpus::{
     corpus_uploads_are_refused_and_store_nothing, edge_dates_never_break_their_vehicle,
     hostile_requests_answer_problems_naming_their_field,
 };
+pub use crate::fleet_prior::a_fleet_prior_is_learned_versioned_recorded_and_refitted;
 pub use crate::gauge::{
     a_gauge_measurement_is_stored_refused_and_drawn, a_gauge_record_pools_with_the_next_lift,
     a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,
@@ -411,6 +412,21 @@ pub async fn every_route_every_role(b: Backend) {
             "/v1/fleet/plan?limit=5".into(),
             None,
             Role::Reader,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/fleet/prior".into(),
+            None,
+            Role::Reader,
+            StatusCode::OK,
+        ),
+        // No workshop fits: the type file's prior stands (200, nothing published).
+        (
+            Method::POST,
+            "/v1/fleet/prior".into(),
+            Some(json!({})),
+            Role::Admin,
             StatusCode::OK,
         ),
         (

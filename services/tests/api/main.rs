@@ -9,6 +9,7 @@ mod alerts;
 mod browser;
 mod cases;
 mod corpus;
+mod fleet_prior;
 mod gauge;
 mod harness;
 mod lift;
@@ -74,6 +75,7 @@ suite!(
     recordings_of_one_rig_are_fitted_pooled,
     evidence_plan_and_test_due_over_http,
     the_kept_fleet_plan_is_the_plan_from_scratch,
+    a_fleet_prior_is_learned_versioned_recorded_and_refitted,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).

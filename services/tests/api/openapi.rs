@@ -61,5 +61,5 @@ pub fn every_operation_states_its_security_and_every_answer() {
             }
         }
     }
-    assert_eq!(operations, 28);
+    assert_eq!(operations, 30);
 }

@@ -243,6 +243,7 @@ pub fn gauge_result(
             viscous_dry_correlation: f64::NAN,
             body_uncertainty: None,
             absorption: None,
+            prior: None,
         },
         pooled: None,
         combinations,

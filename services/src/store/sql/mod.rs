@@ -137,4 +137,6 @@ mod jobs;
 #[macro_use]
 mod keys;
 #[macro_use]
+mod priors;
+#[macro_use]
 mod traces;

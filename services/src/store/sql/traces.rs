@@ -63,10 +63,10 @@ async fn insert_fit_tx(
 ) -> Result<FitWrite> {
     let result = fit.result_json()?;
     let id: Option<i64> = query_scalar(concat!(
-        "INSERT INTO fits (trace_id, model_version, result_json, rmse, status)
+        "INSERT INTO fits (trace_id, model_version, result_json, rmse, status, prior_version)
          VALUES ($1, $2, $3",
         jsonb!(),
-        ", $4, $5)
+        ", $4, $5, $6)
          ON CONFLICT (trace_id, model_version) DO NOTHING
          RETURNING id"
     ))
@@ -75,6 +75,7 @@ async fn insert_fit_tx(
     .bind(result)
     .bind(fit.rmse)
     .bind(fit.status().map(Status::as_str))
+    .bind(fit.result.fit.prior.as_ref().map(|p| p.version))
     .fetch_optional(&mut *conn)
     .await?;
     let Some(fit_id) = id else {
