@@ -369,8 +369,8 @@ pub struct FitDetails {
 pub struct AbsorptionCheck {
     /// The check: `reported_only_refit`.
     pub check: String,
-    /// Whether it fired (`ratio` ≥ `threshold`): the lift then names an effect or is
-    /// `unexplained` with its joints withheld, never clean.
+    /// Whether it fired (`ratio` ≥ `threshold`, or `worst_phase_ratio` ≥ `phase_threshold`): the
+    /// lift then names an effect or is `unexplained` with its joints withheld, never clean.
     pub fired: bool,
     /// The refit's H residual RMS over the sensor noise.
     #[serde(deserialize_with = "nullable::f64")]
@@ -384,6 +384,15 @@ pub struct AbsorptionCheck {
     pub plain_ratio: f64,
     /// The parameters left free (`J1 dry`, …); every other at its Table 4 value.
     pub free: Vec<String>,
+    /// The refit judged by phase (`lift::absorbed::judge`): the phase it misfits most
+    /// (`rising`, `first half`, …) and its H residual RMS over the noise there. It fires too when
+    /// that reaches `phase_threshold`: an effect confined to one phase is diluted in the average.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst_phase: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst_phase_ratio: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub phase_threshold: Option<f64>,
 }
 
 /// The stated body uncertainties a single-joint fit carried (`fit.body_uncertainty`), each
