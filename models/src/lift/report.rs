@@ -350,32 +350,23 @@ fn residual_loop(
         Some((_, h, full, _)) => (h.as_slice(), full.fitted_height_m.first()),
         None => (channels.strip_height_m, found.fit.fitted_height_m.first()),
     };
-    let fitted_effects: Vec<_> = found
-        .fit
-        .effects
-        .iter()
-        .map(|e| (e.param, e.value))
-        .collect();
-    let objection = super::absorbed::judge::objection(
-        found.name,
-        &fitted_effects,
+    let judged = (
         channels.t_s,
         judged_h,
         judged_fit.map_or(&[][..], |v| v.as_slice()),
-        opts.h_noise_m.max(super::residual::GATE_FLOOR_M),
     );
-    let over = (left > super::absorbed::NAMED_MAX_RATIO).then(|| {
-        format!(
-            "`{}` was tried: reported with every joint free it left {left:.2}× the noise, over \
-             {}×",
-            found.name,
-            super::absorbed::NAMED_MAX_RATIO
-        )
-    });
-    if let Some(why) = over.filter(|_| absorption.is_some()).or(objection) {
-        let reason = match &absorption {
-            Some(a) => format!("{} ({why})", a.reason()),
-            None => format!("no named effect explains the record: {why}"),
+    let why = super::absorbed::judge::rejected(
+        &found.fit,
+        found.name,
+        judged,
+        left,
+        absorption.as_ref(),
+        &opts,
+    );
+    if let Some(why) = why {
+        let reason = match result.residual.joints_withheld.take() {
+            Some(gate) => format!("{gate}; {why}"),
+            None => why,
         };
         super::absorbed::withhold_all(&mut result, reason);
         return Ok(LiftReport {

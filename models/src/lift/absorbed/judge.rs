@@ -12,6 +12,9 @@
 //!   [`PHASE_MAX_RATIO`]. Measured: right names left every phase at 0.70–0.81× at the stand's
 //!   noise; a J3 friction band named `quadratic_drag` on the designed protocol left its rising
 //!   phase at 1.72× (its average 1.11×), a 2 % torque gain error named `sensor_offset` 1.76×.
+//! - On a record that does not lower the strip (the paper's raise) `drive_compliance` is not
+//!   named: a 2 % spring-force gain error was named `drive_compliance` on 3 of 3 raises (its
+//!   stiffness's interval reaching the prior's bound, as the right names' there).
 //! - Size: an H zero offset is named only within ±[`MAX_NAMED_OFFSET_M`]. Measured: a 2 %
 //!   spring-force gain error reads as an H offset of 24–33 mm on the raise and lower and the
 //!   designed protocol, and fits it to the noise in every phase (0.71–0.79× on the designed
@@ -91,6 +94,37 @@ pub fn by_phase(
         .collect()
 }
 
+/// Why the effect `name` found by `found` and reported leaving `left`× the noise overall is not
+/// the explanation (the average's bound, [`super::NAMED_MAX_RATIO`], where the check ran; then
+/// [`objection`] on `judged`: the times, the measured H and the reported model's H), in words
+/// with the check's reason; `None` when it holds.
+pub fn rejected(
+    found: &super::super::fit::LiftFit,
+    name: &str,
+    judged: (&[f64], &[f64], &[f64]),
+    left: f64,
+    absorption: Option<&super::Absorption>,
+    opts: &super::super::fit::LiftFitOptions,
+) -> Option<String> {
+    let over = (left > super::NAMED_MAX_RATIO).then(|| {
+        format!(
+            "`{name}` was tried: reported with every joint free it left {left:.2}× the noise, \
+             over {}×",
+            super::NAMED_MAX_RATIO
+        )
+    });
+    let effects: Vec<_> = found.effects.iter().map(|e| (e.param, e.value)).collect();
+    let floor = opts.h_noise_m.max(super::super::residual::GATE_FLOOR_M);
+    let (t, h, f) = judged;
+    let why = over
+        .filter(|_| absorption.is_some())
+        .or_else(|| objection(name, &effects, t, h, f, floor))?;
+    Some(match absorption {
+        Some(a) => format!("{} ({why})", a.reason()),
+        None => format!("no named effect explains the record: {why}"),
+    })
+}
+
 /// Why the effect `name`, fitted with `effects` (parameter, value) and leaving the record as
 /// `fitted` (H, m) against `measured`, is not the explanation; `None` when it holds.
 pub fn objection(
@@ -113,6 +147,14 @@ pub fn objection(
              channel checked against a gauge, would tell them apart)",
             b * 1e3,
             MAX_NAMED_OFFSET_M * 1e3
+        ));
+    }
+    if name == "drive_compliance" && !lowers(t_s, fitted) {
+        return Some(format!(
+            "`{name}` fits the record, but on a record that does not lower the strip a compliant \
+             drive line cannot be told from a gain error of the spring-force channel, outside \
+             the vocabulary (measured: a 2 % gain error was named `{name}` on 3 of 3 raises); \
+             neither is named (a raise and lower would tell them apart)"
         ));
     }
     let phases = by_phase(t_s, measured, fitted, floor_m);
@@ -193,14 +235,15 @@ pub fn widen_without_lowering(
     }
 }
 
-/// A flag (watch or alarm) on a parameter the lift reports on its own, outside a combination,
-/// stands only where the data demand it: refitted with that parameter at Table 4 (the other
+/// A flag (watch or alarm) on a parameter or a combination the lift reports stands only where
+/// the data demand it: refitted with that parameter (the combination's members) at Table 4 (the other
 /// reported parameters free, started at `fit`'s MAP), the record must leave the absorption
 /// check's ratio ([`super::ABSORBED_RATIO`]) overall or in a phase ([`PHASE_FIRE_RATIO`]). Else
 /// the parameter moved only to absorb something else — measured: a 2 % torque gain error on the
 /// paper's raise at twice the noise put J8 dry at 2.4 × Table 4 "informed", an alarm, while J1
 /// and J3 alone explain the record to 1.07× — and it is reported not identified, `unknown`,
-/// with the reason in `residual.joints_withheld`. Only on a clean verdict (no effect named,
+/// with the reason in `residual.joints_withheld`; measured too: an H dead band of ±2 mm on the
+/// designed protocol put a J5+J8 dry level at 4.5× (seed 302). Only on a clean verdict (no effect named,
 /// nothing withheld): one refit per flag.
 pub fn undemanded_flags(
     model: &super::super::dynamics::LiftModel,
@@ -214,25 +257,33 @@ pub fn undemanded_flags(
     if r.residual.verdict.is_some() || !r.residual.effects.is_empty() {
         return Ok(());
     }
-    let flagged: Vec<LiftParam> = r
-        .joints
-        .iter()
-        .flat_map(|j| {
-            [("viscous", &j.viscous), ("dry", &j.dry)]
-                .into_iter()
-                .filter(|(_, p)| {
-                    p.identifiable
-                        && p.combination.is_none()
-                        && matches!(p.status, Status::Watch | Status::Alarm)
-                })
-                .filter_map(|(kind, _)| LiftParam::named(&j.joint, kind))
-        })
-        .collect();
+    // (entry in `joints`, slot, members held at Table 4, combination label if one).
+    let mut flagged: Vec<(String, &'static str, Vec<LiftParam>, Option<String>)> = Vec::new();
+    for j in &r.joints {
+        for (kind, p) in [("viscous", &j.viscous), ("dry", &j.dry)] {
+            if !(p.identifiable && matches!(p.status, Status::Watch | Status::Alarm)) {
+                continue;
+            }
+            let members: Vec<LiftParam> = match &p.combination {
+                None => LiftParam::named(&j.joint, kind).into_iter().collect(),
+                Some(label) => r
+                    .combinations
+                    .iter()
+                    .filter(|c| &c.label == label)
+                    .flat_map(|c| &c.members)
+                    .filter_map(|m| LiftParam::named(&m.joint, &m.kind))
+                    .collect(),
+            };
+            if !members.is_empty() {
+                flagged.push((j.joint.clone(), kind, members, p.combination.clone()));
+            }
+        }
+    }
     let floor = opts.h_noise_m.max(super::super::residual::GATE_FLOOR_M);
-    for param in flagged {
+    for (entry, kind, held, combination) in flagged {
         let free: Vec<LiftParam> = super::reported_params(fit)
             .into_iter()
-            .filter(|p| *p != param)
+            .filter(|p| !held.contains(p))
             .collect();
         let start: Vec<f64> = fit
             .params
@@ -280,8 +331,7 @@ pub fn undemanded_flags(
         if !(ratio.is_finite() && ratio < super::ABSORBED_RATIO && worst < PHASE_FIRE_RATIO) {
             continue;
         }
-        let (joint, kind) = (param.joint(), param.kind());
-        for j in r.joints.iter_mut().filter(|j| j.joint == joint) {
+        for j in r.joints.iter_mut().filter(|j| j.joint == entry) {
             let p = if kind == "dry" {
                 &mut j.dry
             } else {
@@ -297,8 +347,17 @@ pub fn undemanded_flags(
                 .max()
                 .unwrap_or(Status::Unknown);
         }
+        for c in r
+            .combinations
+            .iter_mut()
+            .filter(|c| combination.as_ref() == Some(&c.label))
+        {
+            c.identifiable = false;
+            c.status = Status::Unknown;
+        }
+        let joint = combination.unwrap_or_else(|| format!("{entry} {kind}"));
         let note = format!(
-            "{joint} {kind} not judged: the fit moved it out of its band, but with it at Table 4 \
+            "{joint} not judged: the fit moved it out of its band, but with it at Table 4 \
              the other reported parameters explain the record to {ratio:.2}× the noise ({worst:.2}× \
              in the worst phase): the data do not demand it — it may have absorbed an effect the \
              model lacks"
@@ -309,4 +368,52 @@ pub fn undemanded_flags(
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A ramp up and a dwell at 500 Hz: a misfit confined to the ramp is found in the rising
+    /// phase at its own size, while the record's average dilutes it; no falling phase is judged.
+    #[test]
+    fn a_misfit_confined_to_one_phase_is_judged_there() {
+        let n = 2000;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 / 500.0).collect();
+        let fitted: Vec<f64> = t.iter().map(|&t| 1.0 + 0.1 * t.min(2.0)).collect();
+        // White ±0.7 mm noise (alternating), plus 2 mm on the ramp.
+        let measured: Vec<f64> = (0..n)
+            .map(|i| {
+                let noise = if i % 2 == 0 { 0.7e-3 } else { -0.7e-3 };
+                fitted[i] + noise + if t[i] < 2.0 { 2e-3 } else { 0.0 }
+            })
+            .collect();
+        let phases = by_phase(&t, &measured, &fitted, 0.7e-3);
+        let get = |p: &str| phases.iter().find(|(q, _)| *q == p).map(|(_, r)| *r);
+        assert!(get("falling").is_none(), "{phases:?}");
+        let rising = get("rising").unwrap();
+        let second = get("second half").unwrap();
+        assert!(rising > 2.0 && second < 1.1, "{phases:?}");
+        assert!(!lowers(&t, &fitted));
+        let why = objection("quadratic_drag", &[], &t, &measured, &fitted, 0.7e-3);
+        assert!(why.is_some_and(|w| w.contains("rising")));
+        // The noise alone: no objection.
+        let even: Vec<f64> = (0..n)
+            .map(|i| measured[i] - if t[i] < 2.0 { 2e-3 } else { 0.0 })
+            .collect();
+        assert!(objection("quadratic_drag", &[], &t, &even, &fitted, 0.7e-3).is_none());
+    }
+
+    #[test]
+    fn an_offset_beyond_a_stands_is_not_named() {
+        let t: Vec<f64> = (0..600).map(|i| i as f64 / 500.0).collect();
+        let h = vec![1.0; 600];
+        let big = [(LiftParam::SensorOffset, 0.03)];
+        assert!(
+            objection("sensor_offset", &big, &t, &h, &h, 0.7e-3)
+                .is_some_and(|w| w.contains("30.0 mm"))
+        );
+        let small = [(LiftParam::SensorOffset, -0.01)];
+        assert!(objection("sensor_offset", &small, &t, &h, &h, 0.7e-3).is_none());
+    }
 }
