@@ -384,13 +384,15 @@ pub struct AbsorptionCheck {
     pub plain_ratio: f64,
     /// The parameters left free (`J1 dry`, …); every other at its Table 4 value.
     pub free: Vec<String>,
-    /// The refit judged by phase (`lift::absorbed::judge`): the phase it misfits most
-    /// (`rising`, `first half`, …) and its H residual RMS over the noise there. It fires too when
-    /// that reaches `phase_threshold`: an effect confined to one phase is diluted in the average.
+    /// The phase of the record the refit misfits most (`rising`, `first half`, …;
+    /// `lift::absorbed::judge`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub worst_phase: Option<String>,
+    /// The refit's H residual RMS over the noise in `worst_phase`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub worst_phase_ratio: Option<f64>,
+    /// The phase ratio at or above which it fires too (set on a record that does not lower the
+    /// strip, where an effect confined to the motion is diluted by the dwell in the average).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub phase_threshold: Option<f64>,
 }
