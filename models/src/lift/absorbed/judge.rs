@@ -75,7 +75,8 @@ pub fn by_phase(
         });
     let mid = 0.5 * (lo + hi);
     let v = super::super::residual::speed(&t_s[..n], &fitted[..n]);
-    let phases: [(&'static str, Box<dyn Fn(usize) -> bool>); 6] = [
+    type InPhase<'a> = Box<dyn Fn(usize) -> bool + 'a>;
+    let phases: [(&'static str, InPhase); 6] = [
         ("first half", Box::new(|i| i < n / 2)),
         ("second half", Box::new(|i| i >= n / 2)),
         ("lower half of the H range", Box::new(|i| fitted[i] < mid)),
@@ -113,7 +114,18 @@ pub fn rejected(
             super::NAMED_MAX_RATIO
         )
     });
-    let effects: Vec<_> = found.effects.iter().map(|e| (e.param, e.value)).collect();
+    // An offset judged by its interval's end nearest zero: named while it may be within range.
+    let near = |e: &super::super::fit::EffectEstimate| {
+        let [lo, hi] = e.ci95;
+        if lo > 0.0 {
+            lo
+        } else if hi < 0.0 {
+            hi
+        } else {
+            0.0
+        }
+    };
+    let effects: Vec<_> = found.effects.iter().map(|e| (e.param, near(e))).collect();
     let floor = opts.h_noise_m.max(super::super::residual::GATE_FLOOR_M);
     let (t, h, f) = judged;
     let why = over
@@ -140,7 +152,7 @@ pub fn objection(
         .find(|(p, b)| *p == LiftParam::SensorOffset && b.abs() > MAX_NAMED_OFFSET_M)
     {
         return Some(format!(
-            "`{name}` fits the record with an H zero offset of {:.1} mm, beyond the {:.0} mm a \
+            "`{name}` fits the record with an H zero offset of at least {:.1} mm, beyond the {:.0} mm a \
              zeroed stand sensor is taken to have: the record cannot tell it from a spring-force \
              (or drive-torque) gain error of a few per cent, outside the vocabulary; neither is \
              named (a test with the H sensor re-zeroed on the housed strip, or the spring-force \
@@ -172,8 +184,9 @@ pub fn objection(
     })
 }
 
-/// The J1+J3 level's systematic half-width on a record that does not lower the strip, on the
-/// log scale (× e^±0.2: −18 %, +22 %), combined in quadrature with its posterior's. A raise
+/// The J1+J3 level's systematic half-width on a record that does not lower the strip, in Table
+/// 4 units (±0.2 on the level, each side combined in quadrature with its posterior's: an
+/// effect's bias is a torque, not a share of the level, so a drifted level keeps its width). A raise
 /// alone cannot tell friction from a head drag, a compliant drive, Stribeck friction, an H zero
 /// offset or a torque gain error at sizes the absorption check does not see there, and each
 /// moves the level. Measured (`examples/lift_loop_probe raise`, seeds 200–202, the stand's noise
@@ -211,8 +224,12 @@ pub fn widen_without_lowering(
         if !(lo > 0.0 && hi > lo && c.value > 0.0) {
             continue;
         }
-        let h = (0.5 * (hi / lo).ln()).hypot(RAISE_LEVEL_SYSTEMATIC);
-        c.ci95 = [c.value * (-h).exp(), c.value * h.exp()];
+        // In Table 4 units (an effect's bias is a torque, not a share of the level).
+        let v = c.value;
+        c.ci95 = [
+            (v - (v - lo).hypot(RAISE_LEVEL_SYSTEMATIC)).max(0.0),
+            v + (hi - v).hypot(RAISE_LEVEL_SYSTEMATIC),
+        ];
         c.status = thresholds.judge(c.ci95, c.value, Some(1.0)).status;
         for j in &mut r.joints {
             let mut touched = false;
