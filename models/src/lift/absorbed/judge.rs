@@ -261,8 +261,9 @@ pub fn widen_without_lowering(
 /// the parameter moved only to absorb something else — measured: a 2 % torque gain error on the
 /// paper's raise at twice the noise put J8 dry at 2.4 × Table 4 "informed", an alarm, while J1
 /// and J3 alone explain the record to 1.07× — and it is reported not identified, `unknown`,
-/// with the reason in `residual.joints_withheld`; measured too: an H dead band of ±2 mm on the
-/// designed protocol put a J5+J8 dry level at 4.5× (seed 302). Only on a clean verdict (no effect named,
+/// with the reason in `residual.joints_withheld`. Not enough for an H dead band of ±2 mm on the
+/// designed protocol (seed 302): its J5+J8 dry level at 4.5× stays, as with J5 and J8 at Table 4
+/// the record is not explained (docs/VALIDATION.md). Only on a clean verdict (no effect named,
 /// nothing withheld): one refit per flag.
 pub fn undemanded_flags(
     model: &super::super::dynamics::LiftModel,
