@@ -27,7 +27,11 @@
 //! - `offj1:<mm>`: an H zero offset of mm together with a J1 dry ×2 drift.
 //!
 //! Columns: protocol k case class seed verdict named fired ratio plain_ratio flags level lo hi
-//! truth secs final_ratio (class: clean / vocab:<name> / oov; level: the J1+J3 level when reported).
+//! truth secs final_ratio t1 t2 hlo hhi up down params (class: clean / vocab:<name> / oov; level:
+//! the J1+J3 level when reported; t1…down: the reported model's H residual over the noise in the
+//! record's first and second half, below and above the middle of its H range, rising and
+//! falling; params: the named effects' parameters, JSON; then the absorption check's worst phase
+//! and its ratio).
 use pantowatch_models::drift::{DriftThresholds, Status};
 use pantowatch_models::lift::dynamics::{DriveCompliance, FrictionBand, LiftModel};
 use pantowatch_models::lift::geometry::builtin_160ec;
@@ -36,24 +40,26 @@ use pantowatch_models::lift::report::{LiftChannels, fit_lift_trace};
 use pantowatch_models::lift::sensitivity::LiftParam;
 use pantowatch_models::lift::sensors::LiftSensorNoise;
 use pantowatch_models::lift::simulate::SimOptions;
+use pantowatch_models::numerics::stats::noise_sigma;
 
-const DEFAULT_CASES: [&str; 16] = [
+const DEFAULT_CASES: [&str; 17] = [
     "clean",
     "drift:J5.dry*1.4",
+    "drift:J2.dry*0.7",
+    "drift:J1.dry*1.4",
     "drag:4",
     "delay:20",
-    "offset:5",
+    "offset:10",
     "stribeck:0.5",
     "compliance:8000",
-    "band:1.5",
-    "fade:0.6",
-    "headmass:1.15",
-    "tgain:5",
-    "fsgain:5",
-    "hback:1",
-    "j9stiff:1.5",
+    "band:1.3",
+    "fade:0.7",
+    "headmass:1.02",
+    "tgain:2",
+    "fsgain:2",
+    "hback:2",
+    "j9stiff:3",
     "offj1:5",
-    "drift:J2.dry*0.7",
 ];
 
 fn main() {
@@ -229,6 +235,24 @@ fn main() {
                 .filter(|j| matches!(j.status, Status::Watch | Status::Alarm))
                 .map(|j| format!("{}:{:?}", j.joint, j.status))
                 .collect();
+            for j in r
+                .joints
+                .iter()
+                .filter(|j| matches!(j.status, Status::Watch | Status::Alarm))
+            {
+                eprintln!(
+                    "{proto_name} {k} {case} {seed}: flagged {}; check free {:?}",
+                    serde_json::to_string(j).unwrap_or_default(),
+                    r.fit.absorption.as_ref().map(|a| &a.free)
+                );
+            }
+            let check_phase = r.fit.absorption.as_ref().map_or("-\tNaN".to_string(), |a| {
+                format!(
+                    "{}\t{:.2}",
+                    a.worst_phase.as_deref().unwrap_or("-").replace(' ', "_"),
+                    a.worst_phase_ratio.unwrap_or(f64::NAN)
+                )
+            });
             let (fired, ratio, plain) = r
                 .fit
                 .absorption
@@ -258,8 +282,56 @@ fn main() {
                 }
                 None => (f64::NAN, f64::NAN, f64::NAN, f64::NAN),
             };
+            // The reported model's residual by phase (over the noise, first differences,
+            // floored at 0.7 mm): time halves, H below / above the swept range's middle, rising /
+            // falling strip (the fitted H's speed).
+            let phases = {
+                let h = &rec.strip_height_m;
+                let f = &rep.fitted_height_m;
+                if f.len() == h.len() && h.len() > 4 {
+                    let r: Vec<f64> = h.iter().zip(f).map(|(a, b)| a - b).collect();
+                    let s = noise_sigma(&r).max(0.7e-3);
+                    let n = r.len();
+                    let (hmin, hmax) = f
+                        .iter()
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                            (a.min(*v), b.max(*v))
+                        });
+                    let hmid = 0.5 * (hmin + hmax);
+                    let v = pantowatch_models::lift::residual::speed(&rec.t_s, f);
+                    let part = |sel: &dyn Fn(usize) -> bool| {
+                        let (ss, c) = (0..n)
+                            .filter(|&i| sel(i))
+                            .fold((0.0, 0usize), |(ss, c), i| (ss + r[i] * r[i], c + 1));
+                        if c < 50 {
+                            f64::NAN
+                        } else {
+                            (ss / c as f64).sqrt() / s
+                        }
+                    };
+                    format!(
+                        "{:.2}\t{:.2}\t{:.2}\t{:.2}\t{:.2}\t{:.2}",
+                        part(&|i| i < n / 2),
+                        part(&|i| i >= n / 2),
+                        part(&|i| f[i] < hmid),
+                        part(&|i| f[i] >= hmid),
+                        part(&|i| v[i] > 0.01),
+                        part(&|i| v[i] < -0.01),
+                    )
+                } else {
+                    "nan\tnan\tnan\tnan\tnan\tnan".into()
+                }
+            };
+            let params = serde_json::to_string(
+                &r.residual
+                    .effects
+                    .iter()
+                    .map(|e| &e.params)
+                    .collect::<Vec<_>>(),
+            )
+            .unwrap_or_default();
             println!(
-                "{proto_name}\t{k}\t{case}\t{class}\t{seed}\t{verdict}\t{}\t{fired}\t{ratio:.3}\t{plain:.3}\t{}\t{lv:.4}\t{lo:.4}\t{hi:.4}\t{truth:.4}\t{secs:.3}\t{:.3}",
+                "{proto_name}\t{k}\t{case}\t{class}\t{seed}\t{verdict}\t{}\t{fired}\t{ratio:.3}\t{plain:.3}\t{}\t{lv:.4}\t{lo:.4}\t{hi:.4}\t{truth:.4}\t{secs:.3}\t{:.3}\t{phases}\t{params}\t{check_phase}",
                 if named.is_empty() {
                     "-".to_string()
                 } else {

@@ -373,8 +373,8 @@ pub struct FitDetails {
 pub struct AbsorptionCheck {
     /// The check: `reported_only_refit`.
     pub check: String,
-    /// Whether it fired (`ratio` ≥ `threshold`): the lift then names an effect or is
-    /// `unexplained` with its joints withheld, never clean.
+    /// Whether it fired (`ratio` ≥ `threshold`, or `worst_phase_ratio` ≥ `phase_threshold`): the
+    /// lift then names an effect or is `unexplained` with its joints withheld, never clean.
     pub fired: bool,
     /// The refit's H residual RMS over the sensor noise.
     #[serde(deserialize_with = "nullable::f64")]
@@ -388,6 +388,17 @@ pub struct AbsorptionCheck {
     pub plain_ratio: f64,
     /// The parameters left free (`J1 dry`, …); every other at its Table 4 value.
     pub free: Vec<String>,
+    /// The phase of the record the refit misfits most (`rising`, `first half`, …;
+    /// `lift::absorbed::judge`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst_phase: Option<String>,
+    /// The refit's H residual RMS over the noise in `worst_phase`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst_phase_ratio: Option<f64>,
+    /// The phase ratio at or above which it fires too (set on a record that does not lower the
+    /// strip, where an effect confined to the motion is diluted by the dwell in the average).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub phase_threshold: Option<f64>,
 }
 
 /// The stated body uncertainties a single-joint fit carried (`fit.body_uncertainty`), each

@@ -56,6 +56,11 @@ pub struct Absorption {
     pub noise_m: f64,
     /// `rms_m / noise_m`.
     pub ratio: f64,
+    /// The phase the refit misfits most and its ratio (`judge::by_phase`), if any is judged.
+    pub worst_phase: Option<(&'static str, f64)>,
+    /// Whether the worst phase can fire the check: on a record that does not lower the strip
+    /// (`judge::PHASE_FIRE_RATIO`).
+    pub phase_fires: bool,
     /// The plain fit's ratio, for the report.
     pub plain_ratio: f64,
     /// The restricted fit and its options: where the vocabulary is tried when the check fires
@@ -71,6 +76,10 @@ impl Absorption {
     /// Did the check fire?
     pub fn fired(&self) -> bool {
         self.ratio >= ABSORBED_RATIO
+            || self.phase_fires
+                && self
+                    .worst_phase
+                    .is_some_and(|(_, r)| r >= judge::PHASE_FIRE_RATIO)
     }
 
     /// The contract's view.
@@ -86,6 +95,9 @@ impl Absorption {
                 .iter()
                 .map(|p| format!("{} {}", p.joint(), p.kind()))
                 .collect(),
+            worst_phase: self.worst_phase.map(|(p, _)| p.to_string()),
+            worst_phase_ratio: self.worst_phase.map(|(_, r)| r),
+            phase_threshold: self.phase_fires.then_some(judge::PHASE_FIRE_RATIO),
         }
     }
 
@@ -94,7 +106,7 @@ impl Absorption {
         format!(
             "refitted with only the reported parameters free ({}; the others at their prior means), the \
              lift leaves {:.1}× the sensor noise in H (RMS {:.2} mm against {:.2} mm; the plain \
-             fit {:.1}×): the fit reached the noise by moving joints it does not report — an \
+             fit {:.1}×{}): the fit reached the noise by moving joints it does not report — an \
              effect the model lacks, or a drift of an unreported joint, that no named effect \
              explains. Joint statuses from this fit are not trustworthy and raise no alert",
             self.free
@@ -106,6 +118,9 @@ impl Absorption {
             self.rms_m * 1e3,
             self.noise_m * 1e3,
             self.plain_ratio,
+            self.worst_phase
+                .map(|(p, r)| format!("; {r:.1}× in its worst phase, {p}"))
+                .unwrap_or_default(),
         )
     }
 }
@@ -183,11 +198,21 @@ pub fn reported_only(
     if !diag.excess_ratio.is_finite() {
         return Ok(None);
     }
+    let worst_phase = judge::by_phase(
+        trace.inputs.t_s,
+        trace.strip_height_m,
+        fitted,
+        opts.h_noise_m.max(super::residual::GATE_FLOOR_M),
+    )
+    .into_iter()
+    .max_by(|a, b| a.1.total_cmp(&b.1));
     Ok(Some(Absorption {
         free,
         rms_m: diag.rms_m,
         noise_m: diag.rms_m / diag.excess_ratio,
         ratio: diag.excess_ratio,
+        worst_phase,
+        phase_fires: !judge::lowers(trace.inputs.t_s, fitted),
         plain_ratio,
         opts: LiftFitOptions {
             start: None,
@@ -314,6 +339,8 @@ pub fn fixed_effect_refit(
         Err(e) => Err(e),
     }
 }
+
+pub mod judge;
 
 #[cfg(test)]
 mod tests;

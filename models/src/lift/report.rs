@@ -106,7 +106,9 @@ fn lift_trace<'a>(
 
 /// Fit one lift trace with the MAP identification (Table 4 prior, [`LiftFitOptions::default`]
 /// with these drift bands) and map it to the contract's fit result; where the plain model
-/// leaves a model error, the residual loop (vocabulary, refit, held-out test).
+/// leaves a model error, the residual loop (vocabulary, refit, held-out test). Then what the
+/// record can vouch for (`absorbed::judge`): a flag the data do not demand is withdrawn, and on
+/// a record that does not lower the strip the level carries the raise's systematic term.
 pub fn fit_lift_trace(
     channels: &LiftChannels,
     thresholds: &DriftThresholds,
@@ -118,6 +120,33 @@ pub fn fit_lift_trace(
 /// [`fit_lift_trace`] with `friction_prior` for the parameters it names
 /// (`LiftFitOptions::friction_prior`: the fleet's, `fleet_prior::FleetPrior::for_fit`).
 pub fn fit_lift_trace_with(
+    channels: &LiftChannels,
+    thresholds: &DriftThresholds,
+    trace_id: &str,
+    friction_prior: &[(LiftParam, f64, f64)],
+) -> Result<LiftReport, LiftFitError> {
+    let mut report = residual_loop(channels, thresholds, trace_id, friction_prior)?;
+    let (trace, mut opts) = lift_trace(channels, thresholds)?;
+    opts.friction_prior = friction_prior.to_vec();
+    let judge = super::absorbed::judge::undemanded_flags;
+    judge(
+        builtin_model(),
+        &trace,
+        &report.fit,
+        &opts,
+        &mut report.result,
+    )?;
+    super::absorbed::judge::widen_without_lowering(
+        &mut report.result,
+        thresholds,
+        channels.t_s,
+        &report.fitted_height_m,
+    );
+    Ok(report)
+}
+
+/// [`fit_lift_trace`] up to the named effect or `unexplained`.
+fn residual_loop(
     channels: &LiftChannels,
     thresholds: &DriftThresholds,
     trace_id: &str,
@@ -333,17 +362,29 @@ pub fn fit_lift_trace_with(
     // The named model, as reported, must leave the record at the noise
     // (`absorbed::NAMED_MAX_RATIO`): else the name is not the explanation.
     let left = named.residual.excess_ratio.unwrap_or(f64::INFINITY);
-    if let Some(a) = absorption
-        .as_ref()
-        .filter(|_| left > super::absorbed::NAMED_MAX_RATIO)
-    {
-        let reason = format!(
-            "{} (`{}` was tried: reported with every joint free it left {left:.2}× the noise, \
-             over {}×)",
-            a.reason(),
-            found.name,
-            super::absorbed::NAMED_MAX_RATIO
-        );
+    // And in every phase of the lift, at a size a stand can have (`absorbed::judge`).
+    let (judged_h, judged_fit) = match &fixed {
+        Some((_, h, full, _)) => (h.as_slice(), full.fitted_height_m.first()),
+        None => (channels.strip_height_m, found.fit.fitted_height_m.first()),
+    };
+    let judged = (
+        channels.t_s,
+        judged_h,
+        judged_fit.map_or(&[][..], |v| v.as_slice()),
+    );
+    let why = super::absorbed::judge::rejected(
+        &found.fit,
+        found.name,
+        judged,
+        left,
+        absorption.as_ref(),
+        &opts,
+    );
+    if let Some(why) = why {
+        let reason = match result.residual.joints_withheld.take() {
+            Some(gate) => format!("{gate}; {why}"),
+            None => why,
+        };
         super::absorbed::withhold_all(&mut result, reason);
         return Ok(LiftReport {
             result,

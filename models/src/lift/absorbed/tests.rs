@@ -128,3 +128,108 @@ fn clean_lifts_stay_clean_with_the_checks_figure() {
         assert!(ci[0] <= 1.0 && 1.0 <= ci[1], "level {v} {ci:?}");
     }
 }
+
+/// The service's lift loop on `m` through `protocol` with the stand's noise × `k`, with the
+/// recorded spring force and drive torque read `fs_gain` and `t_gain` high (gain errors outside
+/// the vocabulary), noise seed `seed`.
+fn lift_with(
+    m: &LiftModel,
+    protocol: &LiftProtocol,
+    k: f64,
+    gains: (f64, f64),
+    seed: u64,
+) -> FitResult {
+    let clean = record(m, protocol, &SimOptions::default()).unwrap();
+    let mut rec = LiftSensorNoise::realistic()
+        .scaled(k)
+        .apply(&clean, 36_000 + seed);
+    rec.fs_n.iter_mut().for_each(|f| *f *= 1.0 + gains.0);
+    rec.torque_nm.iter_mut().for_each(|t| *t *= 1.0 + gains.1);
+    fit_lift_trace(&LiftChannels::from(&rec), &DriftThresholds::default(), "t")
+        .unwrap()
+        .result
+}
+
+/// Issue 36, point 2: a 2 % spring-force gain error (outside the vocabulary) on the designed
+/// protocol fits as an H zero offset of ~30 mm to the noise in every phase — it was named
+/// `sensor_offset` on every seed. Beyond the offset a stand's sensor is taken to have
+/// (`judge::MAX_NAMED_OFFSET_M`) the lift is `unexplained`, both explanations said.
+#[test]
+fn a_spring_force_gain_error_is_never_named_on_the_designed_protocol() {
+    let g = builtin_160ec();
+    let m = LiftModel::new(g);
+    let protocol =
+        crate::lift::design::rounds_of_moves(&m, g, &[1.424, 1.216], 1.0, 2.0, 1).unwrap();
+    for seed in [200, 201] {
+        let r = lift_with(&m, &protocol, 1.0, (0.02, 0.0), seed);
+        eprintln!("seed {seed}: {:?}", r.residual.joints_withheld);
+        assert!(r.residual.effects.is_empty(), "{:?}", r.residual.effects);
+        assert_eq!(r.residual.verdict.as_deref(), Some("unexplained"));
+        let why = r.residual.joints_withheld.as_deref().unwrap_or_default();
+        assert!(
+            why.contains("H zero offset") && why.contains("spring-force"),
+            "{why}"
+        );
+        no_flag(&r);
+        assert!(level(&r).is_none());
+    }
+}
+
+/// Issue 36, point 2: the paper's raise cannot tell a 4 N/(m/s)² head drag from friction by its
+/// average (the reported-only refit left 1.4× the noise), and the J1+J3 level then read
+/// 0.85–1.10 with intervals ±6 % — missing Table 4 on 2 of 3 seeds. Now the check judges the
+/// raise's phases (the rising one leaves ≥ 2×: named or `unexplained`), and a level reported
+/// from a record that does not lower the strip carries the raise's systematic term: whatever
+/// the verdict, a reported level holds its truth. A clean raise's level holds it too, its
+/// interval at least ±0.2.
+#[test]
+fn the_raise_level_holds_the_truth_under_a_drag() {
+    let g = builtin_160ec();
+    let base = LiftModel::new(g);
+    let protocol = LiftProtocol::reference(g);
+    let mut drag = base.clone();
+    drag.head_drag_ns2_per_m2 = 4.0;
+    for (m, seed) in [(&drag, 200), (&drag, 201), (&base, 202)] {
+        let r = lift_with(m, &protocol, 1.0, (0.0, 0.0), seed);
+        let a = r.fit.absorption.as_ref().unwrap();
+        eprintln!(
+            "seed {seed}: {a:?} {:?} {:?} {:?}",
+            r.residual.verdict,
+            r.residual.effects,
+            level(&r)
+        );
+        assert_eq!(a.phase_threshold, Some(super::judge::PHASE_FIRE_RATIO));
+        no_flag(&r);
+        if let Some((v, ci)) = level(&r) {
+            assert!(ci[0] <= 1.0 && 1.0 <= ci[1], "level {v} {ci:?}");
+            assert!(ci[1] - ci[0] >= 2.0 * super::judge::RAISE_LEVEL_SYSTEMATIC);
+        }
+        if std::ptr::eq(m, &base) {
+            assert!(!a.fired && r.residual.verdict.is_none(), "{a:?}");
+            assert!(level(&r).is_some());
+        } else {
+            assert!(a.fired, "{a:?}");
+        }
+    }
+}
+
+/// Issue 36, point 2: a 2 % torque gain error on the paper's raise at twice the stand's noise
+/// moved J8's dry friction to 2.4 × Table 4, informed, an alarm — on a lift that reports the
+/// J1+J3 level. With J8 at Table 4 the record is explained to the noise: the flag is not
+/// demanded by the data and is withdrawn, the reason said.
+#[test]
+fn a_torque_gain_error_raises_no_flag_on_the_raise() {
+    let g = builtin_160ec();
+    let m = LiftModel::new(g);
+    let r = lift_with(&m, &LiftProtocol::reference(g), 2.0, (0.0, 0.02), 202);
+    eprintln!("{:?}", r.residual.joints_withheld);
+    no_flag(&r);
+    assert!(
+        r.residual
+            .joints_withheld
+            .as_deref()
+            .is_some_and(|w| w.contains("J8 dry not judged")),
+        "{:?}",
+        r.residual.joints_withheld
+    );
+}
