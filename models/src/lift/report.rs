@@ -54,6 +54,43 @@ pub struct LiftReport {
     pub fitted_height_m: Vec<f64>,
     /// When an effect is named: the plain model's fitted H, m (before), for plots.
     pub plain_fitted_height_m: Option<Vec<f64>>,
+    /// What each step of the residual loop cost, in order ([`LoopStep`]; empty for a pooled
+    /// fit): where a lift's time goes, measured in work that does not depend on the machine.
+    pub work: Vec<LoopStep>,
+}
+
+/// One step of [`fit_lift_trace`]'s loop and its work (`identify::FitWork`): `plain`, the
+/// reported-only refit `reported_only`, `holdout` (the base model's held-out refits), each
+/// candidate's refit(s) `try:<effect>` and held-out refits `holdout:<effect>`, the named
+/// effect's refit with every joint free `report:<effect>`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LoopStep {
+    pub step: String,
+    pub work: super::identify::FitWork,
+}
+
+/// Records the work of each loop step as it ends.
+struct Meter {
+    last: super::identify::FitWork,
+    steps: Vec<LoopStep>,
+}
+
+impl Meter {
+    fn start() -> Meter {
+        Meter {
+            last: super::identify::work_on_this_thread(),
+            steps: Vec::new(),
+        }
+    }
+    /// The work since the last mark, as `step`.
+    fn mark(&mut self, step: impl Into<String>) {
+        let now = super::identify::work_on_this_thread();
+        self.steps.push(LoopStep {
+            step: step.into(),
+            work: now - self.last,
+        });
+        self.last = now;
+    }
 }
 
 /// The built-in 160EC model, made once per process: its H read-out table (2,000 closed-form
@@ -113,12 +150,15 @@ pub fn fit_lift_trace(
 ) -> Result<LiftReport, LiftFitError> {
     let model = builtin_model();
     let (trace, opts) = lift_trace(channels, thresholds)?;
+    let mut meter = Meter::start();
     let fit = fit_map(model, &[trace], &opts)?;
+    meter.mark("plain");
     let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
     let mut result = fit_result(model, &fit, &trace, &fitted_height_m, &opts, trace_id);
     // What the fit had to do (`lift::absorbed`): refitted with only what it reports free.
     let plain_ratio = result.residual.excess_ratio.unwrap_or(f64::NAN);
     let absorption = super::absorbed::reported_only(model, &trace, &fit, &opts, plain_ratio)?;
+    meter.mark("reported_only");
     result.fit.absorption = absorption.as_ref().map(|a| a.to_result());
     let absorbed = absorption.as_ref().filter(|a| a.fired());
     let try_effects = absorbed.is_some()
@@ -136,6 +176,7 @@ pub fn fit_lift_trace(
             fit,
             fitted_height_m,
             plain_fitted_height_m: None,
+            work: meter.steps,
         });
     }
     // The held-out test of the plain model (`lift::holdout`): refit without every fourth
@@ -156,6 +197,7 @@ pub fn fit_lift_trace(
         None => (&fit, &opts),
     };
     let hold = super::holdout::blocks(model, &trace, base_fit, base_opts)?;
+    meter.mark("holdout");
     set_holdout(&mut result, &hold, &hold);
     // A model error: try the vocabulary (`lift::effects`), one fit each, in an order and with a
     // stop: `sensor_delay` first where the plain residual correlates most with the strip speed
@@ -214,7 +256,9 @@ pub fn fit_lift_trace(
         if restricted.is_some() && matches!(candidate, Candidate::Offset) {
             continue;
         }
-        let Some(found) = try_candidate(candidate, model, &trace, base_fit, base_opts)? else {
+        let tried = try_candidate(candidate, model, &trace, base_fit, base_opts)?;
+        meter.mark(format!("try:{}", candidate.name()));
+        let Some(found) = tried else {
             continue;
         };
         // The named model must pass the check itself.
@@ -222,6 +266,7 @@ pub fn fit_lift_trace(
             continue;
         }
         let hold_after = super::holdout::blocks(model, &trace, &found.fit, &found.opts)?;
+        meter.mark(format!("holdout:{}", candidate.name()));
         let rmse = found.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
         let noise_m = rmse / found.excess_ratio;
         if !super::holdout::improves(&hold, &hold_after, noise_m) {
@@ -252,6 +297,7 @@ pub fn fit_lift_trace(
             fit,
             fitted_height_m,
             plain_fitted_height_m: None,
+            work: meter.steps,
         });
     };
     // The effect named, reported with every joint free: the same candidate refitted from the
@@ -275,6 +321,7 @@ pub fn fit_lift_trace(
             }
         }
     }
+    meter.mark(format!("report:{}", chosen.name()));
     let (mut named, refitted) = match &fixed {
         Some((_, h, full, _)) => {
             let corrected = LiftTrace {
@@ -335,6 +382,7 @@ pub fn fit_lift_trace(
             fit,
             fitted_height_m,
             plain_fitted_height_m: None,
+            work: meter.steps,
         });
     }
     named.residual.autocorrelation_before = result.residual.autocorrelation;
@@ -344,6 +392,7 @@ pub fn fit_lift_trace(
         fit: fixed.map_or(found.fit, |(_, _, f, _)| f),
         fitted_height_m: refitted,
         plain_fitted_height_m: Some(fitted_height_m),
+        work: meter.steps,
     })
 }
 
@@ -495,6 +544,7 @@ pub fn fit_pooled_lift_and_gauge_traces(
         fit,
         fitted_height_m,
         plain_fitted_height_m: None,
+        work: Vec::new(),
     })
 }
 

@@ -110,6 +110,7 @@ impl Problem for MapProblem<'_, '_> {
         self.n_data + self.n_gauge + self.n_params()
     }
     fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
+        count_work(1, 0);
         let pf = self.fric.len();
         let e0 = pf + self.traces.len();
         let m = self.model_at(x);
@@ -151,6 +152,7 @@ impl Problem for MapProblem<'_, '_> {
                 &self.opts.sim,
             )
             .map_err(|e| e.to_string())?;
+            count_work(0, run.steps);
             let p = self.with_offset.len();
             let mask = self.opts.holdout_mask.as_deref().filter(|_| ti == 0);
             // `sensor_delay`: the model's H read τ late, H(t_k − τ), linear between samples
