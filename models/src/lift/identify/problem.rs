@@ -96,6 +96,8 @@ impl MapProblem<'_, '_> {
             dtol: self.opts.lm.dtol.max(1.0),
             noise_sd: 0.0,
             cliff_sd: 0.0,
+            // A stage fits part of the trace: its cost is not the level a caller needs.
+            give_up_cost: 0.0,
             ..self.opts.lm
         };
         minimize(&mut stage, x, &lm)
