@@ -42,8 +42,11 @@ use crate::numerics::stats::Z95;
 
 mod candidates;
 mod channels;
+mod work;
 use candidates::{Candidate, Named, STOP_RATIO, try_candidate};
 pub use channels::LiftChannels;
+pub use work::LoopStep;
+use work::Meter;
 
 /// A lift fit: the contract result, the MAP fit, and the fitted H (for plots).
 #[derive(Debug, Clone)]
@@ -57,40 +60,6 @@ pub struct LiftReport {
     /// What each step of the residual loop cost, in order ([`LoopStep`]; empty for a pooled
     /// fit): where a lift's time goes, measured in work that does not depend on the machine.
     pub work: Vec<LoopStep>,
-}
-
-/// One step of [`fit_lift_trace`]'s loop and its work (`identify::FitWork`): `plain`, the
-/// reported-only refit `reported_only`, `holdout` (the base model's held-out refits), each
-/// candidate's refit(s) `try:<effect>` and held-out refits `holdout:<effect>`, the named
-/// effect's refit with every joint free `report:<effect>`.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct LoopStep {
-    pub step: String,
-    pub work: super::identify::FitWork,
-}
-
-/// Records the work of each loop step as it ends.
-struct Meter {
-    last: super::identify::FitWork,
-    steps: Vec<LoopStep>,
-}
-
-impl Meter {
-    fn start() -> Meter {
-        Meter {
-            last: super::identify::work_on_this_thread(),
-            steps: Vec::new(),
-        }
-    }
-    /// The work since the last mark, as `step`.
-    fn mark(&mut self, step: impl Into<String>) {
-        let now = super::identify::work_on_this_thread();
-        self.steps.push(LoopStep {
-            step: step.into(),
-            work: now - self.last,
-        });
-        self.last = now;
-    }
 }
 
 /// The built-in 160EC model, made once per process: its H read-out table (2,000 closed-form
