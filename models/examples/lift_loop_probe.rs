@@ -27,11 +27,12 @@
 //! - `offj1:<mm>`: an H zero offset of mm together with a J1 dry ×2 drift.
 //!
 //! Columns: protocol k case class seed verdict named fired ratio plain_ratio flags level lo hi
-//! truth secs final_ratio t1 t2 hlo hhi up down params (class: clean / vocab:<name> / oov; level:
-//! the J1+J3 level when reported; t1…down: the reported model's H residual over the noise in the
-//! record's first and second half, below and above the middle of its H range, rising and
-//! falling; params: the named effects' parameters, JSON; then the absorption check's worst phase
-//! and its ratio).
+//! truth secs final_ratio t1 t2 hlo hhi up down params check_phase evaluations steps work
+//! (class: clean / vocab:<name> / oov; level: the J1+J3 level when reported; t1…down: the
+//! reported model's H residual over the noise in the record's first and second half, below and
+//! above the middle of its H range, rising and falling; params: the named effects' parameters,
+//! JSON; then the absorption check's worst phase and its ratio; evaluations and integrator steps
+//! of the whole loop, then per loop step `step=evaluations/steps`: `report::LiftReport::work`).
 use pantowatch_models::drift::{DriftThresholds, Status};
 use pantowatch_models::lift::dynamics::{DriveCompliance, FrictionBand, LiftModel};
 use pantowatch_models::lift::geometry::builtin_160ec;
@@ -330,8 +331,16 @@ fn main() {
                     .collect::<Vec<_>>(),
             )
             .unwrap_or_default();
+            // The loop's work (deterministic): evaluations, integrator steps, per step.
+            let evals: usize = rep.work.iter().map(|w| w.work.evaluations).sum();
+            let steps: usize = rep.work.iter().map(|w| w.work.steps).sum();
+            let per_step: Vec<String> = rep
+                .work
+                .iter()
+                .map(|w| format!("{}={}/{}", w.step, w.work.evaluations, w.work.steps))
+                .collect();
             println!(
-                "{proto_name}\t{k}\t{case}\t{class}\t{seed}\t{verdict}\t{}\t{fired}\t{ratio:.3}\t{plain:.3}\t{}\t{lv:.4}\t{lo:.4}\t{hi:.4}\t{truth:.4}\t{secs:.3}\t{:.3}\t{phases}\t{params}\t{check_phase}",
+                "{proto_name}\t{k}\t{case}\t{class}\t{seed}\t{verdict}\t{}\t{fired}\t{ratio:.3}\t{plain:.3}\t{}\t{lv:.4}\t{lo:.4}\t{hi:.4}\t{truth:.4}\t{secs:.3}\t{:.3}\t{phases}\t{params}\t{check_phase}\t{evals}\t{steps}\t{}",
                 if named.is_empty() {
                     "-".to_string()
                 } else {
@@ -343,6 +352,7 @@ fn main() {
                     flags.join(",")
                 },
                 r.residual.excess_ratio.unwrap_or(f64::NAN),
+                per_step.join(";"),
             );
         }
     }

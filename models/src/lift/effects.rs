@@ -49,6 +49,15 @@ pub const MIN_DELAY_S: f64 = 0.002;
 /// The refit must bring the H residual RMS to at most this share of the base fit's.
 pub const MIN_IMPROVEMENT: f64 = 0.5;
 
+/// A candidate's refit stops once the LM's quadratic model says its cost cannot come below
+/// this multiple of the cost at which it would pass [`MIN_IMPROVEMENT`]
+/// (`LmOptions::give_up_cost`, after a step the model predicted: gain ratio ≥ 0.5): its RMS
+/// would stay over √2 × the level it must reach, so it cannot be named. Most candidates tried
+/// on a lift are not its effect, and their refits ran to the LM's own stop for nothing.
+/// Measured (`examples/lift_loop_probe`, the 17 cases × 3 protocols × noise ×1, ×2, seeds
+/// 200–202): docs/PERFORMANCE.md, "Session 21: the lift loop's time".
+pub const GIVE_UP_MARGIN: f64 = 2.0;
+
 /// A named H delay and the fit with it.
 #[derive(Debug, Clone)]
 pub struct DelayFinding {
@@ -158,6 +167,14 @@ fn refit_with(
 ) -> Result<Option<Refit>, LiftFitError> {
     let n = trace.strip_height_m.len();
     let base_rms = base.rmse_m.first().copied().unwrap_or(f64::NAN);
+    // Stop a refit that cannot explain the record (`GIVE_UP_MARGIN`): the cost ½Σ((H_model −
+    // H)/σ_H)² at which the RMS is MIN_IMPROVEMENT × the base fit's, × the margin.
+    let pass_cost = 0.5 * n as f64 * (MIN_IMPROVEMENT * base_rms / with_effect.h_noise_m).powi(2);
+    let mut with_effect = with_effect.clone();
+    if pass_cost.is_finite() && pass_cost > 0.0 {
+        with_effect.lm.give_up_cost = GIVE_UP_MARGIN * pass_cost;
+    }
+    let with_effect = &with_effect;
     let fit = match fit_map(model, std::slice::from_ref(trace), with_effect) {
         Ok(f) => f,
         Err(LiftFitError::Failed(_)) => return Ok(None),

@@ -260,6 +260,9 @@ impl Default for LiftFitOptions {
                 // the J1+J3 level within 0.2 sd of the fit without the rule; at 100 sd one plain
                 // fit in 96 stopped at 2.7× the RMSE, at 40 sd 1.12×, at 20 sd 1.04×.
                 cliff_sd: 20.0,
+                // Off: a fit's caller sets it where only a fit reaching a level is used
+                // (`effects`: a candidate effect's refit must halve the residual).
+                give_up_cost: 0.0,
             },
             inputs: InputOptions::default(),
             attribution: AttributionOptions::default(),

@@ -43,8 +43,13 @@ use crate::numerics::stats::Z95;
 
 mod candidates;
 mod channels;
+mod pooled;
+mod work;
 use candidates::{Candidate, Named, STOP_RATIO, try_candidate};
 pub use channels::LiftChannels;
+pub use pooled::{fit_pooled_lift_and_gauge_traces, fit_pooled_lift_traces};
+pub use work::LoopStep;
+use work::Meter;
 
 /// A lift fit: the contract result, the MAP fit, and the fitted H (for plots).
 #[derive(Debug, Clone)]
@@ -55,6 +60,9 @@ pub struct LiftReport {
     pub fitted_height_m: Vec<f64>,
     /// When an effect is named: the plain model's fitted H, m (before), for plots.
     pub plain_fitted_height_m: Option<Vec<f64>>,
+    /// What each step of the residual loop cost, in order ([`LoopStep`]; empty for a pooled
+    /// fit): where a lift's time goes, measured in work that does not depend on the machine.
+    pub work: Vec<LoopStep>,
 }
 
 /// The built-in 160EC model, made once per process: its H read-out table (2,000 closed-form
@@ -155,12 +163,15 @@ fn residual_loop(
     let model = builtin_model();
     let (trace, mut opts) = lift_trace(channels, thresholds)?;
     opts.friction_prior = friction_prior.to_vec();
+    let mut meter = Meter::start();
     let fit = fit_map(model, &[trace], &opts)?;
+    meter.mark("plain");
     let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
     let mut result = fit_result(model, &fit, &trace, &fitted_height_m, &opts, trace_id);
     // What the fit had to do (`lift::absorbed`): refitted with only what it reports free.
     let plain_ratio = result.residual.excess_ratio.unwrap_or(f64::NAN);
     let absorption = super::absorbed::reported_only(model, &trace, &fit, &opts, plain_ratio)?;
+    meter.mark("reported_only");
     result.fit.absorption = absorption.as_ref().map(|a| a.to_result());
     let absorbed = absorption.as_ref().filter(|a| a.fired());
     let try_effects = absorbed.is_some()
@@ -178,6 +189,7 @@ fn residual_loop(
             fit,
             fitted_height_m,
             plain_fitted_height_m: None,
+            work: meter.steps,
         });
     }
     // The held-out test of the plain model (`lift::holdout`): refit without every fourth
@@ -200,6 +212,7 @@ fn residual_loop(
         None => (model, &fit, &opts),
     };
     let hold = super::holdout::blocks(base_model, &trace, base_fit, base_opts)?;
+    meter.mark("holdout");
     set_holdout(&mut result, &hold, &hold);
     // A model error: try the vocabulary (`lift::effects`), one fit each, in an order and with a
     // stop: `sensor_delay` first where the plain residual correlates most with the strip speed
@@ -258,7 +271,9 @@ fn residual_loop(
         if restricted.is_some() && matches!(candidate, Candidate::Offset) {
             continue;
         }
-        let Some(found) = try_candidate(candidate, base_model, &trace, base_fit, base_opts)? else {
+        let tried = try_candidate(candidate, base_model, &trace, base_fit, base_opts)?;
+        meter.mark(format!("try:{}", candidate.name()));
+        let Some(found) = tried else {
             continue;
         };
         // The named model must pass the check itself.
@@ -266,6 +281,7 @@ fn residual_loop(
             continue;
         }
         let hold_after = super::holdout::blocks(base_model, &trace, &found.fit, &found.opts)?;
+        meter.mark(format!("holdout:{}", candidate.name()));
         let rmse = found.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
         let noise_m = rmse / found.excess_ratio;
         if !super::holdout::improves(&hold, &hold_after, noise_m) {
@@ -296,6 +312,7 @@ fn residual_loop(
             fit,
             fitted_height_m,
             plain_fitted_height_m: None,
+            work: meter.steps,
         });
     };
     // The effect named, reported with every joint free: the same candidate refitted from the
@@ -319,6 +336,7 @@ fn residual_loop(
             }
         }
     }
+    meter.mark(format!("report:{}", chosen.name()));
     let (mut named, refitted) = match &fixed {
         Some((_, h, full, _)) => {
             let corrected = LiftTrace {
@@ -391,6 +409,7 @@ fn residual_loop(
             fit,
             fitted_height_m,
             plain_fitted_height_m: None,
+            work: meter.steps,
         });
     }
     named.residual.autocorrelation_before = result.residual.autocorrelation;
@@ -400,6 +419,7 @@ fn residual_loop(
         fit: fixed.map_or(found.fit, |(_, _, f, _)| f),
         fitted_height_m: refitted,
         plain_fitted_height_m: Some(fitted_height_m),
+        work: meter.steps,
     })
 }
 
@@ -453,105 +473,6 @@ fn named_result(
     named.residual.rmse_after = after;
     set_holdout(&mut named, holds.0, holds.1);
     (named, refitted)
-}
-
-/// Fit several lift traces of one pantograph together (friction shared, one torque offset per
-/// trace; `fit_map` pools them) and report the result on the first, the newest test (issue 15):
-/// a lift hardly informs J2/J2'/J5 alone, a few together can. `trace_ids` name `channels` in
-/// the same order, newest first; `window_days` is recorded in the result's `pooled` block.
-pub fn fit_pooled_lift_traces(
-    channels: &[LiftChannels],
-    trace_ids: &[String],
-    window_days: f64,
-    thresholds: &DriftThresholds,
-) -> Result<LiftReport, LiftFitError> {
-    fit_pooled_lift_and_gauge_traces(channels, trace_ids, &[], &[], window_days, thresholds)
-}
-
-/// [`fit_pooled_lift_traces`] with force-gauge records (`static_force` traces) of the same
-/// pantograph pooled in (issue 20, point 3): their readings join the fit's residuals, scaled by
-/// the gauge's noise (`LiftFitOptions::gauge_records`), each measured under the type's drive
-/// characteristic (`lift::static_force::DriveLine::from_lift_test`). The result is reported on
-/// the newest lift (`channels[0]`); `gauge_ids` follow the lifts' ids in `pooled.trace_ids`.
-/// One lift with one gauge record or more is a pool; without gauge records, 2 lifts or more.
-pub fn fit_pooled_lift_and_gauge_traces(
-    channels: &[LiftChannels],
-    trace_ids: &[String],
-    gauges: &[super::gauge::GaugeChannels],
-    gauge_ids: &[String],
-    window_days: f64,
-    thresholds: &DriftThresholds,
-) -> Result<LiftReport, LiftFitError> {
-    let least = if gauges.is_empty() { 2 } else { 1 };
-    if channels.len() < least
-        || channels.len() != trace_ids.len()
-        || gauges.len() != gauge_ids.len()
-    {
-        return Err(LiftFitError::Invalid(format!(
-            "a pooled fit needs {least} or more lift traces with an id each (and an id per gauge \
-             record), got {} traces and {} ids, {} gauge records and {} ids",
-            channels.len(),
-            trace_ids.len(),
-            gauges.len(),
-            gauge_ids.len()
-        )));
-    }
-    let model = builtin_model();
-    let drive = super::static_force::DriveLine::from_lift_test(super::geometry::builtin_160ec());
-    let gauge_records = gauges
-        .iter()
-        .zip(gauge_ids)
-        .map(|(g, id)| {
-            super::gauge::GaugeRecord::new(
-                g.strip_height_m.to_vec(),
-                g.force_n.to_vec(),
-                g.resolution_n,
-            )
-            .map(|record| super::identify::PooledGauge { record, drive })
-            .map_err(|e| LiftFitError::Invalid(format!("gauge record {id}: {e}")))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let opts = LiftFitOptions {
-        thresholds: *thresholds,
-        gauge_records,
-        per_trace: super::identify::POOLED_PER_TRACE.to_vec(),
-        param_interval_scale: super::identify::POOLED_INTERVAL_SCALE.to_vec(),
-        ..LiftFitOptions::default()
-    };
-    let traces: Vec<LiftTrace> = channels
-        .iter()
-        .map(|c| LiftTrace {
-            inputs: LiftInputs {
-                t_s: c.t_s,
-                torque_nm: c.torque_nm,
-                fs_n: c.fs_n,
-                fm_n: c.fm_n,
-            },
-            strip_height_m: c.strip_height_m,
-        })
-        .collect();
-    let fit = fit_map(model, &traces, &opts)?;
-    let fitted_height_m = fit.fitted_height_m.first().cloned().unwrap_or_default();
-    // Not gated, only reported (each lift was judged alone; one withheld is not pooled).
-    let mut result = build_result(
-        model,
-        &fit,
-        &traces[0],
-        &fitted_height_m,
-        &opts,
-        &trace_ids[0],
-        false,
-    );
-    result.pooled = Some(crate::contract::report::PooledTests {
-        trace_ids: trace_ids.iter().chain(gauge_ids).cloned().collect(),
-        window_days,
-    });
-    Ok(LiftReport {
-        result,
-        fit,
-        fitted_height_m,
-        plain_fitted_height_m: None,
-    })
 }
 
 fn unit_of(joint: &str, kind: &str) -> &'static str {

@@ -105,6 +105,7 @@ impl Default for QuadFitOptions {
                 dtol: 0.1,
                 noise_sd: 0.0,
                 cliff_sd: 0.0,
+                give_up_cost: 0.0,
             },
         }
     }

@@ -155,6 +155,7 @@ impl Default for FitOptions {
                 dtol: 0.05,
                 noise_sd: 0.0,
                 cliff_sd: 0.0,
+                give_up_cost: 0.0,
             },
         }
     }

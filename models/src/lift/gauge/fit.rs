@@ -100,6 +100,7 @@ impl Default for GaugeFitOptions {
                 dtol: 0.0,
                 noise_sd: 0.0,
                 cliff_sd: 0.0,
+                give_up_cost: 0.0,
             },
             attribution: lift.attribution,
         }

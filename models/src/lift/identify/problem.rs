@@ -96,6 +96,8 @@ impl MapProblem<'_, '_> {
             dtol: self.opts.lm.dtol.max(1.0),
             noise_sd: 0.0,
             cliff_sd: 0.0,
+            // A stage fits part of the trace: its cost is not the level a caller needs.
+            give_up_cost: 0.0,
             ..self.opts.lm
         };
         minimize(&mut stage, x, &lm)
@@ -110,6 +112,7 @@ impl Problem for MapProblem<'_, '_> {
         self.n_data + self.n_gauge + self.n_params()
     }
     fn eval(&mut self, x: &[f64], r: &mut [f64], jac: &mut DMatrix<f64>) -> Result<(), String> {
+        count_work(1, 0);
         let pf = self.fric.len();
         let e0 = pf + self.traces.len();
         let m = self.model_at(x);
@@ -151,6 +154,7 @@ impl Problem for MapProblem<'_, '_> {
                 &self.opts.sim,
             )
             .map_err(|e| e.to_string())?;
+            count_work(0, run.steps);
             let p = self.with_offset.len();
             let mask = self.opts.holdout_mask.as_deref().filter(|_| ti == 0);
             // `sensor_delay`: the model's H read τ late, H(t_k − τ), linear between samples

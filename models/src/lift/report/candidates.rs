@@ -121,6 +121,16 @@ pub(super) enum Candidate {
 pub(super) const STOP_RATIO: f64 = 1.15;
 
 impl Candidate {
+    /// Its contract name.
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Candidate::Drag => "quadratic_drag",
+            Candidate::Delay => "sensor_delay",
+            Candidate::Offset => "sensor_offset",
+            Candidate::Stribeck => "stribeck",
+            Candidate::Compliance => "drive_compliance",
+        }
+    }
     pub(super) const ALL: [Candidate; 5] = [
         Candidate::Drag,
         Candidate::Delay,
