@@ -48,7 +48,9 @@ pub fn fit_pooled_lift_and_gauge_traces(
         )));
     }
     let model = builtin_model();
-    let drive = super::super::static_force::DriveLine::from_lift_test(super::super::geometry::builtin_160ec());
+    let drive = super::super::static_force::DriveLine::from_lift_test(
+        super::super::geometry::builtin_160ec(),
+    );
     let gauge_records = gauges
         .iter()
         .zip(gauge_ids)
