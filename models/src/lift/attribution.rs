@@ -108,6 +108,15 @@ pub fn attribute(
             combinations,
         };
     };
+    // No friction parameter free (a refit with only the offsets: `absorbed::judge`): nothing to
+    // attribute, and nalgebra's eigen-decomposition panics on an empty matrix.
+    if lambda.nrows() == 0 {
+        return Attribution {
+            separate,
+            group,
+            combinations,
+        };
+    }
     let eig = lambda.symmetric_eigen();
     let mut order: Vec<usize> = (0..p).collect();
     order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
