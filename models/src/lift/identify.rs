@@ -8,7 +8,7 @@
 //! below its prior sd / 2; an uninformed one is reported at baseline, not identified, and is
 //! never flagged. H noise: stated σ_H (1 mm), inflated to the residual RMS if the fit is worse.
 
-use std::cell::{Cell, RefCell};
+use std::cell::RefCell;
 
 use nalgebra::DMatrix;
 
@@ -72,7 +72,10 @@ fn baseline_of(model: &LiftModel, params: &[LiftParam]) -> Result<Vec<f64>, Lift
 }
 
 mod problem;
+mod work;
 use problem::MapProblem;
+use work::count_work;
+pub use work::{FitWork, work_on_this_thread};
 
 /// Check a trace's channels.
 fn check(traces: &[LiftTrace]) -> Result<usize, LiftFitError> {
@@ -218,48 +221,6 @@ thread_local! {
     /// This thread's buffers for lift fits ([`fit_map`]): the worker pool's threads, the batch
     /// threads and the CLI each reuse theirs from one fit to the next (issue 8).
     static WORKSPACE: RefCell<SensWorkspace> = RefCell::default();
-}
-
-thread_local! {
-    /// This thread's lift-fit work so far: model evaluations (each one run with sensitivities)
-    /// and their integrator steps ([`work_on_this_thread`]).
-    static WORK: Cell<FitWork> = const { Cell::new(FitWork { evaluations: 0, steps: 0 }) };
-}
-
-/// Lift-fit work: model evaluations ([`fit_map`]'s, each one integration of the state with its
-/// sensitivities) and the integrator steps they took. Deterministic (the same on a loaded
-/// machine), so the residual loop's cost is measured in it (`report::LiftReport::work`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct FitWork {
-    pub evaluations: usize,
-    pub steps: usize,
-}
-
-impl std::ops::Sub for FitWork {
-    type Output = FitWork;
-    fn sub(self, o: FitWork) -> FitWork {
-        FitWork {
-            evaluations: self.evaluations - o.evaluations,
-            steps: self.steps - o.steps,
-        }
-    }
-}
-
-/// The lift fits' work on this thread since it started (differences of two readings give a
-/// step's work).
-pub fn work_on_this_thread() -> FitWork {
-    WORK.with(Cell::get)
-}
-
-/// Count `evaluations` and `steps` as done on this thread.
-fn count_work(evaluations: usize, steps: usize) {
-    WORK.with(|w| {
-        let v = w.get();
-        w.set(FitWork {
-            evaluations: v.evaluations + evaluations,
-            steps: v.steps + steps,
-        })
-    });
 }
 
 /// The most a thread keeps between fits: a workspace grown past it (a trace far longer than a
