@@ -53,8 +53,8 @@ pub struct PriorQuery {
     params(PriorQuery),
     responses(
         (status = 200, description = "The prior", body = FleetPriorView),
-        (status = 400, description = "An unknown `model` or a bad `version`", body = Problem, content_type = "application/problem+json"),
-        (status = 404, description = "No such version", body = Problem, content_type = "application/problem+json"),
+        (status = 400, description = "A bad `version`", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No such version, or the type `model` has no data here", body = Problem, content_type = "application/problem+json"),
     ),
     security(("bearer" = ["reader"])))]
 pub async fn get_prior(
@@ -69,9 +69,15 @@ pub async fn get_prior(
             AppError::bad_parameter("version", format!("`{v}` is not a whole number ≥ 0"))
         })?),
     };
+    // A type without data has no prior to read: not found, as the plan answers for it.
     let view = fleet_prior::view(&st.store, model, version)
         .await
-        .map_err(|e| prior_error(e, "model"))?;
+        .map_err(|e| match e {
+            PriorError::NoModel(m) => AppError::NotFound(format!(
+                "no fleet prior of pantograph type `{m}`: the type has no data here"
+            )),
+            other => prior_error(other, "model"),
+        })?;
     if let Some(v) = version
         && view.version != v
     {

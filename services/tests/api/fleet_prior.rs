@@ -248,10 +248,12 @@ pub async fn a_fleet_prior_is_learned_versioned_recorded_and_refitted(b: Backend
     assert!(cur["learned_at"].is_string(), "{cur}");
     let (s, none) = app.get_json("/v1/fleet/prior?version=9").await;
     assert_eq!(s, StatusCode::NOT_FOUND, "{none}");
-    let r = app
-        .get("/v1/fleet/prior?model=NOPE", &app.keys.reader)
-        .await;
-    assert_problem_param(r, StatusCode::BAD_REQUEST, "model", "unknown type").await;
+    let (s, nope) = app.get_json("/v1/fleet/prior?model=NOPE").await;
+    assert_eq!(s, StatusCode::NOT_FOUND, "unknown type: {nope}");
+    assert!(
+        nope["detail"].as_str().is_some_and(|d| d.contains("NOPE")),
+        "{nope}"
+    );
     let r = app
         .get("/v1/fleet/prior?version=-1", &app.keys.reader)
         .await;
