@@ -160,6 +160,22 @@ pub(crate) fn baseline_of(t: &PantographType, joint: &str, p: Param) -> Option<f
     (b.is_finite() && b > 0.0).then_some(b)
 }
 
+/// The newest evidence row of `joint`'s parameter `p` (ties broken by trace id), if any.
+pub(crate) fn latest_row<'a>(
+    rows: &[&'a EvidenceRow],
+    joint: &str,
+    p: Param,
+) -> Option<&'a EvidenceRow> {
+    rows.iter()
+        .copied()
+        .filter(|r| r.joint == joint && r.param == p.as_str())
+        .max_by(|a, b| {
+            a.recorded_at
+                .cmp(&b.recorded_at)
+                .then(a.trace_id.cmp(&b.trace_id))
+        })
+}
+
 pub(crate) fn days(from: DateTime<Utc>, to: DateTime<Utc>) -> f64 {
     ((to - from).num_milliseconds() as f64 / 86_400_000.0).max(0.0)
 }
@@ -179,14 +195,7 @@ pub fn pantograph_evidence(
         .filter_map(|joint| {
             let param = |p: Param| -> Option<EvidenceParam> {
                 let baseline = baseline_of(t, joint, p)?;
-                let latest = rows
-                    .iter()
-                    .filter(|r| r.joint == *joint && r.param == p.as_str())
-                    .max_by(|a, b| {
-                        a.recorded_at
-                            .cmp(&b.recorded_at)
-                            .then(a.trace_id.cmp(&b.trace_id))
-                    });
+                let latest = latest_row(rows, joint, p);
                 let fleet = fleet_rate(t, baseline);
                 let measured =
                     latest.and_then(|r| Some((r, Belief::from_interval(r.value, r.ci95)?)));

@@ -20,7 +20,7 @@ use pantowatch_models::plan::{PlanItem, PlanParam, p_past, p_unseen_of};
 
 use crate::evidence::{
     FleetPlan, FleetPlanEntry, JOINT_KINDS, KindInformation, baseline_of, by_serial, days,
-    fleet_rate, kind_information, type_of,
+    fleet_rate, kind_information, latest_row, type_of,
 };
 use crate::health::Param;
 use crate::store::{EvidenceRow, Store, StoreError};
@@ -109,14 +109,7 @@ fn pantograph(
     for joint in t.joints.keys() {
         let param = |p: Param| -> Option<ParamIndex> {
             let baseline = baseline_of(t, joint, p)?;
-            let latest = rows
-                .iter()
-                .filter(|r| r.joint == *joint && r.param == p.as_str())
-                .max_by(|a, b| {
-                    a.recorded_at
-                        .cmp(&b.recorded_at)
-                        .then(a.trace_id.cmp(&b.trace_id))
-                });
+            let latest = latest_row(rows, joint, p);
             let fleet = fleet_rate(t, baseline);
             let measured = latest.and_then(|r| Some((r, Belief::from_interval(r.value, r.ci95)?)));
             let then = match measured {
