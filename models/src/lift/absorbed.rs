@@ -140,6 +140,28 @@ pub fn reported_params(fit: &LiftFit) -> Vec<LiftParam> {
         .collect()
 }
 
+/// `opts` with only `free` of the friction parameters fitted (no effect), started from `fit`'s
+/// values of them and of the torque offsets: the refits that ask what a lift needs free.
+fn restricted_options(
+    fit: &LiftFit,
+    free: Vec<LiftParam>,
+    opts: &LiftFitOptions,
+) -> LiftFitOptions {
+    let start: Vec<f64> = fit
+        .params
+        .iter()
+        .filter(|p| free.contains(&p.param))
+        .map(|p| p.map_value / p.baseline)
+        .chain(fit.offsets.iter().map(|o| o.map_value))
+        .collect();
+    LiftFitOptions {
+        friction_params: free,
+        effect_params: Vec::new(),
+        start: Some(start),
+        ..opts.clone()
+    }
+}
+
 /// Refit `trace` (whose plain fit with `opts` is `plain`) with only the reported parameters
 /// free and judge its residual. `None` where the plain fit reports nothing (then there is no
 /// level to protect) or the refit cannot run (the plain verdict stands).
@@ -154,19 +176,7 @@ pub fn reported_only(
     if free.is_empty() {
         return Ok(None);
     }
-    let start: Vec<f64> = plain
-        .params
-        .iter()
-        .filter(|p| free.contains(&p.param))
-        .map(|p| p.map_value / p.baseline)
-        .chain(plain.offsets.iter().map(|o| o.map_value))
-        .collect();
-    let restricted = LiftFitOptions {
-        friction_params: free.clone(),
-        effect_params: Vec::new(),
-        start: Some(start),
-        ..opts.clone()
-    };
+    let restricted = restricted_options(plain, free.clone(), opts);
     // The unreported joints held at their prior means: Table 4, or the fleet's
     // (`LiftFitOptions::friction_prior`, issue 37), on a copy of the model.
     let held_model = held_at_prior(model, &free, opts);

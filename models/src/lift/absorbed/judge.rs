@@ -272,7 +272,7 @@ pub fn undemanded_flags(
     opts: &super::super::fit::LiftFitOptions,
     r: &mut crate::contract::report::FitResult,
 ) -> Result<(), super::super::fit::LiftFitError> {
-    use super::super::fit::{LiftFitError, LiftFitOptions};
+    use super::super::fit::LiftFitError;
     use crate::contract::drift::Status;
     if r.residual.verdict.is_some() || !r.residual.effects.is_empty() {
         return Ok(());
@@ -305,19 +305,7 @@ pub fn undemanded_flags(
             .into_iter()
             .filter(|p| !held.contains(p))
             .collect();
-        let start: Vec<f64> = fit
-            .params
-            .iter()
-            .filter(|p| free.contains(&p.param))
-            .map(|p| p.map_value / p.baseline)
-            .chain(fit.offsets.iter().map(|o| o.map_value))
-            .collect();
-        let restricted = LiftFitOptions {
-            friction_params: free,
-            effect_params: Vec::new(),
-            start: Some(start),
-            ..opts.clone()
-        };
+        let restricted = super::restricted_options(fit, free, opts);
         let refit = match super::super::identify::fit_map(
             model,
             std::slice::from_ref(trace),
