@@ -14,7 +14,7 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::sync::{Notify, watch};
 
 use crate::harness::{Backend, Opts, fresh_db, spawn_app_with};
-use crate::procs::{shared_json, slow_lift, wait_until, with_id};
+use crate::procs::{runaway_lift, shared_json, slow_lift, wait_until, with_id};
 
 async fn upload(store: &Store, doc: &serde_json::Value, id: &str) -> String {
     Intake::new(store.clone(), Arc::new(Notify::new()))
@@ -103,22 +103,34 @@ async fn postgres_claimed_job_is_released_uncounted() {
     claimed_job_is_released_uncounted(Backend::Postgres).await;
 }
 
-/// Starts one worker, uploads a slow lift trace, waits until its fit runs, stops the pool;
-/// returns the trace id and how long the pool took to stop.
+/// Starts one worker, uploads a lift whose fit takes seconds (`runaway_lift`: the residual
+/// loop tries the vocabulary), waits until its fit runs, stops the pool; returns the trace id
+/// and how long the pool took to stop.
+///
+/// "Its fit runs" is read from the job's first lease renewal, which only the loop around a
+/// started fit makes: a job merely `running` may still be between its claim and the worker's
+/// shutdown check, and a signal there releases it unstarted (a race seen under load). The lease
+/// is short (0.6 s, renewed every 0.2 s) so that the renewal comes well within the fit; one
+/// worker holds the only job, so a late renewal cannot hand it to another.
 async fn stop_during_fit(store: &Store, grace: Duration, id: &str) -> (String, Duration) {
     let (tx, rx) = watch::channel(false);
-    let pool = WorkerPool::spawn(
-        store.clone(),
-        options(grace),
-        Arc::new(Notify::new()),
-        rx,
-        None,
-    );
-    let id = upload(store, &slow_lift(), id).await;
-    wait_until("the job running", Duration::from_secs(30), || async {
+    let mut opts = options(grace);
+    opts.lease = Duration::from_millis(600);
+    let pool = WorkerPool::spawn(store.clone(), opts, Arc::new(Notify::new()), rx, None);
+    let id = upload(store, &runaway_lift(), id).await;
+    let claimed = wait_until("the job running", Duration::from_secs(30), || async {
         let j = job_of(store, &id).await;
-        (j.state == JobState::Running).then_some(())
+        (j.state == JobState::Running).then_some(j.lease_until)
     })
+    .await;
+    wait_until(
+        "the fit started (its lease renewed)",
+        Duration::from_secs(30),
+        || async {
+            let j = job_of(store, &id).await;
+            (j.state != JobState::Running || j.lease_until != claimed).then_some(())
+        },
+    )
     .await;
     let t0 = std::time::Instant::now();
     tx.send(true).expect("signal");
