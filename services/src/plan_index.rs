@@ -1,12 +1,16 @@
 //! The fleet plan from kept evidence (issue 37): the fleet's `param_evidence` rows grouped once
 //! per evidence version — each parameter's latest test, its wear rate, each test option and the
 //! information it gives — so a request at an `at` only widens ~18 beliefs and scores ~10 options
-//! per pantograph; and [`PlanCache`], which keeps that index and the last plan until a fit moves
-//! the store's evidence version.
+//! per pantograph; and [`PlanCache`], which keeps that index and the last `at`'s ranking until a
+//! fit moves the store's evidence version.
 //!
-//! The numbers are [`crate::evidence::fleet_plan`]'s, computed by the same functions in the same
-//! order (`models::plan::{p_past, p_unseen_of}`, `Belief::{widened, sd_after}`, the same sums and
-//! the same orderings); `evidence::fleet_plan` stays the reference a test compares this with.
+//! A plan at `at` is two steps: [`FleetIndex::rank`] scores each pantograph's best test (only
+//! the numbers the order needs: each parameter's widened belief and its `p_unseen`, one band's
+//! `erfc`s) and [`FleetIndex::served`] builds the full entries of the first `limit` only (a
+//! selection, then a sort of those). The numbers are [`crate::evidence::fleet_plan`]'s, computed
+//! by the same functions in the same order (`models::plan::{p_past, p_unseen_of, p_unseen_at}`,
+//! `Belief::{widened, sd_after}`, the same sums and the same orderings); `evidence::fleet_plan`
+//! stays the reference a test compares this with.
 
 use std::cmp::Ordering;
 use std::collections::BTreeMap;
@@ -16,7 +20,7 @@ use chrono::{DateTime, Utc};
 use pantowatch_models::data::PantographType;
 use pantowatch_models::drift::{DriftThresholds, Status};
 use pantowatch_models::evidence::{Belief, WearRate, information_of_interval};
-use pantowatch_models::plan::{PlanItem, PlanParam, p_past, p_unseen_of};
+use pantowatch_models::plan::{PlanItem, PlanParam, p_past, p_unseen_at, p_unseen_of};
 
 use crate::evidence::{
     FleetPlan, FleetPlanEntry, JOINT_KINDS, KindInformation, baseline_of, by_serial, days,
@@ -28,8 +32,12 @@ use crate::store::{EvidenceRow, Store, StoreError};
 /// A parameter's state apart from the time: the prior (never measured) or its latest test.
 #[derive(Debug, Clone)]
 enum Then {
-    /// The prior's belief and its `[p_watch, p_alarm]` (the same at every `at`).
-    Never { belief: Belief, past: [f64; 2] },
+    /// The prior's belief, its `[p_watch, p_alarm]` and `p_unseen` (the same at every `at`).
+    Never {
+        belief: Belief,
+        past: [f64; 2],
+        p_unseen: f64,
+    },
     Measured {
         then: Belief,
         rate: WearRate,
@@ -44,6 +52,8 @@ struct ParamIndex {
     param: Param,
     baseline: f64,
     then: Then,
+    /// Whether a test option informs it (else ranking needs nothing of it).
+    informed: bool,
 }
 
 #[derive(Debug, Clone)]
@@ -115,9 +125,11 @@ fn pantograph(
             let then = match measured {
                 None => {
                     let belief = Belief::unmeasured(baseline, unmeasured_sd);
+                    let past = p_past(&belief, baseline, th);
                     Then::Never {
                         belief,
-                        past: p_past(&belief, baseline, th),
+                        past,
+                        p_unseen: p_unseen_of(Status::Unknown, past),
                     }
                 }
                 Some((r, then)) => Then::Measured {
@@ -140,6 +152,7 @@ fn pantograph(
                 param: p,
                 baseline,
                 then,
+                informed: false,
             })
         };
         let (Some(viscous), Some(dry)) = (param(Param::Viscous), param(Param::Dry)) else {
@@ -176,7 +189,7 @@ fn pantograph(
             .or_default()
             .push((joint.as_str(), param.as_str(), info));
     }
-    let options = by_kind
+    let options: Vec<OptionIndex> = by_kind
         .into_iter()
         .filter_map(|((kind, joint), mut informs)| {
             informs.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
@@ -196,6 +209,11 @@ fn pantograph(
             })
         })
         .collect();
+    for o in &options {
+        for &(i, _) in &o.informs {
+            params[i].informed = true;
+        }
+    }
     PantographIndex {
         serial: serial.to_owned(),
         params,
@@ -204,9 +222,16 @@ fn pantograph(
     }
 }
 
-/// What an option buys at `now` (`models::plan::rank`'s sums): `(buys, info_bits)`, `None`
+/// A parameter at `at` as ranking needs it: its belief and `p_unseen` (not `p_watch`/`p_alarm`).
+#[derive(Debug, Clone, Copy)]
+struct Scored {
+    belief: Belief,
+    p_unseen: f64,
+}
+
+/// What an option buys at `at` (`models::plan::rank`'s sums): `(buys, info_bits)`, `None`
 /// when it shrinks no parameter's uncertainty.
-fn score(o: &OptionIndex, now: &[Now]) -> Option<(f64, f64)> {
+fn score(o: &OptionIndex, now: &[Scored]) -> Option<(f64, f64)> {
     let (mut buys, mut bits, mut any) = (0.0, 0.0, false);
     for &(i, info) in &o.informs {
         let b = &now[i].belief;
@@ -271,6 +296,14 @@ fn rank_order(a: (f64, f64, &OptionIndex), b: (f64, f64, &OptionIndex)) -> Order
 /// One pantograph's best option at `at`: (its index in the fleet, option index, buys, bits).
 type Best = (usize, usize, f64, f64);
 
+/// Each pantograph's best test at an `at`, scored, in fleet (serial) order: what a plan at that
+/// `at` serves the first `limit` of ([`FleetIndex::served`]).
+#[derive(Debug, Clone)]
+pub struct Ranked {
+    at: DateTime<Utc>,
+    best: Vec<Best>,
+}
+
 impl FleetIndex {
     /// Groups every evidence row of the fleet (the work done once per evidence version).
     pub fn build(rows: &[EvidenceRow]) -> FleetIndex {
@@ -298,11 +331,15 @@ impl FleetIndex {
     fn now(p: &PantographIndex, at: DateTime<Utc>, th: &DriftThresholds, out: &mut Vec<Now>) {
         out.clear();
         out.extend(p.params.iter().map(|x| match &x.then {
-            Then::Never { belief, past } => Now {
+            Then::Never {
+                belief,
+                past,
+                p_unseen,
+            } => Now {
                 belief: *belief,
                 age_days: None,
                 past: *past,
-                p_unseen: p_unseen_of(Status::Unknown, *past),
+                p_unseen: *p_unseen,
             },
             Then::Measured {
                 then,
@@ -323,13 +360,44 @@ impl FleetIndex {
         }));
     }
 
-    /// The fleet plan at `at`, its first `limit` tests: `evidence::fleet_plan`'s answer.
-    pub fn plan(&self, at: DateTime<Utc>, limit: usize) -> FleetPlan {
+    /// The parameters of pantograph `p` at `at` as ranking needs them: the widened belief and
+    /// `p_unseen` of each parameter an option informs (`p_unseen_at`: one band, not both).
+    fn scored(p: &PantographIndex, at: DateTime<Utc>, th: &DriftThresholds, out: &mut Vec<Scored>) {
+        out.clear();
+        out.extend(p.params.iter().map(|x| match &x.then {
+            Then::Never {
+                belief, p_unseen, ..
+            } => Scored {
+                belief: *belief,
+                p_unseen: *p_unseen,
+            },
+            Then::Measured { .. } if !x.informed => Scored {
+                belief: Belief::new(f64::NAN, f64::NAN),
+                p_unseen: f64::NAN,
+            },
+            Then::Measured {
+                then,
+                rate,
+                recorded_at,
+                seen,
+            } => {
+                let belief = then.widened(days(*recorded_at, at), rate);
+                Scored {
+                    belief,
+                    p_unseen: p_unseen_at(&belief, x.baseline, *seen, th),
+                }
+            }
+        }));
+    }
+
+    /// Each pantograph's best test at `at`, scored (`models::plan::rank`'s first item, by the
+    /// same sums), without building any item.
+    pub fn rank(&self, at: DateTime<Utc>) -> Ranked {
         let th = DriftThresholds::default();
         let mut now = Vec::new();
         let mut best: Vec<Best> = Vec::with_capacity(self.entries.len());
         for (k, p) in self.entries.iter().enumerate() {
-            Self::now(p, at, &th, &mut now);
+            Self::scored(p, at, &th, &mut now);
             let mut top: Option<(f64, f64, usize)> = None;
             for (i, o) in p.options.iter().enumerate() {
                 let Some((buys, bits)) = score(o, &now) else {
@@ -346,26 +414,46 @@ impl FleetIndex {
                 best.push((k, i, buys, bits));
             }
         }
-        // `evidence::fleet_plan`'s order (a stable sort of serial order).
-        best.sort_by(|a, b| {
+        Ranked { at, best }
+    }
+
+    /// The first `limit` tests of a ranking, each entry built in full: `evidence::fleet_plan`'s
+    /// order (most bought, most bits, then serial — a total order, serials being unique, so a
+    /// selection of the first `limit` and a sort of them give its stable sort's first `limit`).
+    pub fn served(&self, ranked: &Ranked, limit: usize) -> FleetPlan {
+        let order = |a: &Best, b: &Best| {
             b.2.total_cmp(&a.2)
                 .then(b.3.total_cmp(&a.3))
                 .then_with(|| self.entries[a.0].serial.cmp(&self.entries[b.0].serial))
-        });
-        let tests = best
+        };
+        let mut top = ranked.best.clone();
+        if limit == 0 {
+            top.clear();
+        } else if limit < top.len() {
+            top.select_nth_unstable_by(limit - 1, order);
+            top.truncate(limit);
+        }
+        top.sort_unstable_by(order);
+        let th = DriftThresholds::default();
+        let mut now = Vec::new();
+        let tests = top
             .iter()
-            .take(limit)
             .map(|&(k, i, _, _)| {
                 let p = &self.entries[k];
-                Self::now(p, at, &th, &mut now);
+                Self::now(p, ranked.at, &th, &mut now);
                 self.entry(p, &p.options[i], &now)
             })
             .collect();
         FleetPlan {
-            at,
+            at: ranked.at,
             pantographs: self.pantographs,
             tests,
         }
+    }
+
+    /// The fleet plan at `at`, its first `limit` tests: `evidence::fleet_plan`'s answer.
+    pub fn plan(&self, at: DateTime<Utc>, limit: usize) -> FleetPlan {
+        self.served(&self.rank(at), limit)
     }
 
     fn entry(&self, p: &PantographIndex, o: &OptionIndex, now: &[Now]) -> FleetPlanEntry {
@@ -395,10 +483,11 @@ impl FleetIndex {
     }
 }
 
-/// The fleet's evidence, grouped ([`FleetIndex`]), and the last fleet plan computed from it,
+/// The fleet's evidence, grouped ([`FleetIndex`]), and the last `at`'s ranking computed from it,
 /// kept in memory until the store's evidence version moves (a fit's refresh or trends):
 /// reading 16–40 rows per pantograph and grouping them cost more than the plan itself. One
-/// entry; a plan at another `at` is computed from the kept index.
+/// entry; a plan at another `at` is ranked from the kept index, and each request builds only
+/// the entries it serves.
 #[derive(Debug, Clone, Default)]
 pub struct PlanCache(Arc<Mutex<Option<CachedPlan>>>);
 
@@ -406,54 +495,58 @@ pub struct PlanCache(Arc<Mutex<Option<CachedPlan>>>);
 struct CachedPlan {
     version: i64,
     index: Arc<FleetIndex>,
-    plan: Option<(DateTime<Utc>, Arc<FleetPlan>)>,
+    ranked: Option<Arc<Ranked>>,
 }
 
 impl PlanCache {
-    /// The fleet plan at `at` (every test, best first; the caller truncates), from the kept
-    /// index while the evidence version stands, else read and grouped again.
+    /// The fleet plan at `at`, its first `limit` tests, from the kept index (and the kept
+    /// ranking when `at` is the last one's) while the evidence version stands, else read and
+    /// grouped again. One store query when kept: the evidence version.
     pub async fn fleet_plan(
         &self,
         store: &Store,
         at: DateTime<Utc>,
-    ) -> Result<Arc<FleetPlan>, StoreError> {
+        limit: usize,
+    ) -> Result<FleetPlan, StoreError> {
         let version = store.evidence_version().await?;
         let kept = {
             let g = self.0.lock().unwrap_or_else(|e| e.into_inner());
             match g.as_ref() {
                 Some(c) if c.version == version => {
-                    if let Some((t, p)) = &c.plan
-                        && *t == at
-                    {
-                        return Ok(p.clone());
-                    }
-                    Some(c.index.clone())
+                    Some((c.index.clone(), c.ranked.clone().filter(|r| r.at == at)))
                 }
                 _ => None,
             }
         };
-        let index = match kept {
-            Some(i) => i,
+        let (index, ranked) = match kept {
+            Some(k) => k,
             None => {
                 let rows = store.param_evidence(None).await?;
-                tokio::task::spawn_blocking(move || Arc::new(FleetIndex::build(&rows)))
+                let index = tokio::task::spawn_blocking(move || Arc::new(FleetIndex::build(&rows)))
                     .await
-                    .map_err(|e| StoreError::Task(e.to_string()))?
+                    .map_err(|e| StoreError::Task(e.to_string()))?;
+                (index, None)
             }
         };
-        let plan = {
+        let fresh = ranked.is_none();
+        let (ranked, plan) = {
             let index = index.clone();
-            tokio::task::spawn_blocking(move || index.plan(at, usize::MAX))
-                .await
-                .map_err(|e| StoreError::Task(e.to_string()))?
+            tokio::task::spawn_blocking(move || {
+                let ranked = ranked.unwrap_or_else(|| Arc::new(index.rank(at)));
+                let plan = index.served(&ranked, limit);
+                (ranked, plan)
+            })
+            .await
+            .map_err(|e| StoreError::Task(e.to_string()))?
         };
-        let plan = Arc::new(plan);
-        let mut g = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        *g = Some(CachedPlan {
-            version,
-            index,
-            plan: Some((at, plan.clone())),
-        });
+        if fresh {
+            let mut g = self.0.lock().unwrap_or_else(|e| e.into_inner());
+            *g = Some(CachedPlan {
+                version,
+                index,
+                ranked: Some(ranked),
+            });
+        }
         Ok(plan)
     }
 }
@@ -571,9 +664,57 @@ mod tests {
             }
         }
         // No evidence: no plan.
+        assert_eq!(FleetIndex::build(&[]).plan(Utc::now(), 0).tests, Vec::new());
         assert_eq!(
             FleetIndex::build(&[]).plan(Utc::now(), 10).tests,
             Vec::new()
         );
+    }
+
+    /// Ties in score: pantographs whose evidence is another's (serials sorting before, between
+    /// and after the others) score alike and are ordered by serial; every `limit` that cuts a
+    /// tie serves `evidence::fleet_plan`'s first `limit`, whether ranked afresh or from a kept
+    /// ranking.
+    #[test]
+    fn a_limit_that_cuts_through_ties_serves_the_plan_from_scratch() {
+        let mut rows = random_rows(41, 8);
+        let copies: Vec<EvidenceRow> = rows
+            .iter()
+            .filter(|r| r.serial == "160EC-0001" || r.serial == "160EC-0005")
+            .flat_map(|r| {
+                ["160EC-0000-a", "160EC-0001-b", "160EC-0009"].map(|prefix| EvidenceRow {
+                    serial: format!("{prefix}-{}", r.serial),
+                    ..r.clone()
+                })
+            })
+            .collect();
+        rows.extend(copies);
+        let index = FleetIndex::build(&rows);
+        for days in [30, 400, 900] {
+            let at = Utc
+                .with_ymd_and_hms(2025, 1, 1, 0, 0, 0)
+                .single()
+                .expect("date")
+                + chrono::TimeDelta::days(days);
+            let all = fleet_plan(&rows, at, usize::MAX);
+            let ties = all
+                .tests
+                .windows(2)
+                .filter(|w| {
+                    w[0].test.buys == w[1].test.buys && w[0].test.info_bits == w[1].test.info_bits
+                })
+                .count();
+            assert!(
+                ties >= 4,
+                "at {at}: {ties} ties in {} tests",
+                all.tests.len()
+            );
+            let ranked = index.rank(at);
+            for limit in 0..=all.tests.len() + 1 {
+                let scratch = fleet_plan(&rows, at, limit);
+                assert_eq!(index.plan(at, limit), scratch, "at {at}, limit {limit}");
+                assert_eq!(index.served(&ranked, limit), scratch, "kept, limit {limit}");
+            }
+        }
     }
 }

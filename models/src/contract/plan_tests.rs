@@ -204,3 +204,29 @@ fn a_test_that_cannot_see_the_joint_or_a_joint_that_cannot_have_crossed_buys_not
     // A test with no information on what it names buys nothing and is left out.
     assert!(rank(&params, &[swing("J5", 0.0)], &th).is_empty());
 }
+
+#[test]
+fn the_one_band_p_unseen_is_the_two_band_one_bit_for_bit() {
+    let th = DriftThresholds::default();
+    let mut checked = 0;
+    for seen in [Status::Unknown, Status::Ok, Status::Watch, Status::Alarm] {
+        for mean in [0.0, 0.5, 0.9, 1.0, 1.2, 1.6, 2.5, f64::NAN] {
+            for sd in [0.0, 1e-3, 0.05, 0.3, 2.0, f64::NAN] {
+                let baseline = 0.2;
+                let b = Belief::new(mean * baseline, sd * baseline);
+                let two = p_unseen_of(seen, p_past(&b, baseline, &th));
+                let one = p_unseen_at(&b, baseline, seen, &th);
+                assert_eq!(
+                    one.to_bits(),
+                    two.to_bits(),
+                    "{seen:?} {b:?}: {one} against {two}"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 4 * 8 * 6);
+    // Not a constant: a parameter at the watch band's edge is past it about half the time.
+    let edge = Belief::new(th.watch[1] * 0.2, 0.01);
+    assert!((p_unseen_at(&edge, 0.2, Status::Ok, &th) - 0.5).abs() < 1e-9);
+}

@@ -157,10 +157,5 @@ pub async fn fleet_plan(
             format!("must be from 1 to {MAX_PLAN_LIMIT}"),
         ));
     }
-    let plan = st.plan_cache.fleet_plan(&st.store, at).await?;
-    Ok(Json(FleetPlan {
-        at: plan.at,
-        pantographs: plan.pantographs,
-        tests: plan.tests.iter().take(limit).cloned().collect(),
-    }))
+    Ok(Json(st.plan_cache.fleet_plan(&st.store, at, limit).await?))
 }

@@ -379,6 +379,9 @@ pub async fn the_kept_fleet_plan_is_the_plan_from_scratch(b: Backend) {
     for (at, limit) in [
         ("2026-01-15T00:00:00Z", 1000),
         ("2026-01-15T00:01:00Z", 3),
+        // The same `at` again: from the kept ranking, other limits.
+        ("2026-01-15T00:01:00Z", 9),
+        ("2026-01-15T00:01:00Z", 2),
         ("2025-06-01T12:00:00Z", 1000),
         ("2028-01-01T00:00:00Z", 7),
         ("2026-01-15T00:00:00Z", 5),

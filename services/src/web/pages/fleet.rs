@@ -69,7 +69,7 @@ async fn fleet(st: &AppState, jobs: JobCounts, at: Option<&str>) -> Result<Marku
     let at = crate::api::plan::parse_at(at)?;
     // Each pantograph's oldest evidence and best next test (issue 37), from `param_evidence`
     // (grouped and kept until a fit changes it, as `GET /v1/fleet/plan` reads it).
-    let plan = st.plan_cache.fleet_plan(&st.store, at).await?;
+    let plan = st.plan_cache.fleet_plan(&st.store, at, usize::MAX).await?;
     let plans: HashMap<&str, &FleetPlanEntry> =
         plan.tests.iter().map(|e| (e.serial.as_str(), e)).collect();
     let fleet = st
