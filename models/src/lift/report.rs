@@ -115,8 +115,9 @@ fn lift_trace<'a>(
 /// Fit one lift trace with the MAP identification (Table 4 prior, [`LiftFitOptions::default`]
 /// with these drift bands) and map it to the contract's fit result; where the plain model
 /// leaves a model error, the residual loop (vocabulary, refit, held-out test). Then what the
-/// record can vouch for (`absorbed::judge`): a flag the data do not demand is withdrawn, and on
-/// a record that does not lower the strip the level carries the raise's systematic term.
+/// record can vouch for (`absorbed::judge`): a flag the data do not demand, or whose fit leaves a
+/// phase unexplained, is withdrawn; on a record that does not lower the strip the level carries
+/// the raise's systematic term, on one that does a term grown with what the check saw.
 pub fn fit_lift_trace(
     channels: &LiftChannels,
     thresholds: &DriftThresholds,
@@ -144,7 +145,7 @@ pub fn fit_lift_trace_with(
         &opts,
         &mut report.result,
     )?;
-    super::absorbed::judge::widen_without_lowering(
+    super::absorbed::judge::widen_level(
         &mut report.result,
         thresholds,
         channels.t_s,

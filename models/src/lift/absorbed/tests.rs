@@ -233,3 +233,89 @@ fn a_torque_gain_error_raises_no_flag_on_the_raise() {
         r.residual.joints_withheld
     );
 }
+
+/// Issue 36, point 2 (session 22): H seen through a dead band of ±2 mm (play between strip and
+/// sensor, outside the vocabulary) on the designed protocol, seed 302, put the J5+J8 dry level at
+/// 4.5 × Table 4, an alarm, from a fit that left 2.46× the noise in its falling phase; with J5 and
+/// J8 at Table 4 the record was not explained either, so the demand rule kept it. A flag must
+/// explain the record in every phase (`judge::flag_unexplained`): withdrawn, the reason said. A
+/// true drift on the same protocol and seed — J3 dry ×2, the J1+J3 level 1.87 — keeps its flag.
+#[test]
+fn a_sensor_dead_band_raises_no_flag_and_a_true_drift_keeps_it() {
+    let g = builtin_160ec();
+    let base = LiftModel::new(g);
+    let protocol =
+        crate::lift::design::rounds_of_moves(&base, g, &[1.424, 1.216], 1.0, 2.0, 1).unwrap();
+    let clean = record(&base, &protocol, &SimOptions::default()).unwrap();
+    let mut rec = LiftSensorNoise::realistic().apply(&clean, 36_000 + 302);
+    // A play operator on the noise-free H, the sensor noise added after (as the probe's `hback`).
+    let band_m = 2e-3;
+    let mut out = clean.strip_height_m[0];
+    for (i, &h) in clean.strip_height_m.iter().enumerate() {
+        if h > out + band_m {
+            out = h - band_m;
+        } else if h < out - band_m {
+            out = h + band_m;
+        }
+        rec.strip_height_m[i] += out - h;
+    }
+    let r = fit_lift_trace(&LiftChannels::from(&rec), &DriftThresholds::default(), "t")
+        .unwrap()
+        .result;
+    eprintln!("dead band: {:?}", r.residual.joints_withheld);
+    no_flag(&r);
+    let why = r.residual.joints_withheld.as_deref().unwrap_or_default();
+    assert!(
+        why.contains("J5+J8 dry not judged") && why.contains("in one phase"),
+        "{why}"
+    );
+    let mut j3 = base.clone();
+    let p = LiftParam::named("J3", "dry").unwrap();
+    p.set(&mut j3, &mut 0.0, 2.0 * p.get(&base, 0.0));
+    let r = lift(&j3, &protocol, 302);
+    let (v, ci) = level(&r).expect("J1+J3 reported");
+    eprintln!("J3 dry ×2: level {v} {ci:?}");
+    let c = r
+        .combinations
+        .iter()
+        .find(|c| c.label == "J1+J3 dry")
+        .unwrap();
+    assert_eq!(c.status, Status::Watch, "{v} {ci:?}");
+    assert!(r.residual.joints_withheld.is_none());
+}
+
+/// Issue 36, point 2 (session 22): a compliant drive (k 8000 N·m/rad, in the vocabulary) on the
+/// raise and lower at twice the stand's noise is not seen by the check (1.3–1.9×, under 2×) and
+/// moved the J1+J3 level to 0.88–0.92 with intervals ±0.056 — missing its truth 1. The level
+/// carries a systematic term grown with what the check saw (`judge::ABSORBED_LEVEL_SYSTEMATIC`):
+/// it holds the truth. A true J3 dry ×2 (level 1.87) still flags.
+#[test]
+fn a_compliant_drive_the_check_misses_leaves_the_level_holding_the_truth() {
+    let g = builtin_160ec();
+    let base = LiftModel::new(g);
+    let protocol = LiftProtocol::raise_and_lower(&base, g).unwrap();
+    let mut m = base.clone();
+    m.drive_compliance = Some(DriveCompliance {
+        stiffness_nm_per_rad: 8000.0,
+        damping_nms_per_rad: 50.0,
+        inertia_kgm2: 3.0,
+    });
+    let r = lift_with(&m, &protocol, 2.0, (0.0, 0.0), 300);
+    let a = r.fit.absorption.as_ref().unwrap();
+    eprintln!("compliance: {a:?} {:?} {:?}", r.residual.effects, level(&r));
+    no_flag(&r);
+    let (v, ci) = level(&r).expect("J1+J3 reported");
+    assert!(ci[0] <= 1.0 && 1.0 <= ci[1], "level {v} {ci:?}");
+    let mut j3 = base.clone();
+    let p = LiftParam::named("J3", "dry").unwrap();
+    p.set(&mut j3, &mut 0.0, 2.0 * p.get(&base, 0.0));
+    let r = lift_with(&j3, &protocol, 2.0, (0.0, 0.0), 400);
+    let (v, ci) = level(&r).expect("J1+J3 reported");
+    eprintln!("J3 dry ×2: level {v} {ci:?}");
+    let c = r
+        .combinations
+        .iter()
+        .find(|c| c.label == "J1+J3 dry")
+        .unwrap();
+    assert_eq!(c.status, Status::Watch, "{v} {ci:?}");
+}
