@@ -23,6 +23,7 @@ use pantowatch_models::data::builtin_160ec as type_160ec;
 use pantowatch_models::drift::{DriftThresholds, Status};
 use pantowatch_models::lift::dynamics::LiftModel;
 use pantowatch_models::lift::fleet_prior::{WorkshopEstimate, learn, prior_params};
+use pantowatch_models::lift::gauge::fit::FITTED_JOINTS;
 use pantowatch_models::lift::gauge::{
     DriveLine, GaugeChannels, GaugeSimOptions, fit_gauge_trace_with, reading_heights,
     simulate_gauge,
@@ -54,6 +55,8 @@ struct Tally {
     level_missing: usize,
     /// Records whose residual loop named an effect.
     named: usize,
+    /// Per fitted joint (`FITTED_JOINTS` order): Σ (MAP / truth − 1)² and count, uninformed.
+    per_joint: [(f64, usize); 7],
 }
 
 fn main() {
@@ -181,10 +184,18 @@ fn main() {
                     tally.false_flags += 1;
                 }
             }
-            for e in rep.fit.params.iter().filter(|e| !e.informed) {
+            for (i, e) in rep
+                .fit
+                .params
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| !e.informed)
+            {
                 let err = e.map_value / e.param.get(&m, 0.0) - 1.0;
                 tally.uninformed_sq += err * err;
                 tally.uninformed_n += 1;
+                tally.per_joint[i].0 += err * err;
+                tally.per_joint[i].1 += 1;
             }
         }
     }
@@ -207,6 +218,16 @@ fn main() {
             t.level_missing,
             t.named,
             t.failed
+        );
+        let per: Vec<String> = FITTED_JOINTS
+            .iter()
+            .zip(&t.per_joint)
+            .map(|(j, (sq, n))| format!("{} {:.3}", j.name(), (sq / (*n).max(1) as f64).sqrt()))
+            .collect();
+        println!(
+            "{:<14} uninformed RMS error per joint: {}",
+            "",
+            per.join(", ")
         );
     }
 }
