@@ -6,7 +6,7 @@ use pantowatch_models::budget::{Budget, Exhausted};
 use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::identify::{FitOptions, FitOutcome};
 use pantowatch_models::lift::gauge::report::GaugeChannels as ModelGaugeChannels;
-use pantowatch_models::lift::gauge::{GaugeReport, fit_gauge_trace};
+use pantowatch_models::lift::gauge::{GaugeReport, fit_gauge_trace_with};
 use pantowatch_models::lift::report::{LiftReport, fit_lift_trace_with};
 use pantowatch_models::quadrangle::report::{QuadReport, fit_quadrangle_trace};
 use pantowatch_models::report::{FitCurve, FitResult};
@@ -66,8 +66,9 @@ pub fn fit_document_within(
     fit_document_within_prior(doc, thresholds, None, budget)
 }
 
-/// [`fit_document_within`] with the fleet prior `prior` for a lift's unreported joints
-/// (`services::fleet_prior`; recorded in `fit.prior`); other kinds ignore it. `None`: Table 4.
+/// [`fit_document_within`] with the fleet prior `prior` for the unreported joints of a lift or
+/// a force-gauge record (`services::fleet_prior`; recorded in `fit.prior`); other kinds ignore
+/// it. `None`: Table 4.
 pub fn fit_document_within_prior(
     doc: &TraceDoc,
     thresholds: &DriftThresholds,
@@ -104,7 +105,8 @@ pub fn fit_document_with_curve(
     fit_document_with_curve_prior(doc, thresholds, None)
 }
 
-/// [`fit_document_with_curve`] with a lift's fleet prior (see [`fit_document_within_prior`]).
+/// [`fit_document_with_curve`] with a lift's or gauge's fleet prior (see
+/// [`fit_document_within_prior`]).
 pub fn fit_document_with_curve_prior(
     doc: &TraceDoc,
     thresholds: &DriftThresholds,
@@ -139,7 +141,7 @@ pub fn fit_document_with_curve_prior(
         Kind::StaticForce => {
             // The gauge's readings in the order taken: measured and modelled force over the
             // readings' times (raising, then lowering).
-            let rep = fit_static_force(doc, thresholds)?;
+            let rep = fit_static_force_with(doc, thresholds, prior)?;
             let t = doc.channel("t_s").unwrap_or_default();
             let curve = FitCurve::thinned("F_N", "N", t, &rep.record.forces_n, &rep.fit.fitted_n);
             Ok(Fitted {
@@ -185,6 +187,17 @@ pub fn fit_static_force(
     doc: &TraceDoc,
     thresholds: &DriftThresholds,
 ) -> Result<GaugeReport, FitFailure> {
+    fit_static_force_with(doc, thresholds, None)
+}
+
+/// [`fit_static_force`] under the fleet prior `prior` for the joints the record does not
+/// report, recorded in the result's `fit.prior`; `None`: Table 4 ± `prior_relative_sd`,
+/// nothing recorded.
+pub fn fit_static_force_with(
+    doc: &TraceDoc,
+    thresholds: &DriftThresholds,
+    prior: Option<&FitPrior>,
+) -> Result<GaugeReport, FitFailure> {
     let g = doc.static_force_channels().map_err(FitFailure::Invalid)?;
     let channels = ModelGaugeChannels {
         strip_height_m: g.strip_height_m,
@@ -192,13 +205,19 @@ pub fn fit_static_force(
         resolution_n: g.gauge_resolution_n,
     };
     let id = doc.trace_id.clone().unwrap_or_default();
-    fit_gauge_trace(&channels, thresholds, &id).map_err(|e| match e.field_path() {
-        Some(field) => FitFailure::Invalid(TraceError {
-            field,
-            message: e.to_string(),
-        }),
-        None => FitFailure::Model(e.to_string()),
-    })
+    let friction_prior = prior.map_or(&[][..], |p| &p.friction_prior[..]);
+    let mut rep =
+        fit_gauge_trace_with(&channels, thresholds, &id, friction_prior).map_err(|e| {
+            match e.field_path() {
+                Some(field) => FitFailure::Invalid(TraceError {
+                    field,
+                    message: e.to_string(),
+                }),
+                None => FitFailure::Model(e.to_string()),
+            }
+        })?;
+    rep.result.fit.prior = prior.map(|p| p.used.clone());
+    Ok(rep)
 }
 
 /// Fits a `lift` document: the complete-pantograph MAP identification (Table 4 prior), every

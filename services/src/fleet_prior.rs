@@ -1,5 +1,6 @@
 //! The fleet prior in the service (issue 37, point 3): learned from the workshop fits in the
-//! store (`models::lift::fleet_prior`), versioned (`fleet_priors`), used by every lift fit.
+//! store (`models::lift::fleet_prior`), versioned (`fleet_priors`), used by every lift and
+//! force-gauge fit.
 //!
 //! - **Learning**: each pantograph's latest informing workshop test (pendulum, slider,
 //!   quadrangle swing) per joint and parameter (`param_evidence`), read as θ/θ₀ with its sd
@@ -11,15 +12,18 @@
 //!   `[fleet_prior] version_tolerance_relative` from the newest version (or from the type file's,
 //!   version 0, when none is stored): a prior that changes every fit must be an act someone
 //!   can name, not a side effect of the thousandth upload.
-//! - **Use**: a lift fit takes the newest version of its type (`FitPrior`), learned sds widened
-//!   × `[fleet_prior] fit_sd_scale` (1.5, where `FleetPrior::for_fit` is documented), and records
-//!   it in `fit.prior` and `fits.prior_version`. Without a stored version: version 0, the type
-//!   file's Table 4 ± floor — the fit as before this module.
-//! - **Refit on change**: publishing version n queues, in the same transaction, every lift whose
-//!   current fit used an older prior, at model version `{MODEL_VERSION}; fleet prior vn`
-//!   ([`refit_prefix`]), the existing `refit` queue; the worker fits such a job with version n.
-//! - Force-gauge (`static_force`) fits keep the Table 4 prior: the gauge fit takes one relative
-//!   prior sd for every joint (`lift::gauge::fit`), not a per-joint prior; they record none.
+//! - **Use**: a lift fit, a lift's pooled fit (`pooled`, under its lift's prior) and a
+//!   force-gauge (`static_force`) fit take the newest version of their type (`FitPrior`),
+//!   learned sds widened × `[fleet_prior] fit_sd_scale` (1.5, where `FleetPrior::for_fit` is
+//!   documented), and record it in `fit.prior` and `fits.prior_version`. The gauge fit reads the
+//!   dry μ entries as a per-joint prior in ln μ (`lift::gauge::fit`). Without a stored version:
+//!   version 0, the type file's Table 4 ± floor — the fit as before this module (the floor is
+//!   the fits' own `prior_relative_sd`, 0.5).
+//! - **Refit on change**: publishing version n queues, in the same transaction, every lift and
+//!   force-gauge record ([`PRIOR_KINDS`]) whose current fit used an older prior (none recorded
+//!   counts as version 0), at model version `{MODEL_VERSION}; fleet prior vn` ([`refit_prefix`]),
+//!   the existing `refit` queue; the worker fits such a job with version n (a lift's pool too,
+//!   recording n: it is not queued again until a newer version).
 
 use std::collections::BTreeMap;
 
@@ -37,7 +41,7 @@ use crate::store::{EvidenceRow, NewPrior, Store, StoreError, StoredPrior};
 /// The test kinds a prior is learned from: the workshop's.
 pub const WORKSHOP_KINDS: [&str; 3] = ["pendulum", "slider", "quadrangle_swing"];
 /// The test kinds fitted under the prior, refitted when it changes.
-pub const PRIOR_KINDS: [&str; 1] = ["lift"];
+pub const PRIOR_KINDS: [&str; 2] = ["lift", crate::trace::STATIC_FORCE];
 /// What a refit's model version adds to `MODEL_VERSION` before the prior's version.
 const REFIT_TAG: &str = "; fleet prior v";
 
@@ -244,7 +248,8 @@ pub struct Relearned {
     pub prior: FleetPriorView,
     /// Whether a new version was published.
     pub published: bool,
-    /// Lift fits queued for a refit under the new version (0 when none was published).
+    /// Lift and force-gauge fits queued for a refit under the new version (0 when none was
+    /// published).
     pub queued: u64,
     /// Workshop estimates (unit × joint × parameter) the learning read.
     pub n_estimates: usize,
@@ -252,7 +257,7 @@ pub struct Relearned {
 
 /// Learn `model`'s prior from the workshop fits in the store and publish it as a new version
 /// when it differs from the current one by more than `[fleet_prior] version_tolerance_relative`;
-/// a new version queues the refit of every lift fitted under an older one.
+/// a new version queues the refit of every lift and gauge record fitted under an older one.
 pub async fn relearn(store: &Store, model: &str) -> Result<Relearned, PriorError> {
     let t = type_of(model)?;
     let s = t.fleet_prior();

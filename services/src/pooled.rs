@@ -12,18 +12,23 @@
 //! pantograph's force-gauge records (`static_force` traces, issue 20) in the same window, at most
 //! [`MAX_GAUGES`], pool in too (`fit_pooled_lift_and_gauge_traces`): a lift with one gauge record
 //! is a pool; a gauge record whose own fit named an effect or withheld its joints is left out, as
-//! a lift is. No physics here: `models::lift::report` fits.
+//! a lift is. The pool is fitted under the fleet prior its lift's fit used (`fleet_prior`),
+//! recorded in `fit.prior` and `fits.prior_version`, its model version naming the prior
+//! ([`pooled_version_under`]): a new prior's refit of the lift writes a new pool, and a pool
+//! already under the newest prior is not queued again. No physics here: `models::lift::report`
+//! fits.
 
 use chrono::TimeDelta;
 
 use crate::alerts::{self, AlertOptions};
 use crate::fitting::FitLimits;
+use crate::fleet_prior::FitPrior;
 use crate::ingest::stored_doc;
 use crate::store::{NewFit, Store, StoreError};
 use pantowatch_models::budget::Budget;
 use pantowatch_models::drift::DriftThresholds;
 use pantowatch_models::lift::gauge::report::GaugeChannels;
-use pantowatch_models::lift::report::fit_pooled_lift_and_gauge_traces;
+use pantowatch_models::lift::report::fit_pooled_lift_and_gauge_traces_with;
 use pantowatch_models::report::MODEL_VERSION;
 
 /// How far back a pooled fit reaches from the newest lift, days.
@@ -38,9 +43,20 @@ pub fn pooled_version(n: usize) -> String {
     format!("{MODEL_VERSION}; lift pooled over {n} tests")
 }
 
+/// The model version of a pooled fit of `n` tests under fleet prior version `prior_version`:
+/// [`pooled_version`], with `; fleet prior vN` for a stored version N > 0 (version 0, the type
+/// file's, is the pool as before priors were versioned).
+pub fn pooled_version_under(n: usize, prior_version: Option<i64>) -> String {
+    match prior_version.filter(|v| *v > 0) {
+        Some(v) => format!("{}; fleet prior v{v}", pooled_version(n)),
+        None => pooled_version(n),
+    }
+}
+
 /// Fit the lifts of `trace_id`'s pantograph in the window ending at it, with its force-gauge
 /// records there, when there are 2 lifts or more (or a gauge record besides the lift), and store
-/// the result as its fit; then run the alert rules on it. `Ok(None)`: nothing
+/// the result as its fit, under `prior` (the lift's own fit's, recorded); then run the alert
+/// rules on it. `Ok(None)`: nothing
 /// to pool. CPU work runs off the async runtime, under `limits` like a job's fit: past them
 /// the pooled fit is stopped and dropped (logged; the lift's own fit stands).
 pub async fn after_lift(
@@ -49,6 +65,7 @@ pub async fn after_lift(
     thresholds: DriftThresholds,
     alerts_opts: &AlertOptions,
     limits: FitLimits,
+    prior: Option<&FitPrior>,
 ) -> Result<Option<i64>, StoreError> {
     let Some(meta) = store.get_trace(trace_id).await? else {
         return Ok(None);
@@ -129,7 +146,9 @@ pub async fn after_lift(
         return Ok(None);
     }
     let n = lifts.len() + gauges.len();
-    let version = pooled_version(n);
+    let version = pooled_version_under(n, prior.map(|p| p.used.version));
+    let friction_prior = prior.map(|p| p.friction_prior.clone()).unwrap_or_default();
+    let used = prior.map(|p| p.used.clone());
     let ids: Vec<String> = lifts.iter().map(|(m, _)| m.trace_id.clone()).collect();
     let gauge_ids: Vec<String> = gauges.iter().map(|(m, _)| m.trace_id.clone()).collect();
     let docs = lifts
@@ -164,15 +183,20 @@ pub async fn after_lift(
             })
             .collect::<Result<Vec<_>, String>>()?;
         pantowatch_models::budget::run(&budget, || {
-            fit_pooled_lift_and_gauge_traces(
+            fit_pooled_lift_and_gauge_traces_with(
                 &channels,
                 &ids,
                 &gauge_channels,
                 &gauge_ids,
                 WINDOW_DAYS as f64,
                 &thresholds,
+                &friction_prior,
             )
-            .map(|r| r.result)
+            .map(|r| {
+                let mut result = r.result;
+                result.fit.prior = used;
+                result
+            })
             .map_err(|e| e.to_string())
         })
         .unwrap_or_else(|e| Err(format!("{e} (the worker's fit limits)")))

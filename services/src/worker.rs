@@ -244,13 +244,15 @@ pub async fn process_next(
     };
     let thresholds = opts.thresholds;
     let kind = doc.kind.as_str();
-    // A lift is fitted under its type's fleet prior: the version a refit job names, else the
-    // newest (`fleet_prior`; recorded in `fit.prior`).
+    // A lift or a force-gauge record is fitted under its type's fleet prior: the version a
+    // refit job names, else the newest (`fleet_prior`; recorded in `fit.prior`). A lift's pooled
+    // fit takes the same.
     let prior = if crate::fleet_prior::PRIOR_KINDS.contains(&kind) {
         crate::fleet_prior::for_job(store, &doc.pantograph_model, &job.model_version).await?
     } else {
         None
     };
+    let pooled_prior = prior.clone();
     let t0 = Instant::now();
     // The fit runs under its evaluation budget; the canceller stops it (within ~1 ms) when
     // the wall-time budget or the shutdown grace runs out, so its thread is freed too.
@@ -367,6 +369,7 @@ pub async fn process_next(
                     opts.thresholds,
                     &opts.alerts,
                     opts.limits(),
+                    pooled_prior.as_ref(),
                 )
                 .await
             {

@@ -7,7 +7,8 @@
 //! interval that holds only if the other joint is at baseline: a J1 ×3 drift read as J3 +25 %.
 //!
 //! Rule (stated), in scaled units (each coefficient over its Table 4 baseline; prior sd
-//! `prior_sd` alike for all):
+//! `prior_sd[i]` per parameter — alike for all in a lift fit, the fleet's per joint in a gauge
+//! fit; along a unit direction v the prior's sd is √Σ v_i² prior_sd_i²):
 //! - the directions the data pin are the eigenvectors v of the data's information on the
 //!   friction parameters with the torque offsets marginalised, Λ = (Σ_ff)⁻¹ − P⁻¹, from the
 //!   posterior of the H data alone (deterministic given the inputs; the input-noise draws only
@@ -73,7 +74,7 @@ pub struct Attribution {
 /// deterministic given the inputs) and `cov` the full one (input noise added, for the
 /// intervals), all in scaled units with the friction block first (`params.len()` rows);
 /// `table4` what is known of the information at Table 4; `contracted[i]` is the contraction
-/// test on `cov`; `prior_sd` the scaled prior sd.
+/// test on `cov`; `prior_sd` each friction parameter's scaled prior sd (fit order).
 #[allow(clippy::too_many_arguments)]
 pub fn attribute(
     params: &[LiftParam],
@@ -82,7 +83,7 @@ pub fn attribute(
     table4: AtTable4,
     cov: &DMatrix<f64>,
     contracted: &[bool],
-    prior_sd: f64,
+    prior_sd: &[f64],
     informed_factor: f64,
     thresholds: &DriftThresholds,
     opts: &AttributionOptions,
@@ -95,7 +96,8 @@ pub fn attribute(
         _ => (None, None),
     };
     let failed = matches!(table4, AtTable4::RunFailed);
-    let at_table4 = |i: usize| cov4.is_none_or(|c| c[(i, i)].sqrt() < prior_sd / informed_factor);
+    let at_table4 =
+        |i: usize| cov4.is_none_or(|c| c[(i, i)].sqrt() < prior_sd[i] / informed_factor);
     let mut separate: Vec<bool> = (0..p).map(|i| contracted[i] && at_table4(i)).collect();
     let mut group = vec![None; p];
     let mut combinations = Vec::new();
@@ -121,8 +123,9 @@ pub fn attribute(
     let mut order: Vec<usize> = (0..p).collect();
     order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
     // Informed along v: the data's information there (eigenvalue, H noise only) at least
-    // that of a posterior sd of prior sd / factor — (factor² − 1)/prior sd².
-    let needed = (informed_factor.powi(2) - 1.0) / (prior_sd * prior_sd);
+    // that of a posterior sd of prior sd / factor — (factor² − 1)/prior sd² along v.
+    let needed =
+        |v: &nalgebra::DVector<f64>| (informed_factor.powi(2) - 1.0) / prior_var(v, prior_sd);
     if let Some(&k0) = order.first().filter(|_| failed) {
         // Only the best-informed direction's members may stay separately identified.
         let lead = eig.eigenvectors.column(k0);
@@ -133,6 +136,7 @@ pub fn attribute(
     for (rank, k) in order.into_iter().enumerate() {
         let v = eig.eigenvectors.column(k).into_owned();
         let members: Vec<usize> = (0..p).filter(|&i| v[i] * v[i] >= opts.min_share).collect();
+        let needed = needed(&v);
         if eig.eigenvalues[k].is_nan() || eig.eigenvalues[k] < needed {
             continue;
         }
@@ -178,8 +182,15 @@ pub fn attribute(
             })
             .sum();
         let post_sd = var.max(0.0).sqrt();
-        let norm = w.iter().map(|c| c * c).sum::<f64>().sqrt();
-        let prior = norm * prior_sd;
+        let prior = match uniform(prior_sd) {
+            Some(s) => w.iter().map(|c| c * c).sum::<f64>().sqrt() * s,
+            None => members
+                .iter()
+                .zip(&w)
+                .map(|(&i, c)| (c * prior_sd[i]).powi(2))
+                .sum::<f64>()
+                .sqrt(),
+        };
         // As for a single coefficient (`identify::fit_map_in`): contracted both in Table 4
         // units and on ln(level), sd < prior sd / factor × min(level, 1). A level pushed to
         // several times its baseline with a relative sd that looks small is not informed.
@@ -218,12 +229,27 @@ pub fn attribute(
     }
 }
 
+/// The prior sd when every parameter has the same (a lift fit's): the rules then read exactly
+/// as with one scalar.
+fn uniform(prior_sd: &[f64]) -> Option<f64> {
+    let s = *prior_sd.first()?;
+    prior_sd.iter().all(|v| *v == s).then_some(s)
+}
+
+/// The prior's variance along the unit vector `v`: Σ v_i² prior_sd_i² (prior_sd² when uniform).
+fn prior_var(v: &nalgebra::DVector<f64>, prior_sd: &[f64]) -> f64 {
+    match uniform(prior_sd) {
+        Some(s) => s * s,
+        None => v.iter().zip(prior_sd).map(|(c, s)| (c * s).powi(2)).sum(),
+    }
+}
+
 /// The data's information on the first `p` (friction) parameters of a posterior covariance
-/// with the prior sd `prior_sd` on each: Λ = (Σ_ff)⁻¹ − P⁻¹, symmetrised; `None` if singular.
-fn data_information(cov: &DMatrix<f64>, p: usize, prior_sd: f64) -> Option<DMatrix<f64>> {
+/// with the prior sd `prior_sd[i]` on each: Λ = (Σ_ff)⁻¹ − P⁻¹, symmetrised; `None` if singular.
+fn data_information(cov: &DMatrix<f64>, p: usize, prior_sd: &[f64]) -> Option<DMatrix<f64>> {
     let mut lambda = cov.view((0, 0), (p, p)).into_owned().try_inverse()?;
     for i in 0..p {
-        lambda[(i, i)] -= 1.0 / (prior_sd * prior_sd);
+        lambda[(i, i)] -= 1.0 / (prior_sd[i] * prior_sd[i]);
     }
     Some((&lambda + lambda.transpose()) * 0.5)
 }
@@ -313,7 +339,7 @@ mod tests {
             AtTable4::Posterior(&cov),
             &cov,
             &contracted,
-            prior,
+            &[prior; 4],
             2.0,
             &DriftThresholds::default(),
             &AttributionOptions::default(),
@@ -349,7 +375,7 @@ mod tests {
                 table4,
                 &cov,
                 &contracted,
-                prior,
+                &[prior; 4],
                 2.0,
                 &DriftThresholds::default(),
                 &AttributionOptions::default(),

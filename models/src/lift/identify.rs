@@ -576,7 +576,7 @@ pub fn fit_map_in(
         },
         &cov,
         &contracted,
-        opts.prior_relative_sd,
+        &vec![opts.prior_relative_sd; pf],
         opts.informed_factor,
         &opts.thresholds,
         &opts.attribution,

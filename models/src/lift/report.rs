@@ -47,7 +47,9 @@ mod pooled;
 mod work;
 use candidates::{Candidate, Named, STOP_RATIO, try_candidate};
 pub use channels::LiftChannels;
-pub use pooled::{fit_pooled_lift_and_gauge_traces, fit_pooled_lift_traces};
+pub use pooled::{
+    fit_pooled_lift_and_gauge_traces, fit_pooled_lift_and_gauge_traces_with, fit_pooled_lift_traces,
+};
 pub use work::LoopStep;
 use work::Meter;
 

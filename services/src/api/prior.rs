@@ -99,8 +99,8 @@ pub struct RelearnRequest {
 /// Relearn the fleet prior from the workshop fits in the store (each pantograph's latest
 /// informing pendulum, slider or swing test per joint and parameter; empirical Bayes with the
 /// type file's floor). A new version is published only when some joint's mean or sd moved by
-/// more than `[fleet_prior] version_tolerance_relative` (201); then every lift fitted under an
-/// older prior is queued for a refit under it. Otherwise the current prior stands (200).
+/// more than `[fleet_prior] version_tolerance_relative` (201); then every lift and force-gauge
+/// record fitted under an older prior is queued for a refit under it. Otherwise the current prior stands (200).
 #[utoipa::path(post, path = "/v1/fleet/prior", tag = "admin",
     request_body = RelearnRequest,
     responses(

@@ -61,7 +61,7 @@ pub fn run(a: PriorArgs) -> anyhow::Result<()> {
                 print_prior(&r.prior);
                 if r.published {
                     println!(
-                        "published version {} from {} workshop estimates; {} lift refits queued",
+                        "published version {} from {} workshop estimates; {} refits queued (lifts and gauge records)",
                         r.prior.version, r.n_estimates, r.queued
                     );
                 } else {

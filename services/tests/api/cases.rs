@@ -16,7 +16,10 @@ pub use crate::corpus::{
     corpus_uploads_are_refused_and_store_nothing, edge_dates_never_break_their_vehicle,
     hostile_requests_answer_problems_naming_their_field,
 };
-pub use crate::fleet_prior::a_fleet_prior_is_learned_versioned_recorded_and_refitted;
+pub use crate::fleet_prior::{
+    a_fleet_prior_is_learned_versioned_recorded_and_refitted,
+    a_gauge_fit_and_a_pooled_lift_follow_the_fleet_prior,
+};
 pub use crate::gauge::{
     a_gauge_measurement_is_stored_refused_and_drawn, a_gauge_record_pools_with_the_next_lift,
     a_gauge_zero_or_spring_rate_is_a_finding_not_a_joint_alarm,

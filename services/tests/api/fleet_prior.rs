@@ -1,6 +1,6 @@
 //! Issue 37, point 3 over HTTP: the fleet prior learned from the store's workshop fits,
-//! versioned, used by every lift fit and recorded on it (`fit.prior`, `fits.prior_version`), and
-//! the lifts refitted when a new version is published.
+//! versioned, used by every lift, pooled-lift and force-gauge fit and recorded on it
+//! (`fit.prior`, `fits.prior_version`), and those refitted when a new version is published.
 //!
 //! The simulated fleet: J5's viscous and dry coefficients of each workshop unit are Table 4 ×
 //! a known ratio (the fleet's truth), swung on the pendulum rig at the stand's noise
@@ -58,10 +58,20 @@ async fn lift(app: &TestApp, serial: &str, trace_id: &str, seed: u64) {
 
 /// Polls the trace's current fit until its `fit.prior.version` is `version`.
 async fn fit_under_prior(app: &TestApp, trace_id: &str, version: i64) -> Value {
+    fit_under_prior_where(app, trace_id, version, |_| true).await
+}
+
+/// Polls the trace's current fit until its `fit.prior.version` is `version` and `ok` holds.
+async fn fit_under_prior_where(
+    app: &TestApp,
+    trace_id: &str,
+    version: i64,
+    ok: impl Fn(&Value) -> bool,
+) -> Value {
     let t0 = Instant::now();
     loop {
         let (s, v) = app.get_json(&format!("/v1/traces/{trace_id}/fit")).await;
-        if s == StatusCode::OK && v["fit"]["prior"]["version"] == version {
+        if s == StatusCode::OK && v["fit"]["prior"]["version"] == version && ok(&v) {
             return v;
         }
         assert!(
@@ -258,5 +268,149 @@ pub async fn a_fleet_prior_is_learned_versioned_recorded_and_refitted(b: Backend
         .get("/v1/fleet/prior?version=-1", &app.keys.reader)
         .await;
     assert_problem_param(r, StatusCode::BAD_REQUEST, "version", "negative version").await;
+    app.stop().await;
+}
+
+/// The dry μ entry of `joint` in a fit result.
+fn dry_of<'a>(fit: &'a Value, joint: &str) -> &'a Value {
+    &fit["joints"]
+        .as_array()
+        .expect("joints")
+        .iter()
+        .find(|j| j["joint"] == joint)
+        .unwrap_or_else(|| panic!("no {joint} in {fit}"))["dry"]
+}
+
+/// A force-gauge record (`simulate --kind static_force`, 0.2 N noise, 0.1 N resolution) of
+/// `serial`, uploaded.
+async fn gauge(app: &TestApp, serial: &str, trace_id: &str, recorded_at: &str) {
+    let mut doc = crate::gauge::gauge_doc(serial, trace_id, &[]).to_value();
+    doc["recorded_at"] = json!(recorded_at);
+    let r = app
+        .upload_json(&serde_json::to_vec(&doc).expect("json"))
+        .await;
+    assert_eq!(r.status(), 202, "{}", r.text().await.unwrap_or_default());
+}
+
+/// Issue 37, point 3 for the force gauge and the pooled lift: a gauge record's fit records the
+/// prior it used and is refitted under a new version, its unreported joints at the new prior's
+/// centre; a lift pooled with a gauge record is pooled again under the new version (its pool
+/// stays the current fit and records the version), and nothing is queued while no newer
+/// version is published.
+pub async fn a_gauge_fit_and_a_pooled_lift_follow_the_fleet_prior(b: Backend) {
+    let app = spawn_app(b).await;
+    let (_, d0) = j5_baseline();
+    // A gauge record alone, and a gauge record with the lift after it (a pool of two).
+    gauge(
+        &app,
+        "160EC-PRIOR-G1",
+        "prior-gauge-1",
+        "2026-03-01T06:00:00Z",
+    )
+    .await;
+    gauge(
+        &app,
+        "160EC-PRIOR-P1",
+        "prior-pool-gauge",
+        "2026-03-01T06:00:00Z",
+    )
+    .await;
+    let mut l = pantowatch::cli::simulate::docs::noisy_lift_doc(
+        21,
+        &[],
+        1.0,
+        "160EC-PRIOR-P1",
+        "prior-pool-lift",
+    )
+    .expect("lift")
+    .to_value();
+    l["recorded_at"] = json!("2026-03-02T06:00:00Z");
+    let r = app
+        .upload_json(&serde_json::to_vec(&l).expect("json"))
+        .await;
+    assert_eq!(r.status(), 202, "{}", r.text().await.unwrap_or_default());
+
+    // Version 0: the gauge fit records the type file's prior; its J5 (in the record's level,
+    // not separately identified) is at Table 4 with the prior's interval, as before priors.
+    let g0 = fit_under_prior(&app, "prior-gauge-1", 0).await;
+    assert_eq!(
+        g0["fit"]["prior"],
+        json!({"version": 0, "source": "type_file", "sd_scale": 1.0}),
+        "{g0}"
+    );
+    assert_eq!(dry_of(&g0, "J5")["identifiable"], false, "{g0}");
+    assert!(
+        (f(&dry_of(&g0, "J5")["value"]) / d0 - 1.0).abs() < 1e-12,
+        "{g0}"
+    );
+    let pooled = |v: &Value| v["pooled"].is_object();
+    let p0 = fit_under_prior_where(&app, "prior-pool-lift", 0, pooled).await;
+    assert_eq!(
+        p0["pooled"]["trace_ids"],
+        json!(["prior-pool-lift", "prior-pool-gauge"]),
+        "{p0}"
+    );
+    app.wait_for_fit("prior-pool-gauge").await;
+
+    // Five workshop units with J5 at 1.4× Table 4 on average: version 1.
+    let truth = [1.25, 1.40, 1.55, 1.30, 1.50];
+    let mut ids = Vec::new();
+    for (i, r) in truth.iter().enumerate() {
+        ids.push(swing_j5(&app, &format!("160EC-PRIOR-GW{i}"), *r, 900 + i as u64).await);
+    }
+    for id in &ids {
+        app.wait_for_fit(id).await;
+    }
+    let (s, r) = relearn(&app, json!({})).await;
+    assert_eq!(s, StatusCode::CREATED, "{r}");
+    assert_eq!(r["prior"]["version"], 1, "{r}");
+    // Both gauge records and the pooled lift: every fit under an older prior, once each.
+    assert_eq!(r["queued"], 3, "{r}");
+    let m5 = f(&param(&r["prior"], "J5", "dry")["mean_ratio"]);
+    assert!((m5 - 1.4).abs() < 0.05, "J5 dry prior mean {m5}");
+
+    // The gauge record refitted under version 1: J5 at the fleet's centre, not Table 4.
+    let g1 = fit_under_prior(&app, "prior-gauge-1", 1).await;
+    assert_eq!(g1["fit"]["prior"]["source"], "learned", "{g1}");
+    let j5 = dry_of(&g1, "J5");
+    assert_eq!(j5["identifiable"], false, "{g1}");
+    assert!(
+        (f(&j5["value"]) / d0 - m5).abs() < 1e-9,
+        "J5 dry {j5} (prior mean {m5})"
+    );
+    let stored = app
+        .store
+        .get_fit("prior-gauge-1")
+        .await
+        .expect("get")
+        .expect("fit");
+    assert!(
+        stored.model_version.ends_with("; fleet prior v1"),
+        "{}",
+        stored.model_version
+    );
+    // The lift's pool, fitted again under version 1, is its current fit again and says so.
+    let p1 = fit_under_prior_where(&app, "prior-pool-lift", 1, pooled).await;
+    assert_eq!(
+        p1["pooled"]["trace_ids"],
+        json!(["prior-pool-lift", "prior-pool-gauge"]),
+        "{p1}"
+    );
+    let stored = app
+        .store
+        .get_fit("prior-pool-lift")
+        .await
+        .expect("get")
+        .expect("fit");
+    assert_eq!(
+        stored.model_version,
+        pantowatch::pooled::pooled_version_under(2, Some(1)),
+        "{p1}"
+    );
+    fit_under_prior(&app, "prior-pool-gauge", 1).await;
+    // Nothing newer: nothing queued.
+    let (s, r) = relearn(&app, json!({})).await;
+    assert_eq!(s, StatusCode::OK, "{r}");
+    assert_eq!(r["queued"], 0, "{r}");
     app.stop().await;
 }

@@ -76,6 +76,7 @@ suite!(
     evidence_plan_and_test_due_over_http,
     the_kept_fleet_plan_is_the_plan_from_scratch,
     a_fleet_prior_is_learned_versioned_recorded_and_refitted,
+    a_gauge_fit_and_a_pooled_lift_follow_the_fleet_prior,
 );
 
 /// The web pages in headless Chromium against a small demo fleet (SQLite).

@@ -1,10 +1,15 @@
-//! MAP fit of a force-gauge record: the revolute joints' dry μ in log space with the lift's
-//! Table 4 prior, by Levenberg–Marquardt, intervals from the posterior, and the combination it informs.
+//! MAP fit of a force-gauge record: the revolute joints' dry μ in log space under a per-joint
+//! prior (Table 4's or the fleet's), by Levenberg–Marquardt, intervals from the posterior, and
+//! the combination it informs.
 //!
 //! Stated choices:
 //! - Parameters: u_j = ln(μ_j/μ_j⁰) for the seven revolute joints that move (J6 is locked),
-//!   prior u_j ~ N(0, s²) with s = [`LiftFitOptions::default`]'s `prior_relative_sd` (0.5):
-//!   the lift's N(μ⁰, (s·μ⁰)²) to first order (d ln μ = dμ/μ), never negative. Bounds: μ within
+//!   prior u_j ~ N(ln m_j, (s_j/m_j)²) with (m_j, s_j) the prior's centre and sd in Table 4
+//!   units ([`GaugeFitOptions::prior_of`]: the fleet's, `lift::fleet_prior::FleetPrior::for_fit`,
+//!   else m_j = 1, s_j = [`LiftFitOptions::default`]'s `prior_relative_sd` 0.5): the lift's
+//!   N(m_j μ⁰, (s_j μ⁰)²) to first order (d ln μ = dμ/μ, at the centre), never negative. Where
+//!   the scaled units x = μ/μ⁰ need it (the data's information, the attribution, the level's
+//!   members) the prior's sd is s_j, as the lift's. Bounds: μ within
 //!   [1 %, 10×] of Table 4 (the lift's upper bound). Besides: the gauge's zero b, N, always (a
 //!   nuisance, [`GaugeFitOptions::fit_offset`]), and the spring-rate factor k when the residual
 //!   loop tries it ([`GaugeEffect`]), each in its own units with its prior.
@@ -15,7 +20,8 @@
 //!   (A·σ₀²/σ̂² + P)⁻¹. Intervals: the Student-t quantile at n − p_eff degrees of freedom,
 //!   log-normal for μ (median the MAP, relative sd the posterior's in u).
 //! - Identifiability: as for lifts ([`super::super::attribution`]), in units of Table 4
-//!   (x = μ/μ⁰): a parameter is contracted when its posterior sd is under prior sd / 2 (× min(x, 1));
+//!   (x = μ/μ⁰): a parameter is contracted when its posterior sd is under s_j / 2 (× min(x/m_j, 1):
+//!   relative to the estimate, the prior's relative sd s_j/m_j);
 //!   directions the data pin are the eigenvectors of the data's information; a joint in an
 //!   informed direction with others is not separately identified and is reported in that
 //!   direction's combination (level Σ w_j x_j, 1 at baseline). Its members: every joint of the
@@ -27,6 +33,7 @@ use nalgebra::DMatrix;
 use super::super::attribution::{AttributionOptions, Combination, attribute};
 use super::super::dynamics::LiftModel;
 use super::super::fit::{LiftFitOptions, ParamEstimate};
+use super::super::fleet_prior::FleetPrior;
 use super::super::posterior::{EffectPrior, correlation, inverse_spd};
 use super::super::sensitivity::LiftParam;
 use super::super::static_force::DriveLine;
@@ -59,8 +66,13 @@ const MAX_MULTIPLE: f64 = 10.0;
 /// Settings of a gauge fit.
 #[derive(Debug, Clone)]
 pub struct GaugeFitOptions {
-    /// Prior sd of ln μ (the lift's relative prior sd).
+    /// Prior sd of ln μ (the lift's relative prior sd): every joint's not in `friction_prior`.
     pub prior_relative_sd: f64,
+    /// Joints whose prior is not Table 4 ± `prior_relative_sd`: (`LiftParam::Dry(j)`, centre
+    /// m_j, sd s_j), Table 4 units — the fleet's (issue 37, [`GaugeFitOptions::with_fleet_prior`]).
+    /// Empty (the default): Table 4 for every joint. Entries for other parameters (viscous,
+    /// J8) set the not-estimated parameters' reported prior (`report`).
+    pub friction_prior: Vec<(LiftParam, f64, f64)>,
     /// Contracted when posterior sd < prior sd / this (the lift's).
     pub informed_factor: f64,
     pub thresholds: DriftThresholds,
@@ -85,6 +97,7 @@ impl Default for GaugeFitOptions {
         let lift = LiftFitOptions::default();
         Self {
             prior_relative_sd: lift.prior_relative_sd,
+            friction_prior: Vec::new(),
             informed_factor: lift.informed_factor,
             thresholds: lift.thresholds,
             noise_floor_n: gauge_data().gauge_noise_n,
@@ -111,7 +124,8 @@ impl Default for GaugeFitOptions {
 #[derive(Debug, Clone)]
 pub struct GaugeFit {
     /// Each fitted joint's dry μ ([`FITTED_JOINTS`] order), `LiftParam::Dry(j)`: informed ones
-    /// at the MAP with the posterior interval, the others at Table 4 with the prior's.
+    /// at the MAP with the posterior interval, the others at the prior's centre (Table 4 × m_j)
+    /// with the prior's.
     pub params: Vec<ParamEstimate>,
     /// Combinations the record informs together (`lift::attribution`).
     pub combinations: Vec<Combination>,
@@ -156,6 +170,23 @@ impl GaugeFit {
 }
 
 impl GaugeFitOptions {
+    /// The prior (centre m, sd s) of friction parameter `p`, θ/θ₀: its `friction_prior` entry,
+    /// else Table 4 (1) ± `prior_relative_sd`.
+    pub fn prior_of(&self, p: LiftParam) -> (f64, f64) {
+        self.friction_prior
+            .iter()
+            .find(|(q, _, _)| *q == p)
+            .map(|&(_, m, s)| (m, s))
+            .unwrap_or((1.0, self.prior_relative_sd))
+    }
+
+    /// These options with the fit's prior `prior.for_fit(sd_scale)` (the service's: learned sds
+    /// × `[fleet_prior] fit_sd_scale`).
+    pub fn with_fleet_prior(mut self, prior: &FleetPrior, sd_scale: f64) -> Self {
+        self.friction_prior = prior.for_fit(sd_scale);
+        self
+    }
+
     /// The parameters fitted besides the friction, in order: b, then k.
     pub fn extras(&self) -> Vec<GaugeEffect> {
         let mut v = Vec::new();
@@ -176,7 +207,8 @@ struct GaugeProblem<'a> {
     record: &'a GaugeRecord,
     warm: &'a [Warm],
     baseline: [f64; FITTED_JOINTS.len()],
-    prior_sd: f64,
+    /// The prior's centre ln m_j and sd s_j/m_j in u, per fitted joint.
+    prior_u: [(f64, f64); FITTED_JOINTS.len()],
     /// Parameters besides the friction, in order, with their priors.
     extras: Vec<(GaugeEffect, EffectPrior)>,
     sigma_n: f64,
@@ -236,9 +268,9 @@ impl Problem for GaugeProblem<'_> {
                 jac[(k, i)] = (a - b) / (FD_STEP * self.sigma_n);
             }
         }
-        for i in 0..FITTED_JOINTS.len() {
-            r[n + i] = x[i] / self.prior_sd;
-            jac[(n + i, i)] = 1.0 / self.prior_sd;
+        for (i, (c, sd)) in self.prior_u.iter().enumerate() {
+            r[n + i] = (x[i] - c) / sd;
+            jac[(n + i, i)] = 1.0 / sd;
         }
         for (k, (_, pr)) in self.extras.iter().enumerate() {
             let i = FITTED_JOINTS.len() + k;
@@ -259,8 +291,8 @@ impl Problem for GaugeProblem<'_> {
     }
 }
 
-/// MAP fit of `record` with `model` (its Table 4 friction the prior's centre) driven by `drive`
-/// (module doc), from Table 4 and b = 0, k = 1.
+/// MAP fit of `record` with `model` (its Table 4 friction the baseline, the prior's centre
+/// m_j × it) driven by `drive` (module doc), from the prior's centre and b = 0, k = 1.
 pub fn fit_gauge(
     model: &LiftModel,
     alpha_range_rad: (f64, f64),
@@ -272,7 +304,7 @@ pub fn fit_gauge(
 }
 
 /// [`fit_gauge`] with the friction started at `start` (ln μ/μ⁰ per joint, [`FITTED_JOINTS`]
-/// order; b and k start at 0 and 1); `None`: Table 4.
+/// order; b and k start at 0 and 1); `None`: the prior's centre (Table 4 by default).
 pub fn fit_gauge_from(
     model: &LiftModel,
     alpha_range_rad: (f64, f64),
@@ -288,12 +320,19 @@ pub fn fit_gauge_from(
             "a dry μ baseline of {b} cannot scale its prior"
         )));
     }
-    let s = opts.prior_relative_sd;
-    if !(s.is_finite() && s > 0.0 && opts.noise_floor_n.is_finite() && opts.noise_floor_n > 0.0) {
+    // Per joint (centre m_j, sd s_j), Table 4 units.
+    let prior: [(f64, f64); FITTED_JOINTS.len()] =
+        std::array::from_fn(|i| opts.prior_of(LiftParam::Dry(FITTED_JOINTS[i])));
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if !(prior.iter().all(|(m, s)| positive(*m) && positive(*s)) && positive(opts.noise_floor_n)) {
         return Err(GaugeError::Model(
-            "prior sd and noise floor must be > 0".into(),
+            "prior centre, prior sd and noise floor must be > 0".into(),
         ));
     }
+    let prior_u: [(f64, f64); FITTED_JOINTS.len()] =
+        std::array::from_fn(|i| (prior[i].0.ln(), prior[i].1 / prior[i].0));
+    // The prior's sd in Table 4 units, per joint (the attribution's and the level's).
+    let s_x: Vec<f64> = prior.iter().map(|(_, s)| *s).collect();
     let warm = warm_starts(model, alpha_range_rad, drive, record)?;
     let sigma0 = opts.noise_floor_n.max(record.resolution_n / 12f64.sqrt());
     let extras: Vec<(GaugeEffect, EffectPrior)> =
@@ -305,13 +344,13 @@ pub fn fit_gauge_from(
         record,
         warm: &warm,
         baseline,
-        prior_sd: s,
+        prior_u,
         extras: extras.clone(),
         sigma_n: sigma0,
     };
     let p = problem.n_params();
     let pf = FITTED_JOINTS.len();
-    let mut x0 = vec![0.0; pf];
+    let mut x0: Vec<f64> = prior_u.iter().map(|(c, _)| *c).collect();
     if let Some(st) = start.filter(|st| st.len() == pf && st.iter().all(|v| v.is_finite())) {
         x0.copy_from_slice(st);
     }
@@ -327,7 +366,7 @@ pub fn fit_gauge_from(
     let prior_prec: Vec<f64> = (0..p)
         .map(|i| {
             if i < pf {
-                1.0 / (s * s)
+                1.0 / (prior_u[i].1 * prior_u[i].1)
             } else {
                 1.0 / extras[i - pf].1.sd.powi(2)
             }
@@ -357,12 +396,19 @@ pub fn fit_gauge_from(
     let cov_x = DMatrix::from_fn(p, p, |i, j| cov_u[(i, j)] * xs[i] * xs[j] * scale);
     let mut info_x = DMatrix::from_fn(p, p, |i, j| a[(i, j)] / (kappa2 * xs[i] * xs[j]));
     for i in 0..p {
-        info_x[(i, i)] += if i < pf { 1.0 / (s * s) } else { prior_prec[i] };
+        info_x[(i, i)] += if i < pf {
+            1.0 / (s_x[i] * s_x[i])
+        } else {
+            prior_prec[i]
+        };
     }
     let cov_h = inverse_spd(&info_x);
     let params: Vec<LiftParam> = FITTED_JOINTS.iter().map(|j| LiftParam::Dry(*j)).collect();
     let contracted: Vec<bool> = (0..pf)
-        .map(|i| cov_x[(i, i)].max(0.0).sqrt() < s / opts.informed_factor * xs[i].min(1.0))
+        .map(|i| {
+            let (m, sd) = prior[i];
+            cov_x[(i, i)].max(0.0).sqrt() < sd / opts.informed_factor * (xs[i] / m).min(1.0)
+        })
         .collect();
     let attribution = attribute(
         &params,
@@ -371,16 +417,17 @@ pub fn fit_gauge_from(
         super::super::attribution::AtTable4::NotEvaluated,
         &cov_x,
         &contracted,
-        s,
+        &s_x,
         opts.informed_factor,
         &opts.thresholds,
         &AttributionOptions {
-            min_share: level_min_share(&cov_h, pf, s).min(opts.attribution.min_share),
+            min_share: level_min_share(&cov_h, pf, &s_x).min(opts.attribution.min_share),
         },
     );
     let estimates: Vec<ParamEstimate> = (0..pf)
         .map(|i| {
             let base = baseline[i];
+            let (m, sd) = prior[i];
             let informed = attribution.separate[i];
             let sd_u = (cov_u[(i, i)] * scale).max(0.0).sqrt();
             let map_value = base * xs[i];
@@ -397,16 +444,20 @@ pub fn fit_gauge_from(
                 };
                 (map_value, ci, st)
             } else {
+                // At the prior's centre with the prior's interval (log-normal, relative sd
+                // s_j/m_j): what the record leaves of this joint is the prior.
+                let centre = base * m;
+                let rel = sd / m;
                 (
-                    base,
-                    [base * (-Z95 * s).exp(), base * (Z95 * s).exp()],
+                    centre,
+                    [centre * (-Z95 * rel).exp(), centre * (Z95 * rel).exp()],
                     Status::Unknown,
                 )
             };
             ParamEstimate {
                 param: params[i],
                 baseline: base,
-                prior_sd: s * base,
+                prior_sd: sd * base,
                 value,
                 map_value,
                 posterior_sd: sd_u * map_value,
@@ -468,7 +519,8 @@ pub const LEVEL_WIDENING: f64 = 1.01 * 1.01 - 1.0;
 /// Why (issue 39, point 5): the data pin the gap, the direction v of their information
 /// Λ = (Σ_ff)⁻¹ − P⁻¹ (as `lift::attribution`), with eigenvalue λ: the level along all of v has
 /// variance 1/(λ(Σv)²). A level over the members M only, v_M·x/Σ_M v, is that less the joints
-/// left out, each unseen apart from it, so it carries their prior: s²·Σ_{j∉M} v_j²/(Σ_M v)² more.
+/// left out, each unseen apart from it, so it carries their prior: Σ_{j∉M} s_j² v_j²/(Σ_M v)² more
+/// (s_j each joint's prior sd, Table 4 units: `prior_sd[j]`; alike, s² Σ v_j²).
 /// The lift's rule (`min_share` 0.01) keeps J1 and J3 (v² 0.024 and 0.968 at Table 4) and
 /// drops J5, J2′ and J2 (0.0036, 0.0033, 0.0011): with s = 0.5 their prior made the J1+J3
 /// interval 2.9 times the level's spread over noise draws (sd 0.038 against 0.013, 120 records
@@ -476,11 +528,17 @@ pub const LEVEL_WIDENING: f64 = 1.01 * 1.01 - 1.0;
 /// the dropped joints' prior, none of it the noise. With J2, J2′, J4 and J5 in, J7 (v² 1.6·10⁻⁷) left out adds 0.4 % of
 /// the data's variance. A joint whose component has the other sign stops the walk: a level is
 /// never a contrast.
-pub fn level_min_share(cov_h: &DMatrix<f64>, pf: usize, prior_sd: f64) -> f64 {
+pub fn level_min_share(cov_h: &DMatrix<f64>, pf: usize, prior_sd: &[f64]) -> f64 {
     let Some(ff) = cov_h.view((0, 0), (pf, pf)).into_owned().try_inverse() else {
         return f64::INFINITY;
     };
-    let lambda = (&ff + ff.transpose()) / 2.0 - DMatrix::identity(pf, pf) / (prior_sd * prior_sd);
+    if prior_sd.len() != pf {
+        return f64::INFINITY;
+    }
+    let mut lambda = (&ff + ff.transpose()) / 2.0;
+    for (i, s) in prior_sd.iter().enumerate() {
+        lambda[(i, i)] -= 1.0 / (s * s);
+    }
     let eig = lambda.symmetric_eigen();
     let k = eig.eigenvalues.imax();
     let (lam, v) = (eig.eigenvalues[k], eig.eigenvectors.column(k).into_owned());
@@ -490,15 +548,30 @@ pub fn level_min_share(cov_h: &DMatrix<f64>, pf: usize, prior_sd: f64) -> f64 {
     let sign = v.sum().signum();
     let mut order: Vec<usize> = (0..pf).collect();
     order.sort_by(|&a, &b| (v[b] * v[b]).total_cmp(&(v[a] * v[a])));
-    let budget = LEVEL_WIDENING / (lam * prior_sd * prior_sd);
-    let mut left_out: f64 = v.iter().map(|c| c * c).sum();
+    // The variance the joints left out add, Σ s_j² v_j², against LEVEL_WIDENING/λ: with one
+    // s for all, as before, Σ v_j² against LEVEL_WIDENING/(λ s²) (the same numbers exactly).
+    let s0 = prior_sd[0];
+    let uniform = prior_sd.iter().all(|s| *s == s0);
+    let weight = |i: usize| {
+        if uniform {
+            1.0
+        } else {
+            prior_sd[i] * prior_sd[i]
+        }
+    };
+    let budget = if uniform {
+        LEVEL_WIDENING / (lam * s0 * s0)
+    } else {
+        LEVEL_WIDENING / lam
+    };
+    let mut left_out: f64 = (0..pf).map(|i| v[i] * v[i] * weight(i)).sum();
     let mut share = f64::INFINITY;
     for i in order {
         if left_out <= budget || v[i] * sign <= 0.0 {
             break;
         }
         share = v[i] * v[i];
-        left_out -= share;
+        left_out -= share * weight(i);
     }
     // Just below the last member's share, so that it passes `>=`.
     share * (1.0 - 1e-9)

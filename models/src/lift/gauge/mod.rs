@@ -66,6 +66,8 @@
 mod calibration_tests;
 pub mod effects;
 pub mod fit;
+#[cfg(test)]
+mod prior_tests;
 pub mod report;
 pub mod simulate;
 pub(crate) mod solve;
@@ -75,7 +77,9 @@ mod tests;
 
 pub use effects::{GaugeResidual, GaugeVerdict, diagnose};
 pub use fit::{GaugeFit, GaugeFitOptions, fit_gauge};
-pub use report::{GaugeChannels, GaugeReport, fit_gauge_trace, named_effect, spring_rate_of};
+pub use report::{
+    GaugeChannels, GaugeReport, fit_gauge_trace, fit_gauge_trace_with, named_effect, spring_rate_of,
+};
 pub use simulate::{GaugeSimOptions, reading_heights, simulate_builtin_gauge, simulate_gauge};
 pub use solve::predicted_forces_n;
 pub use terms::{GaugeEffect, GaugeEffectEstimate};

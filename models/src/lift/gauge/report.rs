@@ -4,11 +4,13 @@
 //! Mapping (stated here so the service knows no physics):
 //! - dry μ of J1, J2, J2', J3, J4, J5, J7: from the fit ([`super::fit`]); one separately
 //!   identified is reported at its MAP with the posterior interval and judged by the drift bands;
-//!   one that is not is at Table 4 with the prior's interval, `identifiable: false`, `unknown`,
+//!   one that is not is at the prior's centre (Table 4, or the fleet's: [`fit_gauge_trace_with`])
+//!   with the prior's interval, `identifiable: false`, `unknown`,
 //!   and names its combination (`"combination": "J1+J3+… dry"`) where it is in one;
 //! - every viscous coefficient, J6's dry (locked) and J8's dry (the slide rests at its
-//!   frictionless travel): not estimated by a quasi-static test — baseline, prior interval, not
-//!   identified, `unknown`. J9 has no dry friction: 0, no baseline;
+//!   frictionless travel): not estimated by a quasi-static test — the prior's centre (baseline ×
+//!   m) and interval (± 1.96 s × baseline), not identified, `unknown`. J9 has no dry friction: 0,
+//!   no baseline;
 //! - each informed combination: in `combinations` and as an entry of `joints` named by its
 //!   members (`J1+J2+J2'+J3+J4+J5`), the level in the `dry` slot, unit `× Table 4`, baseline 1;
 //! - `rmse` in N; `residual.effects` the named effects (`sensor_offset`: `offset_n`,
@@ -28,6 +30,7 @@ use super::super::attribution::Combination;
 use super::super::dynamics::LiftModel;
 use super::super::fit::ParamEstimate;
 use super::super::geometry::{Geometry, builtin_160ec};
+use super::super::sensitivity::LiftParam;
 use super::super::static_force::{DriveLine, RateEstimate};
 use super::super::topology::RevJoint;
 use super::effects::{GaugeLoop, GaugeResidual, GaugeVerdict, fit_with_effects};
@@ -91,6 +94,18 @@ pub fn fit_gauge_trace(
     thresholds: &DriftThresholds,
     trace_id: &str,
 ) -> Result<GaugeReport, GaugeError> {
+    fit_gauge_trace_with(channels, thresholds, trace_id, &[])
+}
+
+/// [`fit_gauge_trace`] under `friction_prior` for the parameters it names
+/// ([`GaugeFitOptions::friction_prior`]: the fleet's, `fleet_prior::FleetPrior::for_fit`); the
+/// rest keep Table 4's. Empty: [`fit_gauge_trace`].
+pub fn fit_gauge_trace_with(
+    channels: &GaugeChannels,
+    thresholds: &DriftThresholds,
+    trace_id: &str,
+    friction_prior: &[(LiftParam, f64, f64)],
+) -> Result<GaugeReport, GaugeError> {
     let record = GaugeRecord::new(
         channels.strip_height_m.to_vec(),
         channels.force_n.to_vec(),
@@ -100,6 +115,7 @@ pub fn fit_gauge_trace(
     let (_, drive, ar) = builtin_setup();
     let opts = GaugeFitOptions {
         thresholds: *thresholds,
+        friction_prior: friction_prior.to_vec(),
         ..GaugeFitOptions::default()
     };
     let lp = fit_with_effects(model, ar, &drive, &record, &opts)?;
@@ -128,23 +144,35 @@ pub fn gauge_result(
     let f = &model.friction;
     for j in RevJoint::ALL {
         let i = j.index();
-        let viscous = not_estimated(Some(f.viscous_nms_per_rad[i]), "N·m·s/rad", s);
+        let viscous = not_estimated(
+            Some(f.viscous_nms_per_rad[i]),
+            "N·m·s/rad",
+            opts.prior_of(LiftParam::Viscous(j)),
+        );
         let dry = match fit.params.iter().find(|p| p.param.joint() == j.name()) {
             Some(e) => estimated(e, &fit.combinations),
-            None => not_estimated(Some(f.dry_mu[i]), "1", s),
+            None => not_estimated(Some(f.dry_mu[i]), "1", opts.prior_of(LiftParam::Dry(j))),
         };
         joints.push(joint(j.name(), viscous, dry));
     }
     joints.push(joint(
         "J8",
-        not_estimated(Some(f.j8_viscous_ns_per_m_each), "N·s/m", s),
-        not_estimated(Some(f.j8_dry_mu), "1", s),
+        not_estimated(
+            Some(f.j8_viscous_ns_per_m_each),
+            "N·s/m",
+            opts.prior_of(LiftParam::J8Viscous),
+        ),
+        not_estimated(Some(f.j8_dry_mu), "1", opts.prior_of(LiftParam::J8Dry)),
     ));
-    let mut j9_dry = not_estimated(None, "1", s);
+    let mut j9_dry = not_estimated(None, "1", (1.0, s));
     j9_dry.ci95 = [0.0, 0.0];
     joints.push(joint(
         "J9",
-        not_estimated(Some(f.j9_damping_ns_per_m_each), "N·s/m", s),
+        not_estimated(
+            Some(f.j9_damping_ns_per_m_each),
+            "N·s/m",
+            opts.prior_of(LiftParam::J9Damping),
+        ),
         j9_dry,
     ));
     joints.extend(fit.combinations.iter().map(|c| combination_joint(c, s)));
@@ -300,14 +328,16 @@ fn estimated(e: &ParamEstimate, combos: &[Combination]) -> ParamResult {
     }
 }
 
-/// A parameter the test does not estimate (as a lift's): at baseline, the prior's interval,
-/// not identified.
-fn not_estimated(baseline: Option<f64>, unit: &str, prior_relative_sd: f64) -> ParamResult {
+/// A parameter the test does not estimate (as a lift's): at the prior's centre m × baseline,
+/// the prior's interval (± 1.96 s × baseline; `prior` = (m, s), Table 4 units), not identified.
+fn not_estimated(baseline: Option<f64>, unit: &str, prior: (f64, f64)) -> ParamResult {
     let b = baseline.unwrap_or(0.0);
-    let half = Z95 * prior_relative_sd * b;
+    let (m, sd) = prior;
+    let half = Z95 * sd * b;
+    let centre = b * m;
     ParamResult {
-        value: b,
-        ci95: [(b - half).max(0.0), b + half],
+        value: centre,
+        ci95: [(centre - half).max(0.0), centre + half],
         baseline,
         unit: unit.into(),
         identifiable: false,
@@ -330,7 +360,7 @@ fn combination_joint(c: &Combination, prior_relative_sd: f64) -> JointResult {
         status: c.status,
         combination: Some(label),
     };
-    let viscous = not_estimated(None, "× Table 4", prior_relative_sd);
+    let viscous = not_estimated(None, "× Table 4", (1.0, prior_relative_sd));
     JointResult {
         joint: name,
         status: if c.informed {

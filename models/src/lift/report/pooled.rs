@@ -33,6 +33,28 @@ pub fn fit_pooled_lift_and_gauge_traces(
     window_days: f64,
     thresholds: &DriftThresholds,
 ) -> Result<LiftReport, LiftFitError> {
+    fit_pooled_lift_and_gauge_traces_with(
+        channels,
+        trace_ids,
+        gauges,
+        gauge_ids,
+        window_days,
+        thresholds,
+        &[],
+    )
+}
+
+/// [`fit_pooled_lift_and_gauge_traces`] under `friction_prior` for the parameters it names
+/// (`LiftFitOptions::friction_prior`: the fleet's, as a single lift's fit); empty: Table 4.
+pub fn fit_pooled_lift_and_gauge_traces_with(
+    channels: &[LiftChannels],
+    trace_ids: &[String],
+    gauges: &[super::super::gauge::GaugeChannels],
+    gauge_ids: &[String],
+    window_days: f64,
+    thresholds: &DriftThresholds,
+    friction_prior: &[(super::super::sensitivity::LiftParam, f64, f64)],
+) -> Result<LiftReport, LiftFitError> {
     let least = if gauges.is_empty() { 2 } else { 1 };
     if channels.len() < least
         || channels.len() != trace_ids.len()
@@ -69,6 +91,7 @@ pub fn fit_pooled_lift_and_gauge_traces(
         gauge_records,
         per_trace: super::super::identify::POOLED_PER_TRACE.to_vec(),
         param_interval_scale: super::super::identify::POOLED_INTERVAL_SCALE.to_vec(),
+        friction_prior: friction_prior.to_vec(),
         ..LiftFitOptions::default()
     };
     let traces: Vec<LiftTrace> = channels
