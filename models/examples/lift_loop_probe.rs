@@ -32,7 +32,9 @@
 //! reported model's H residual over the noise in the record's first and second half, below and
 //! above the middle of its H range, rising and falling; params: the named effects' parameters,
 //! JSON; then the absorption check's worst phase and its ratio; evaluations and integrator steps
-//! of the whole loop, then per loop step `step=evaluations/steps`: `report::LiftReport::work`).
+//! of the whole loop, then per loop step `step=evaluations/steps`: `report::LiftReport::work`;
+//! last, the candidates tried ahead on another thread and not judged, `spare:<effect>=…`, left
+//! out of the totals). `lift_loop_compare.py BEFORE AFTER` compares two runs' decisions and work.
 use pantowatch_models::drift::{DriftThresholds, Status};
 use pantowatch_models::lift::dynamics::{DriveCompliance, FrictionBand, LiftModel};
 use pantowatch_models::lift::geometry::builtin_160ec;
@@ -332,15 +334,22 @@ fn main() {
             )
             .unwrap_or_default();
             // The loop's work (deterministic): evaluations, integrator steps, per step.
-            let evals: usize = rep.work.iter().map(|w| w.work.evaluations).sum();
-            let steps: usize = rep.work.iter().map(|w| w.work.steps).sum();
-            let per_step: Vec<String> = rep
-                .work
+            // Candidates tried ahead on another thread and not judged (`spare:<effect>`) are
+            // left out of the totals and listed last: the loop's own work is deterministic.
+            let (spare, own): (Vec<_>, Vec<_>) =
+                rep.work.iter().partition(|w| w.step.starts_with("spare:"));
+            let evals: usize = own.iter().map(|w| w.work.evaluations).sum();
+            let steps: usize = own.iter().map(|w| w.work.steps).sum();
+            let per_step: Vec<String> = own
+                .iter()
+                .map(|w| format!("{}={}/{}", w.step, w.work.evaluations, w.work.steps))
+                .collect();
+            let spare: Vec<String> = spare
                 .iter()
                 .map(|w| format!("{}={}/{}", w.step, w.work.evaluations, w.work.steps))
                 .collect();
             println!(
-                "{proto_name}\t{k}\t{case}\t{class}\t{seed}\t{verdict}\t{}\t{fired}\t{ratio:.3}\t{plain:.3}\t{}\t{lv:.4}\t{lo:.4}\t{hi:.4}\t{truth:.4}\t{secs:.3}\t{:.3}\t{phases}\t{params}\t{check_phase}\t{evals}\t{steps}\t{}",
+                "{proto_name}\t{k}\t{case}\t{class}\t{seed}\t{verdict}\t{}\t{fired}\t{ratio:.3}\t{plain:.3}\t{}\t{lv:.4}\t{lo:.4}\t{hi:.4}\t{truth:.4}\t{secs:.3}\t{:.3}\t{phases}\t{params}\t{check_phase}\t{evals}\t{steps}\t{}\t{}",
                 if named.is_empty() {
                     "-".to_string()
                 } else {
@@ -353,6 +362,11 @@ fn main() {
                 },
                 r.residual.excess_ratio.unwrap_or(f64::NAN),
                 per_step.join(";"),
+                if spare.is_empty() {
+                    "-".to_string()
+                } else {
+                    spare.join(";")
+                },
             );
         }
     }

@@ -38,7 +38,7 @@
 
 use super::dynamics::LiftModel;
 use super::fit::{LiftFit, LiftFitError, LiftFitOptions, LiftTrace, effect_prior};
-use super::identify::fit_map;
+use super::identify::{fit_map, join};
 use super::sensitivity::LiftParam;
 use super::topology::RevJoint;
 use crate::numerics::stats::Z95;
@@ -120,14 +120,18 @@ pub fn try_quadratic_drag(
     // the plain fit's MAP with c_a = DRAG_SECOND_START. Measured: at twice the noise a c_a 2
     // lift's cold fit stopped at c_a 0.82 (RMSE 1.38 mm) where the warm one found 2.06
     // (1.04 mm), and an H offset then explained the lift better than the drag did — a wrong name.
-    let cold = refit_with(model, trace, base, &drag_options(opts))?;
+    // The two run at once (`identify::join`: the same fits, on two threads).
     let mut start = base.start_point();
     start.push(DRAG_SECOND_START);
     let warm_opts = LiftFitOptions {
         start: Some(start),
         ..drag_options(opts)
     };
-    let warm = refit_with(model, trace, base, &warm_opts)?;
+    let (cold, warm) = join(
+        || refit_with(model, trace, base, &drag_options(opts)),
+        || refit_with(model, trace, base, &warm_opts),
+    );
+    let (cold, warm) = (cold?, warm?);
     let rmse = |r: &Refit| r.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
     let Some(refit) = [cold, warm]
         .into_iter()
@@ -477,8 +481,7 @@ pub fn try_drive_compliance(
     base: &LiftFit,
     opts: &LiftFitOptions,
 ) -> Result<Option<ComplianceFinding>, LiftFitError> {
-    let mut refits = Vec::new();
-    for s in COMPLIANCE_STARTS {
+    let start_opts = |s: super::dynamics::DriveCompliance| {
         // Cold: every friction at Table 4 and the torque offset at 0 (the fit's continuation
         // then runs from there), not the plain fit's MAP, whose friction has absorbed the
         // drive: measured (`examples/lift_effects_probe compliance:3000`, J_d 5 kg·m², c 30,
@@ -493,12 +496,19 @@ pub fn try_drive_compliance(
             s.stiffness_nm_per_rad,
             s.damping_nms_per_rad,
         ]);
-        let opts = LiftFitOptions {
+        LiftFitOptions {
             start: Some(start),
             ..compliance_options(opts)
-        };
-        refits.extend(refit_with(model, trace, base, &opts)?);
-    }
+        }
+    };
+    // The starts run at once (`identify::join`: the same fits, on two threads), the better
+    // kept as before (the first on a tie).
+    let [light, heavy] = COMPLIANCE_STARTS.map(start_opts);
+    let (a, b) = join(
+        || refit_with(model, trace, base, &light),
+        || refit_with(model, trace, base, &heavy),
+    );
+    let refits: Vec<Refit> = [a?, b?].into_iter().flatten().collect();
     let rmse = |r: &Refit| r.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
     let Some(refit) = refits
         .into_iter()

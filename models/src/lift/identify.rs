@@ -74,8 +74,9 @@ fn baseline_of(model: &LiftModel, params: &[LiftParam]) -> Result<Vec<f64>, Lift
 mod problem;
 mod work;
 use problem::MapProblem;
+pub(crate) use work::count_on_this_thread;
 use work::count_work;
-pub use work::{FitWork, work_on_this_thread};
+pub use work::{FitWork, join, work_on_this_thread};
 
 /// Check a trace's channels.
 fn check(traces: &[LiftTrace]) -> Result<usize, LiftFitError> {

@@ -26,6 +26,7 @@
 //!   elsewhere (and on a record too short for it) `holdout_note` says so and the pair repeats
 //!   the fitted RMSE.
 
+use std::ops::ControlFlow;
 use std::sync::OnceLock;
 
 use super::attribution::Combination;
@@ -45,7 +46,7 @@ mod candidates;
 mod channels;
 mod pooled;
 mod work;
-use candidates::{Candidate, Named, STOP_RATIO, try_candidate};
+use candidates::{Candidate, Named, STOP_RATIO, tried_in_order, try_candidate};
 pub use channels::LiftChannels;
 pub use pooled::{
     fit_pooled_lift_and_gauge_traces, fit_pooled_lift_and_gauge_traces_with, fit_pooled_lift_traces,
@@ -262,33 +263,37 @@ fn residual_loop(
     } else {
         Candidate::ALL
     };
+    // An H zero offset is not tried against the reported-only model (the plain fit under the
+    // residual gate): the reported parameters (J1+J3 and the torque offset) absorb a real one
+    // (measured, `examples/lift_loop_probe`, seeds 0–1: +5 mm left the reported-only refit at
+    // 0.72–0.80× the noise, +10 mm at 0.81–1.43×, on every protocol) or the plain fit cannot
+    // (−10 mm: 5× the noise, `residual::tests`); tried there, it was the wrong name for a 2 %
+    // spring-force gain error and a 2 % heavier head on the paper's raise (seeds 0–1 and
+    // 200–202).
+    let order: Vec<Candidate> = order
+        .into_iter()
+        .filter(|c| restricted.is_none() || !matches!(c, Candidate::Offset))
+        .collect();
     let mut best: Option<(f64, Named, Candidate)> = None;
-    for candidate in order {
-        // An H zero offset is not tried against the reported-only model (the plain fit under
-        // the residual gate): the reported parameters (J1+J3 and the torque offset) absorb a
-        // real one (measured, `examples/lift_loop_probe`, seeds 0–1: +5 mm left the
-        // reported-only refit at 0.72–0.80× the noise, +10 mm at 0.81–1.43×, on every protocol)
-        // or the plain fit cannot (−10 mm: 5× the noise, `residual::tests`); tried there, it was
-        // the wrong name for a 2 % spring-force gain error and a 2 % heavier head on the paper's
-        // raise (seeds 0–1 and 200–202).
-        if restricted.is_some() && matches!(candidate, Candidate::Offset) {
-            continue;
-        }
-        let tried = try_candidate(candidate, base_model, &trace, base_fit, base_opts)?;
+    // The candidates' refits run ahead of this loop on other threads (`tried_in_order`: the
+    // same refits, the same order of judging, the spare ones cancelled once it stops).
+    let try_one = |c: Candidate| try_candidate(c, base_model, &trace, base_fit, base_opts);
+    let spare = tried_in_order(&order, try_one, |candidate, tried| {
+        let tried = tried?;
         meter.mark(format!("try:{}", candidate.name()));
         let Some(found) = tried else {
-            continue;
+            return Ok(ControlFlow::Continue(()));
         };
         // The named model must pass the check itself.
         if found.excess_ratio >= super::absorbed::ABSORBED_RATIO {
-            continue;
+            return Ok(ControlFlow::Continue(()));
         }
         let hold_after = super::holdout::blocks(base_model, &trace, &found.fit, &found.opts)?;
         meter.mark(format!("holdout:{}", candidate.name()));
         let rmse = found.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
         let noise_m = rmse / found.excess_ratio;
         if !super::holdout::improves(&hold, &hold_after, noise_m) {
-            continue;
+            return Ok(ControlFlow::Continue(()));
         }
         let k = found.fit.effects.len() as f64;
         let bic = n * (rmse * rmse).ln() + k * n.ln();
@@ -301,9 +306,15 @@ fn residual_loop(
         // named. Measured (`examples/lift_effects_probe compliance:8000`, J_d 3 kg·m², c 50,
         // seeds 20–27): stopping at the Stribeck named it on one compliant-drive lift (ratio
         // 1.07), a wrong name.
-        if at_noise && !matches!(candidate, Candidate::Stribeck) {
-            break;
-        }
+        Ok(if at_noise && !matches!(candidate, Candidate::Stribeck) {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        })
+    })?;
+    // What was tried ahead and not judged, after the loop's own steps.
+    for s in spare {
+        meter.spare(format!("spare:{}", s.candidate.name()), s.work);
     }
     let Some((_, Named { found, hold_after }, chosen)) = best else {
         // Nothing named: an absorbed effect leaves the lift `unexplained`, never clean.

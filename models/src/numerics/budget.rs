@@ -32,6 +32,8 @@ struct Shared {
     max_evaluations: u64,
     evaluations: AtomicU64,
     cancel: Arc<AtomicBool>,
+    /// The budget this one runs inside ([`child`]): charged with it, spent when it is.
+    parent: Option<Arc<Shared>>,
 }
 
 impl Shared {
@@ -41,7 +43,14 @@ impl Shared {
         } else if self.evaluations.load(Ordering::Relaxed) > self.max_evaluations {
             Err(Exhausted::Evaluations(self.max_evaluations))
         } else {
-            Ok(())
+            self.parent.as_ref().map_or(Ok(()), |p| p.state())
+        }
+    }
+    /// Charges one evaluation here and to every budget this one runs inside.
+    fn charge(&self) {
+        self.evaluations.fetch_add(1, Ordering::Relaxed);
+        if let Some(p) = &self.parent {
+            p.charge();
         }
     }
 }
@@ -70,6 +79,7 @@ impl Budget {
                 max_evaluations,
                 evaluations: AtomicU64::new(0),
                 cancel: Arc::new(AtomicBool::new(false)),
+                parent: None,
             }),
         }
     }
@@ -117,6 +127,21 @@ pub fn current() -> Handle {
     Handle(CURRENT.with(|c| c.borrow().clone()))
 }
 
+/// A budget inside `h`'s (none: unlimited) that a [`Canceller`] of its own can stop without
+/// stopping `h`'s fit: its evaluations are charged to `h`'s budget too, and it is spent or
+/// cancelled whenever `h`'s is. For work started ahead of need that may be dropped (the lift
+/// loop's candidates tried on another thread, `lift::report`). Run under it with [`enter`].
+pub fn child(h: &Handle) -> (Handle, Canceller) {
+    let cancel = Arc::new(AtomicBool::new(false));
+    let shared = Arc::new(Shared {
+        max_evaluations: u64::MAX,
+        evaluations: AtomicU64::new(0),
+        cancel: cancel.clone(),
+        parent: h.0.clone(),
+    });
+    (Handle(Some(shared)), Canceller(cancel))
+}
+
 /// Runs `f` on this thread under the budget `h` was taken from.
 pub fn enter<R>(h: &Handle, f: impl FnOnce() -> R) -> R {
     let prev = CURRENT.with(|c| std::mem::replace(&mut *c.borrow_mut(), h.0.clone()));
@@ -130,7 +155,7 @@ pub fn charge() -> Result<(), Exhausted> {
     CURRENT.with(|c| match &*c.borrow() {
         None => Ok(()),
         Some(s) => {
-            s.evaluations.fetch_add(1, Ordering::Relaxed);
+            s.charge();
             s.state()
         }
     })
@@ -178,5 +203,28 @@ mod tests {
             cancelled()
         });
         assert_eq!(r, Err(Exhausted::Cancelled));
+    }
+
+    #[test]
+    fn a_child_charges_its_parent_and_stops_alone_or_with_it() {
+        let b = Budget::new(5);
+        let r = run(&b, || {
+            let (h, stop) = child(&current());
+            assert_eq!(enter(&h, || (0..3).filter(|_| charge().is_ok()).count()), 3);
+            stop.cancel();
+            assert_eq!(enter(&h, charge), Err(Exhausted::Cancelled));
+            // The parent's fit goes on (the 5th charge: the child's cancelled one counted too).
+            assert_eq!(charge(), Ok(()));
+            // A second child ends with the parent's budget (the 6th charge is over it).
+            let (h2, _) = child(&current());
+            assert_eq!(enter(&h2, charge), Err(Exhausted::Evaluations(5)));
+        });
+        assert_eq!(r, Err(Exhausted::Evaluations(5)));
+        assert_eq!(b.evaluations(), 6);
+        // Without a budget a child is unlimited until cancelled.
+        let (h, stop) = child(&Handle::default());
+        assert!(enter(&h, || charge().is_ok() && !cancelled()));
+        stop.cancel();
+        assert_eq!(enter(&h, charge), Err(Exhausted::Cancelled));
     }
 }

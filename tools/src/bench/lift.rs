@@ -130,14 +130,23 @@ fn loop_row(n: usize, plain_p50_s: Option<f64>) -> anyhow::Result<Row> {
         let rep = pantowatch::fitting::fit_lift(&doc, &th)
             .map_err(|e| anyhow::anyhow!("lift fit ({protocol}, {effect}): {e}"))?;
         let s = t0.elapsed().as_secs_f64();
-        let evaluations: usize = rep.work.iter().map(|w| w.work.evaluations).sum();
-        let steps: usize = rep.work.iter().map(|w| w.work.steps).sum();
+        // The loop's own work; `spare:` steps are candidates tried ahead on the other core and
+        // never judged (`report::LoopStep`), kept apart.
+        let own = |w: &&pantowatch_models::lift::report::LoopStep| !w.step.starts_with("spare:");
+        let evaluations: usize = rep
+            .work
+            .iter()
+            .filter(own)
+            .map(|w| w.work.evaluations)
+            .sum();
+        let steps: usize = rep.work.iter().filter(own).map(|w| w.work.steps).sum();
+        let spare_steps: usize = rep.work.iter().map(|w| w.work.steps).sum::<usize>() - steps;
         let res = &rep.result.residual;
         let named: Vec<&str> = res.effects.iter().map(|e| e.name.as_str()).collect();
         per.push(
             json!({"protocol": protocol, "effect": effect, "drift": drift, "seconds": s,
                         "plain_seconds": plain_s, "ratio": s / plain_s,
-                        "evaluations": evaluations, "steps": steps,
+                        "evaluations": evaluations, "steps": steps, "spare_steps": spare_steps,
                         "verdict": res.verdict, "named": named}),
         );
     }
@@ -179,7 +188,10 @@ fn loop_row(n: usize, plain_p50_s: Option<f64>) -> anyhow::Result<Row> {
         .map(|(q, t, k)| format!("{q} {t:.2} s ({k})"))
         .collect();
     Ok(Row {
-        measure: format!("{LOOP_MEASURE} ({n} lifts, realistic noise, one core)"),
+        measure: format!(
+            "{LOOP_MEASURE} ({n} lifts, realistic noise, {} cores)",
+            std::thread::available_parallelism().map_or(1, usize::from)
+        ),
         measured: format!(
             "p95 **{worst:.2} s** on the slowest protocol ({}); loop p50 {p50:.3} s, {ratio:.1}× \
              the same trace's plain fit (p50), {steps:.0} integrator steps (p50){clean}; \

@@ -44,3 +44,40 @@ pub(super) fn count_work(evaluations: usize, steps: usize) {
         })
     });
 }
+
+/// `a` on this thread and `b` on a scoped thread at once (where the OS offers more than one
+/// core; else one after the other): `b` under this thread's fit budget
+/// (`numerics::budget::enter`), its work counted on this thread when it ends, so the counts
+/// are those of running them in turn. Each fit is the same deterministic computation on any
+/// thread (`fit_map_in`), so the results are too.
+pub fn join<A, B>(a: impl FnOnce() -> A, b: impl FnOnce() -> B + Send) -> (A, B)
+where
+    B: Send,
+{
+    if std::thread::available_parallelism().map_or(1, usize::from) < 2 {
+        let ra = a();
+        return (ra, b());
+    }
+    let budget = crate::numerics::budget::current();
+    let (ra, (rb, w)) = std::thread::scope(|s| {
+        let h = s.spawn(|| {
+            crate::numerics::budget::enter(&budget, || {
+                let before = work_on_this_thread();
+                let r = b();
+                (r, work_on_this_thread() - before)
+            })
+        });
+        let ra = a();
+        match h.join() {
+            Ok(v) => (ra, v),
+            Err(p) => std::panic::resume_unwind(p),
+        }
+    });
+    count_work(w.evaluations, w.steps);
+    (ra, rb)
+}
+
+/// Count `work` (done on another thread for this one) as done on this thread.
+pub(crate) fn count_on_this_thread(work: FitWork) {
+    count_work(work.evaluations, work.steps);
+}

@@ -2,7 +2,15 @@
 //! (`lift::effects`), its contract name and parameters.
 
 use super::super::dynamics::LiftModel;
-use super::super::identify::{LiftFit, LiftFitError, LiftFitOptions, LiftTrace};
+use std::ops::ControlFlow;
+use std::panic::AssertUnwindSafe;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Condvar, Mutex};
+
+use super::super::identify::{
+    FitWork, LiftFit, LiftFitError, LiftFitOptions, LiftTrace, count_on_this_thread,
+    work_on_this_thread,
+};
 
 /// A candidate that passed, with its held-out test.
 pub(super) struct Named {
@@ -139,3 +147,129 @@ impl Candidate {
         Candidate::Compliance,
     ];
 }
+
+/// What a candidate tried ahead cost where the loop stopped before it (`report::fit_lift_trace`
+/// runs `spare:<effect>` steps after its own): not part of the loop's decisions.
+pub(super) struct Spare {
+    pub(super) candidate: Candidate,
+    pub(super) work: FitWork,
+}
+
+/// Tries each of `order` (`try_one`) and hands the results to `consume` in that order, until
+/// it says stop; returns what candidates tried ahead and never consumed cost ([`Spare`]).
+///
+/// Where the OS offers two cores or more, two threads try the candidates ahead of `consume`,
+/// in order, each under a budget of its own inside the caller's
+/// (`numerics::budget::child`): once `consume` stops, those still running are cancelled, none
+/// is started. Each refit is the same deterministic computation on any thread
+/// (`identify::fit_map_in`) and `consume` sees the results in the same order, their work
+/// counted on this thread first (`identify::count_on_this_thread`), so the loop's decisions
+/// and its work per step are those of trying them one after the other; only the spare work is
+/// added. Assumption: a lift's fit has the machine's cores to itself (the bench's one lift at a
+/// time, the CLI); a worker running one fit per core pays the spare work for nothing.
+pub(super) fn tried_in_order<T, C>(
+    order: &[Candidate],
+    try_one: impl Fn(Candidate) -> T + Sync,
+    mut consume: C,
+) -> Result<Vec<Spare>, LiftFitError>
+where
+    T: Send,
+    C: FnMut(Candidate, T) -> Result<ControlFlow<()>, LiftFitError>,
+{
+    use crate::numerics::budget;
+    let n = order.len();
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    if cores < 2 || n < 2 {
+        for &c in order {
+            if consume(c, try_one(c))?.is_break() {
+                break;
+            }
+        }
+        return Ok(Vec::new());
+    }
+    let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let slots: Mutex<Vec<Slot<T>>> = Mutex::new((0..n).map(|_| None).collect());
+    let ready = Condvar::new();
+    let parent = budget::current();
+    let children: Vec<_> = (0..n).map(|_| budget::child(&parent)).collect();
+    let lock = || slots.lock().unwrap_or_else(|p| p.into_inner());
+    let mut consumed = 0;
+    let outcome = std::thread::scope(|s| {
+        for _ in 0..AHEAD_THREADS {
+            s.spawn(|| {
+                while !stop.load(Ordering::Relaxed) {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= n {
+                        break;
+                    }
+                    let r = std::panic::catch_unwind(AssertUnwindSafe(|| {
+                        budget::enter(&children[i].0, || {
+                            let before = work_on_this_thread();
+                            let r = try_one(order[i]);
+                            (r, work_on_this_thread() - before)
+                        })
+                    }));
+                    lock()[i] = Some(r);
+                    ready.notify_all();
+                }
+            });
+        }
+        let mut outcome = Ok(());
+        for (i, &c) in order.iter().enumerate() {
+            let r = {
+                let mut g = lock();
+                loop {
+                    if let Some(r) = g[i].take() {
+                        break r;
+                    }
+                    g = ready.wait(g).unwrap_or_else(|p| p.into_inner());
+                }
+            };
+            let (r, work) = match r {
+                Ok(v) => v,
+                Err(p) => {
+                    stop.store(true, Ordering::Relaxed);
+                    children.iter().for_each(|c| c.1.cancel());
+                    std::panic::resume_unwind(p)
+                }
+            };
+            count_on_this_thread(work);
+            consumed = i + 1;
+            match consume(c, r) {
+                Ok(ControlFlow::Continue(())) => {}
+                Ok(ControlFlow::Break(())) => break,
+                Err(e) => {
+                    outcome = Err(e);
+                    break;
+                }
+            }
+        }
+        stop.store(true, Ordering::Relaxed);
+        children[consumed..].iter().for_each(|c| c.1.cancel());
+        outcome
+    });
+    outcome?;
+    let slots = slots.into_inner().unwrap_or_else(|p| p.into_inner());
+    Ok(slots
+        .into_iter()
+        .enumerate()
+        .skip(consumed)
+        .filter_map(|(i, r)| match r {
+            Some(Ok((_, work))) => Some(Spare {
+                candidate: order[i],
+                work,
+            }),
+            _ => None,
+        })
+        .collect())
+}
+
+/// A candidate's result and work as a thread of [`tried_in_order`] left it (its panic, if it
+/// panicked).
+type Slot<T> = Option<std::thread::Result<(T, FitWork)>>;
+
+/// Threads trying candidates ahead of the loop ([`tried_in_order`]): the bench's machine has
+/// two cores, and the drag's and the compliant drive's two starts each run on two threads
+/// already (`identify::join`).
+const AHEAD_THREADS: usize = 2;

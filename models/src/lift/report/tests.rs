@@ -102,3 +102,56 @@ fn absurd_lift_channels_are_refused_naming_the_sample() {
         assert_eq!(f, format!("channels.{field}[{}]", n / 2), "{why}");
     }
 }
+
+/// The candidates tried ahead (`candidates::tried_in_order`) reach the loop in its order, each
+/// once, until it stops; their work is counted on the loop's thread before it judges them, and
+/// the ones it never judged come back as spare, not counted.
+#[test]
+fn candidates_tried_ahead_are_judged_in_order_and_the_rest_is_spare() {
+    use super::candidates::{Candidate, tried_in_order};
+    use crate::lift::identify::work_on_this_thread;
+    use std::ops::ControlFlow;
+    // Each "refit" stands for work: one evaluation, as many steps as its place in ALL + 1.
+    let place = |c: Candidate| {
+        Candidate::ALL
+            .iter()
+            .position(|d| d.name() == c.name())
+            .unwrap()
+    };
+    let try_one = |c: Candidate| {
+        crate::lift::identify::count_on_this_thread(crate::lift::identify::FitWork {
+            evaluations: 1,
+            steps: place(c) + 1,
+        });
+        c.name()
+    };
+    let start = work_on_this_thread();
+    let mut seen = Vec::new();
+    let mut counted = Vec::new();
+    let spare = tried_in_order(&Candidate::ALL, try_one, |c, r| {
+        assert_eq!(c.name(), r);
+        seen.push(r);
+        counted.push((work_on_this_thread() - start).steps);
+        Ok(if r == "sensor_offset" {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        })
+    })
+    .unwrap();
+    assert_eq!(seen, ["quadratic_drag", "sensor_delay", "sensor_offset"]);
+    // Counted as if run here one after the other: 1, 1 + 2, 1 + 2 + 3 steps.
+    assert_eq!(counted, [1, 3, 6]);
+    assert_eq!((work_on_this_thread() - start).steps, 6);
+    for s in &spare {
+        assert!(place(s.candidate) > 2, "{} is spare", s.candidate.name());
+        assert_eq!(s.work.steps, place(s.candidate) + 1);
+    }
+    // An error from the loop ends it and is returned.
+    let err = tried_in_order(
+        &Candidate::ALL,
+        |c| c.name(),
+        |_, _| Err(LiftFitError::Failed("judged".into())),
+    );
+    assert!(err.is_err());
+}

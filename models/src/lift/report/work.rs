@@ -6,7 +6,8 @@ use super::super::identify::{FitWork, work_on_this_thread};
 /// One step of [`super::fit_lift_trace`]'s loop and its work (`identify::FitWork`): `plain`, the
 /// reported-only refit `reported_only`, `holdout` (the base model's held-out refits), each
 /// candidate's refit(s) `try:<effect>` and held-out refits `holdout:<effect>`, the named
-/// effect's refit with every joint free `report:<effect>`.
+/// effect's refit with every joint free `report:<effect>`; then `spare:<effect>`, candidates
+/// tried ahead on another thread that the loop stopped before judging (not in its decisions).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct LoopStep {
     pub step: String,
@@ -34,5 +35,13 @@ impl Meter {
             work: now - self.last,
         });
         self.last = now;
+    }
+    /// Work done on another thread for a step the loop did not use (`spare:<effect>`: a
+    /// candidate tried ahead, `report::candidates::tried_in_order`), not counted on this one.
+    pub(super) fn spare(&mut self, step: impl Into<String>, work: FitWork) {
+        self.steps.push(LoopStep {
+            step: step.into(),
+            work,
+        });
     }
 }
