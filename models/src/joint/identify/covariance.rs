@@ -5,7 +5,7 @@
 //! with the batch length from Andrews' AR(1) plug-in rule. White residuals give batch length 1
 //! and the classical s²(JᵀJ)⁻¹ up to noise; a misfit's slow residual widens the intervals.
 
-use nalgebra::{DMatrix, DVectorView};
+use nalgebra::DMatrix;
 
 /// The covariance and how it was formed.
 #[derive(Debug, Clone)]
@@ -42,11 +42,7 @@ fn pinv_sym(a: &DMatrix<f64>) -> DMatrix<f64> {
         .unwrap_or_else(|_| DMatrix::zeros(a.nrows(), a.ncols()))
 }
 
-/// Σ aₖ·bₖ over two slices (the shorter's length): nalgebra's dot over views of them.
-pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len());
-    DVectorView::from_slice(&a[..n], n).dot(&DVectorView::from_slice(&b[..n], n))
-}
+pub use crate::numerics::stats::dot;
 
 /// Covariance of the least-squares estimate at its optimum.
 pub fn sandwich(jac: &DMatrix<f64>, r: &[f64]) -> Covariance {

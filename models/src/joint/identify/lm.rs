@@ -4,7 +4,7 @@
 //! One small problem trait, an explicit termination reason. Bounds are handled by projection
 //! with an active set: a parameter on its bound whose gradient pushes outward is held for the step.
 
-use nalgebra::{DMatrix, DVector, DVectorView};
+use nalgebra::{DMatrix, DVector};
 
 /// A least-squares problem: residuals and their Jacobian at x.
 pub trait Problem {
@@ -143,17 +143,38 @@ pub struct LmReport {
 
 /// JᵀJ from its upper triangle, mirrored: the same column dot products `tr_mul` takes (so the
 /// same matrix to the bit), 15 of them instead of 25 for five parameters (issue 38).
+/// Over the columns as slices ([`crate::numerics::stats::dot`]: nalgebra's sums, to the bit).
 pub fn gram(jac: &DMatrix<f64>) -> DMatrix<f64> {
     let n = jac.ncols();
+    let cols: Vec<&[f64]> = jac.as_slice().chunks_exact(jac.nrows().max(1)).collect();
     let mut a = DMatrix::zeros(n, n);
-    for i in 0..n {
-        for j in i..n {
-            let d = jac.column(i).dot(&jac.column(j));
+    for i in 0..n.min(cols.len()) {
+        for j in i..n.min(cols.len()) {
+            let d = crate::numerics::stats::dot(cols[i], cols[j]);
             a[(i, j)] = d;
             a[(j, i)] = d;
         }
     }
     a
+}
+
+/// Jᵀr over the columns as slices: nalgebra's `tr_mul` to the bit ([`gram`]).
+pub fn gradient(jac: &DMatrix<f64>, r: &[f64]) -> DVector<f64> {
+    let m = jac.nrows();
+    let mut g = DVector::zeros(jac.ncols());
+    if m == 0 {
+        return g;
+    }
+    for (gi, col) in g.iter_mut().zip(jac.as_slice().chunks_exact(m)) {
+        *gi = crate::numerics::stats::dot(col, r);
+    }
+    g
+}
+
+/// An m × n zero matrix from a zeroed allocation (`calloc`: fresh pages come zero, where
+/// `DMatrix::zeros` writes every element; issue 38, session 22): the same zeros.
+fn zeroed(m: usize, n: usize) -> DMatrix<f64> {
+    DMatrix::from_vec(m, n, vec![0.0; m * n])
 }
 
 /// Nielsen's damping increase after a step that failed or was rejected: λ·ν, ν doubled.
@@ -179,7 +200,7 @@ pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport
     let (n, m) = (p.n_params(), p.n_residuals());
     let x = project(p, x0);
     let mut r = vec![0.0; m];
-    let mut jac = DMatrix::zeros(m, n);
+    let mut jac = zeroed(m, n);
     if let Err(e) = crate::numerics::budget::charge() {
         return LmReport {
             x,
@@ -227,7 +248,7 @@ pub fn minimize_evaluated<P: Problem>(
     let (mut skipped, mut rejected, mut cliffs) = (0, 0, 0);
     let mut cost = 0.5 * r.iter().map(|v| v * v).sum::<f64>();
     let mut r_try = vec![0.0; m];
-    let mut jac_try = DMatrix::zeros(m, n);
+    let mut jac_try = zeroed(m, n);
     let mut lambda = -1.0;
     let mut nu = 2.0;
     let mut termination = Termination::MaxIterations;
@@ -237,8 +258,8 @@ pub fn minimize_evaluated<P: Problem>(
     'outer: while iterations < opts.max_iter {
         iterations += 1;
         let a = gram(&jac);
-        // Jᵀr through a view of r: no m-sized copy per iteration.
-        let g = jac.tr_mul(&DVectorView::from_slice(&r, m));
+        // Jᵀr over slices: no m-sized copy per iteration.
+        let g = gradient(&jac, &r);
         if opts.give_up_cost > 0.0 && described >= GIVE_UP_STEPS && cost > opts.give_up_cost {
             let floor = a
                 .clone()
