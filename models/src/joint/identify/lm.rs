@@ -571,6 +571,20 @@ mod tests {
         assert_eq!(a.termination, b.termination);
     }
 
+    /// `gram` and `gradient` are nalgebra's JᵀJ and Jᵀr to the bit, over a length that is not
+    /// a multiple of eight.
+    #[test]
+    fn gram_and_gradient_are_nalgebras_products_to_the_bit() {
+        let m = 2061;
+        let jac = DMatrix::from_fn(m, 5, |k, j| ((k * 7 + j * 13) as f64 * 0.37).sin() * 1e3);
+        let r: Vec<f64> = (0..m).map(|k| (k as f64 * 0.11).cos()).collect();
+        assert_eq!(gram(&jac), jac.tr_mul(&jac));
+        assert_eq!(
+            gradient(&jac, &r),
+            jac.tr_mul(&DVector::from_column_slice(&r))
+        );
+    }
+
     /// Rosenbrock as least squares, r = [10(x1 − x0²), 1 − x0]: minimum (1, 1).
     struct Rosen;
     impl Problem for Rosen {
