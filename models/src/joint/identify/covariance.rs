@@ -46,9 +46,18 @@ pub use crate::numerics::stats::dot;
 
 /// Covariance of the least-squares estimate at its optimum.
 pub fn sandwich(jac: &DMatrix<f64>, r: &[f64]) -> Covariance {
+    sandwich_with(jac, r, None)
+}
+
+/// [`sandwich`] with JᵀJ given when the caller has it ([`super::lm::LmReport::gram`]: the
+/// LM's last iteration formed it from the same Jacobian; session 22).
+pub fn sandwich_with(jac: &DMatrix<f64>, r: &[f64], gram: Option<&DMatrix<f64>>) -> Covariance {
     let (n, p) = (jac.nrows(), jac.ncols());
     let dof = (n as f64 - p as f64).max(1.0);
-    let ainv = pinv_sym(&super::lm::gram(jac));
+    let ainv = match gram.filter(|g| g.shape() == (p, p)) {
+        Some(g) => pinv_sym(g),
+        None => pinv_sym(&super::lm::gram(jac)),
+    };
     let ssr: f64 = r.iter().map(|v| v * v).sum();
     let classical = &ainv * (ssr / dof);
 

@@ -139,6 +139,9 @@ pub struct LmReport {
     /// Of the rejected, the cliffs: ρ < [`CLIFF_RHO`], whether or not `cliff_sd` ended the fit.
     pub cliffs: usize,
     pub termination: Termination,
+    /// JᵀJ of `jacobian` ([`gram`]) when the last iteration formed it (no step accepted after):
+    /// for the covariance, which would form it again.
+    pub gram: Option<DMatrix<f64>>,
 }
 
 /// JᵀJ from its upper triangle, mirrored: the same column dot products `tr_mul` takes (so the
@@ -213,6 +216,7 @@ pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport
             rejected: 0,
             cliffs: 0,
             termination: Termination::EvaluationFailed(e.to_string()),
+            gram: None,
         };
     }
     if let Err(e) = p.eval(&x, &mut r, &mut jac) {
@@ -227,6 +231,7 @@ pub fn minimize<P: Problem>(p: &mut P, x0: &[f64], opts: &LmOptions) -> LmReport
             rejected: 0,
             cliffs: 0,
             termination: Termination::EvaluationFailed(e),
+            gram: None,
         };
     }
     minimize_evaluated(p, x, r, jac, opts)
@@ -255,9 +260,12 @@ pub fn minimize_evaluated<P: Problem>(
     let mut iterations = 0;
     // Accepted steps in a row whose gain ratio reached GIVE_UP_MIN_RHO (`give_up_cost`).
     let mut described = 0;
+    // JᵀJ of the current `jac`, when formed since it was last replaced.
+    let mut last_gram: Option<DMatrix<f64>> = None;
     'outer: while iterations < opts.max_iter {
         iterations += 1;
         let a = gram(&jac);
+        last_gram = Some(a.clone());
         // Jᵀr over slices: no m-sized copy per iteration.
         let g = gradient(&jac, &r);
         if opts.give_up_cost > 0.0 && described >= GIVE_UP_STEPS && cost > opts.give_up_cost {
@@ -394,6 +402,7 @@ pub fn minimize_evaluated<P: Problem>(
                 };
                 std::mem::swap(&mut r, &mut r_try);
                 std::mem::swap(&mut jac, &mut jac_try);
+                last_gram = None;
                 cost = cost_try;
                 // Nielsen's update, allowed to shrink by 10× per step (not 3×) when ρ ≈ 1.
                 lambda = (lambda * 0.1f64.max(1.0 - (2.0 * rho - 1.0).powi(3))).max(1e-15);
@@ -449,6 +458,7 @@ pub fn minimize_evaluated<P: Problem>(
         rejected,
         cliffs,
         termination,
+        gram: last_gram,
     }
 }
 

@@ -522,7 +522,7 @@ pub fn fit_window_deferred(
     if let Termination::EvaluationFailed(e) = &rep.termination {
         return Err(FitError::Start(e.clone()));
     }
-    let cov = covariance::sandwich(&rep.jacobian, &rep.residuals);
+    let cov = covariance::sandwich_with(&rep.jacobian, &rep.residuals, rep.gram.as_ref());
     let lb = lm::Problem::lower_bounds(&prob);
     let (std, ci95) = intervals(&rep.x, &cov, &lb);
     let (law, q0, v0, readout, body) = prob.unpack(&rep.x);
