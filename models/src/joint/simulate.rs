@@ -153,6 +153,23 @@ pub fn simulate(
     times: &[f64],
     opts: &SimOptions,
 ) -> Result<Trajectory, SimError> {
+    simulate_reusing(dof, law, q0, v0, times, opts, Trajectory::default())
+}
+
+/// [`simulate`] into the storage of an earlier trajectory `buf` (its values are overwritten):
+/// for a fit that simulates the same record many times. Fresh vectors for every evaluation of
+/// a long record came from the system each time (glibc returns a freed block this large), so
+/// every evaluation paid a page fault per 4 KiB of the motion and its sensitivities (issue 38,
+/// session 22: the slider's wall time grew faster than its instructions, 10k → 100k samples).
+pub fn simulate_reusing(
+    dof: &Dof,
+    law: &FrictionLaw,
+    q0: f64,
+    v0: f64,
+    times: &[f64],
+    opts: &SimOptions,
+    buf: Trajectory,
+) -> Result<Trajectory, SimError> {
     let n = times.len();
     for k in 1..n {
         if times[k].partial_cmp(&times[k - 1]) != Some(std::cmp::Ordering::Greater)
@@ -165,10 +182,19 @@ pub fn simulate(
     let dim = 2 + 2 * ns;
     // Filled sample by sample in order (`record`), so not zeroed first (issue 38: the zeroing
     // was a pass over 2 + n_sens values per sample on every evaluation).
+    let (mut q, mut v, mut dq, mut events) = (buf.q, buf.v, buf.dq, buf.events);
+    for x in [&mut q, &mut v, &mut dq] {
+        x.clear();
+    }
+    events.clear();
+    q.reserve(n);
+    v.reserve(n);
+    dq.reserve(n * ns);
     let mut tr = Trajectory {
-        q: Vec::with_capacity(n),
-        v: Vec::with_capacity(n),
-        dq: Vec::with_capacity(n * ns),
+        q,
+        v,
+        dq,
+        events,
         n_sens: ns,
         ..Default::default()
     };
@@ -193,7 +219,10 @@ pub fn simulate(
         debug_assert_eq!(tr.q.len(), k);
         tr.q.push(y[0]);
         tr.v.push(y[1]);
-        tr.dq.extend_from_slice(&y[2..2 + ns]);
+        // An iterator over a slice: written in place, where `extend_from_slice` called
+        // memcpy for two to five values (issue 38, session 22: a tenth of a short fit's
+        // per-sample work).
+        tr.dq.extend(y[2..2 + ns].iter().copied());
     };
     let period = dof.period_s((t_end - t).max(1e-3));
     let mut tol = opts.tol;

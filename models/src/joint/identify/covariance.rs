@@ -5,7 +5,7 @@
 //! with the batch length from Andrews' AR(1) plug-in rule. White residuals give batch length 1
 //! and the classical s²(JᵀJ)⁻¹ up to noise; a misfit's slow residual widens the intervals.
 
-use nalgebra::{DMatrix, DVectorView};
+use nalgebra::DMatrix;
 
 /// The covariance and how it was formed.
 #[derive(Debug, Clone)]
@@ -42,17 +42,22 @@ fn pinv_sym(a: &DMatrix<f64>) -> DMatrix<f64> {
         .unwrap_or_else(|_| DMatrix::zeros(a.nrows(), a.ncols()))
 }
 
-/// Σ aₖ·bₖ over two slices (the shorter's length): nalgebra's dot over views of them.
-pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len());
-    DVectorView::from_slice(&a[..n], n).dot(&DVectorView::from_slice(&b[..n], n))
-}
+pub use crate::numerics::stats::dot;
 
 /// Covariance of the least-squares estimate at its optimum.
 pub fn sandwich(jac: &DMatrix<f64>, r: &[f64]) -> Covariance {
+    sandwich_with(jac, r, None)
+}
+
+/// [`sandwich`] with JᵀJ given when the caller has it ([`super::lm::LmReport::gram`]: the
+/// LM's last iteration formed it from the same Jacobian; session 22).
+pub fn sandwich_with(jac: &DMatrix<f64>, r: &[f64], gram: Option<&DMatrix<f64>>) -> Covariance {
     let (n, p) = (jac.nrows(), jac.ncols());
     let dof = (n as f64 - p as f64).max(1.0);
-    let ainv = pinv_sym(&super::lm::gram(jac));
+    let ainv = match gram.filter(|g| g.shape() == (p, p)) {
+        Some(g) => pinv_sym(g),
+        None => pinv_sym(&super::lm::gram(jac)),
+    };
     let ssr: f64 = r.iter().map(|v| v * v).sum();
     let classical = &ainv * (ssr / dof);
 

@@ -19,7 +19,9 @@ use nalgebra::DMatrix;
 
 use crate::joint::dynamics::Dof;
 use crate::joint::friction::{DynParam, FrictionLaw};
-use crate::joint::simulate::{SensParam, SimError, SimOptions, Trajectory, simulate};
+use crate::joint::simulate::{
+    SensParam, SimError, SimOptions, Trajectory, simulate, simulate_reusing,
+};
 use crate::numerics::ode::Tolerances;
 use crate::numerics::stats::Z95;
 pub use covariance::Covariance;
@@ -327,6 +329,39 @@ impl lm::Problem for OutputError<'_> {
             adjusted = body.apply(&self.test.dof);
             &adjusted
         };
+        let (d_delay, d_backlash) = (self.spec.delay.is_some(), self.spec.backlash.is_some());
+        if ro.delay_s == 0.0 && ro.backlash == 0.0 && !d_delay && !d_backlash {
+            // No sensor-side effect: residuals and Jacobian straight from the motion, the same
+            // products `readout::read` forms (scale·q + o, scale·∂q/∂p) without its readings
+            // and scaled copy in between (issue 38, session 22: two passes over the record and
+            // its sensitivities per evaluation).
+            // Into the last evaluation's storage, which this one replaces.
+            let buf = self.last_traj.take().map(|(_, t)| t).unwrap_or_default();
+            let traj = simulate_reusing(dof, &law, q0, v0, self.times, &self.sim, buf)
+                .map_err(|e| e.to_string())?;
+            let scale = self.test.scale;
+            for ((rk, q), y) in r.iter_mut().zip(&traj.q).zip(self.y) {
+                *rk = (scale * q + ro.offset) - y;
+            }
+            let (rows, ns) = (self.times.len(), traj.n_sens);
+            let mut jr = 0;
+            for (col, p) in jac
+                .as_mut_slice()
+                .chunks_exact_mut(rows.max(1))
+                .zip(&self.params)
+            {
+                if *p == Param::Offset {
+                    col.fill(1.0);
+                } else {
+                    for (c, dq) in col.iter_mut().zip(traj.dq.chunks_exact(ns.max(1))) {
+                        *c = dq[jr] * scale;
+                    }
+                    jr += 1;
+                }
+            }
+            self.last_traj = Some((x.to_vec(), traj));
+            return Ok(());
+        }
         let rd = readout::read(
             dof,
             &law,
@@ -336,8 +371,8 @@ impl lm::Problem for OutputError<'_> {
             self.times,
             &self.sim,
             self.test.scale,
-            self.spec.delay.is_some(),
-            self.spec.backlash.is_some(),
+            d_delay,
+            d_backlash,
         )
         .map_err(|e| e.to_string())?;
         for k in 0..self.times.len() {
@@ -487,7 +522,7 @@ pub fn fit_window_deferred(
     if let Termination::EvaluationFailed(e) = &rep.termination {
         return Err(FitError::Start(e.clone()));
     }
-    let cov = covariance::sandwich(&rep.jacobian, &rep.residuals);
+    let cov = covariance::sandwich_with(&rep.jacobian, &rep.residuals, rep.gram.as_ref());
     let lb = lm::Problem::lower_bounds(&prob);
     let (std, ci95) = intervals(&rep.x, &cov, &lb);
     let (law, q0, v0, readout, body) = prob.unpack(&rep.x);
@@ -499,7 +534,11 @@ pub fn fit_window_deferred(
     // been a rejected trial), else simulated again.
     let trajectory = match prob.last_traj.take() {
         // (with a delay the readout simulates at shifted times: not the sample times)
-        Some((x, tr)) if x == rep.x && spec.delay.is_none() => tr,
+        Some((x, mut tr)) if x == rep.x && spec.delay.is_none() => {
+            // As `readout::read` leaves it: the sensitivities were read into the Jacobian.
+            tr.dq = Vec::new();
+            tr
+        }
         _ => simulate(
             &body.apply(&test.dof),
             &law,

@@ -26,7 +26,7 @@
 //! is disturbed: the free motion starts at its end, a turning point, and the check is
 //! repeated from there (at most [`MAX_SKIPPED`] half-swings are left out).
 
-use crate::numerics::signal::{half_window, local_cubic_at};
+use crate::numerics::signal::{half_window, local_cubic_rate_at};
 
 /// What restores the body toward rest: the shape of its potential energy in the amplitude.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -208,12 +208,13 @@ fn turning_points(t: &[f64], y: &[f64], start: usize, period_s: f64) -> Vec<Turn
     if idx.len() < 8 {
         return Vec::new();
     }
-    let sm = local_cubic_at(t, y, &idx, half);
-    let peak = sm.iter().fold(0.0f64, |m, s| m.max(s.1.abs()));
+    // The rates alone (issue 38, session 22: the same numbers, a third of the work).
+    let sm = local_cubic_rate_at(t, y, &idx, half);
+    let peak = sm.iter().fold(0.0f64, |m, s| m.max(s.abs()));
     if !(peak > 0.0 && peak.is_finite()) {
         return Vec::new();
     }
-    let moving = |k: usize| sm[k].1.abs() > 0.1 * peak;
+    let moving = |k: usize| sm[k].abs() > 0.1 * peak;
     let mut turns = vec![at_rest(t, y, start, period_s / 20.0)];
     let Some(first) = (0..idx.len()).find(|&k| moving(k)) else {
         return turns;
@@ -223,8 +224,8 @@ fn turning_points(t: &[f64], y: &[f64], start: usize, period_s: f64) -> Vec<Turn
         if !moving(k) {
             continue;
         }
-        if sm[k].1.signum() != sm[last].1.signum() {
-            let s0 = sm[last].1.signum();
+        if sm[k].signum() != sm[last].signum() {
+            let s0 = sm[last].signum();
             let ext = (idx[last]..=idx[k])
                 .max_by(|&i, &j| (s0 * y[i]).total_cmp(&(s0 * y[j])))
                 .unwrap_or(idx[last]);
