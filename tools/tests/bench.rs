@@ -69,7 +69,8 @@ fn bench_suite_runs_every_section_and_writes_its_json() {
         "| fit: lift, clean inputs (3 raise-and-lower lifts, one core)",
         "| fit: lift, realistic sensor noise (3 raise-and-lower lifts, one core)",
         "| fit: lift, 2× sensor noise (3 raise-and-lower lifts, one core)",
-        "| fit: lift with an undeclared effect, whole residual loop (3 lifts, realistic noise, one core)",
+        // The core count closes the label (the loop tries its candidates on every core offered).
+        "| fit: lift with an undeclared effect, whole residual loop (3 lifts, realistic noise, ",
         "| fleet re-processing (3 lift traces, projected to 12,000)",
         "| ingest: API into PostgreSQL",
         "| storage",
