@@ -27,7 +27,7 @@ fn main() {
     let g = builtin_160ec();
     let base = LiftModel::new(g);
     // `PW_ROUNDS=N`: the designed moves (1.424 ↔ 1.216 m) repeated N rounds instead of the
-    // raise and lower (`design::rounds_of_moves`; README, "Long protocols fit").
+    // raise and lower (`design::rounds_of_moves`; docs/VALIDATION.md, "Long protocols fit").
     let protocol = match std::env::var("PW_ROUNDS").ok().and_then(|s| s.parse().ok()) {
         Some(n) => {
             pantowatch_models::lift::design::rounds_of_moves(&base, g, &[1.424, 1.216], 1.0, 2.0, n)

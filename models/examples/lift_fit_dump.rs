@@ -2,8 +2,8 @@
 //! raise-and-lower lifts (every third at Table 4, the others one coefficient drifted 0.4, 1.8 or
 //! 3×), each fitted with [`LiftFitOptions::default`]; stdout carries per lift the termination,
 //! RMSE and every parameter's and combination's value, sd and status, stderr the LM's
-//! evaluations. Session 16 checked the LM's unevaluated rejections with it (README
-//! "Performance", Session 16): `diff` of two builds' stdout over 96 lifts was empty.
+//! evaluations. Session 16 checked the LM's unevaluated rejections with it (docs/PERFORMANCE.md,
+//! "Session 16"): `diff` of two builds' stdout over 96 lifts was empty.
 //!
 //! `cargo run --release -p pantowatch-models --example lift_fit_dump -- [LIFTS] > fits.txt`
 use std::time::Instant;

@@ -259,7 +259,7 @@ fn lift_gaps(t_s: &[f64]) -> Result<(), TraceError> {
 
 /// A lift record lasts at most the stated test duration (`[stand] duration_max_s` of the
 /// 160EC geometry, `lift::design::ProtocolLimits::stand`), protocol stated or not: it is the
-/// longest lift whose fit was validated, not the stand's own limit (README, "Long protocols
+/// longest lift whose fit was validated, not the stand's own limit (docs/VALIDATION.md, "Long protocols
 /// fit": on 19.5 s lifts a viscous combination read in a wrong basin and raised a false alarm).
 fn lift_duration(t_s: &[f64]) -> Result<(), TraceError> {
     let g = pantowatch_models::lift::geometry::builtin_160ec();

@@ -232,7 +232,7 @@ pub fn advance(t_s: &[f64], h: &[f64], tau_s: f64) -> Vec<f64> {
 
 /// The posterior sd of a fit with `sensor_delay` is multiplied by this (every parameter's), as
 /// [`DRAG_INTERVAL_SCALE`] for the drag: the delay's regressor Ḣ comes from the motion the
-/// noisy inputs drive. Measured: see the README's lift-effects score.
+/// noisy inputs drive. Measured: see docs/VALIDATION.md, "Lift effects named".
 pub const DELAY_INTERVAL_SCALE: f64 = 3.0;
 
 /// `opts` with the H delay fitted and the intervals scaled by [`DELAY_INTERVAL_SCALE`].
@@ -285,7 +285,7 @@ pub const MIN_OFFSET_M: f64 = 1e-3;
 /// (`examples/lift_effects_probe -- 8 offset:10 offset:-10 offset:20 offset:-20`, realistic
 /// noise, seeds 0–7, 28 named): at ×3 RMS z 1.69, 21 of 28 intervals holding the truth, the
 /// errors the same on one noise seed whatever the offset (seed 1: −1.6 to −1.8 mm); ×5 gives
-/// RMS z ≈ 1. Checked on fresh seeds: the README's lift-effects score.
+/// RMS z ≈ 1. Checked on fresh seeds: docs/VALIDATION.md, "Lift effects named".
 pub const OFFSET_INTERVAL_SCALE: f64 = 5.0;
 
 /// `opts` with the H zero offset fitted and the intervals scaled by [`OFFSET_INTERVAL_SCALE`].
@@ -343,7 +343,7 @@ pub const STRIBECK_JOINT: RevJoint = RevJoint::J3;
 pub const STRIBECK_JOINTS: &str = "J1+J3";
 
 /// The posterior sd of a fit with `stribeck` is multiplied by this (every parameter's), as
-/// [`DRAG_INTERVAL_SCALE`]. Measured: see the README's lift-effects score.
+/// [`DRAG_INTERVAL_SCALE`]. Measured: see docs/VALIDATION.md, "Lift effects named".
 pub const STRIBECK_INTERVAL_SCALE: f64 = 3.0;
 
 /// `opts` with [`STRIBECK_JOINT`]'s Stribeck excess and speed fitted, intervals scaled by
@@ -401,14 +401,14 @@ pub fn try_stribeck(
 
 /// The posterior sd of a fit with `drive_compliance` is multiplied by this (every parameter's),
 /// as [`DRAG_INTERVAL_SCALE`]: the drive side's regressor (its acceleration) comes from the motion
-/// the noisy drive torque drives. Measured: see the README's lift-effects score.
+/// the noisy drive torque drives. Measured: see docs/VALIDATION.md, "Lift effects named".
 pub const COMPLIANCE_INTERVAL_SCALE: f64 = 3.0;
 
 /// J_d's interval is the posterior's (already × [`COMPLIANCE_INTERVAL_SCALE`]) × this, and so are k's and c's: the
 /// drive side is driven open-loop by the recorded torque, whose noise moves its motion, so J_d
 /// scatters far beyond its posterior. Measured (`examples/lift_effects_probe compliance:15000`
 /// with `DRIVE_JD=5 DRIVE_C=80`, realistic noise, seeds 10–17, 7 named): estimates 3.9–6.0
-/// kg·m² (truth 5), RMS z 4.9 at ×3. Checked on fresh seeds: the README's lift-effects score.
+/// kg·m² (truth 5), RMS z 4.9 at ×3. Checked on fresh seeds: docs/VALIDATION.md, "Lift effects named".
 pub const COMPLIANCE_EXTRA_SCALE: f64 = 5.0;
 
 /// Smallest drive-side inertia named, kg·m²: below it a compliant drive moves H by less than

@@ -246,7 +246,7 @@ impl Default for LiftFitOptions {
                 // realistic-noise lifts (Table 4 and J3 dry ×1.8, seeds 500–511): 23.5 → 20.1
                 // evaluations per fit, −17 % time, every J1+J3 estimate within 0.05 sd of the
                 // fit without the rule (22 of 24 within 0.002 sd). Fleet: 12.5 → 11.0–11.3 min
-                // (README, "Performance"). Not in the continuation stages (below).
+                // (docs/PERFORMANCE.md). Not in the continuation stages (below).
                 noise_sd: 3.0,
                 // A cliff within 20 sd ends the fit (`LmOptions::cliff_sd`). Near the optimum a
                 // realistic-noise lift's whole-trace cost is rough at the scale of a few sd: the

@@ -448,7 +448,7 @@ pub fn fit_map_in(
     // The excursion's stages end within the raise. Where the record goes on to further moves
     // (a protocol of several, `lift::design::rounds_of_moves`), their estimate can drive the
     // whole record into a stiff stop the integrator cannot pass; continue in time from there
-    // instead. Measured on 18 lifts of 2–6 rounds (README, "Long protocols fit"): 11 failed
+    // instead. Measured on 18 lifts of 2–6 rounds (docs/VALIDATION.md, "Long protocols fit"): 11 failed
     // before, none after. Only a fit that could not start takes this path. Not for a fit that
     // ran but stopped far from its data (3 of those 18, 40–78 mm: withheld as `unexplained`):
     // refitted in time they came within the noise, but one then flagged a viscous combination
@@ -561,7 +561,7 @@ pub fn fit_map_in(
             let sd = cov[(i, i)].max(0.0).sqrt();
             // A coefficient each trace has its own deviation of (`per_trace`) absorbs what
             // each trace's input noise did: its shared level is no wear reading (measured, J8
-            // ×1.8 pools read 1.22–1.43 with intervals below 1.8: README, "Pooled lifts").
+            // ×1.8 pools read 1.22–1.43 with intervals below 1.8: docs/VALIDATION.md, "Pooled lifts").
             !per_trace_ix.contains(&i)
                 && sd < prior_sd(i) / opts.informed_factor * rep.x[i].min(1.0)
         })

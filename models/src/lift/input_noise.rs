@@ -178,7 +178,7 @@ pub const COVERAGE_DRIFTS: [Option<(&str, &str, f64)>; 12] = [
 /// fleet about the paper's values, for coverage checks where the truth is nowhere the prior's
 /// mean (issue 15, point 2). In the drift set alone every undrifted joint sits exactly at
 /// Table 4, the prior's mean, so the width an interval owes to the joints the prior holds is
-/// never used, and coverage reads high (README, "What a lift interval means").
+/// never used, and coverage reads high (docs/VALIDATION.md, "What a lift interval means").
 pub fn fleet_scatter(
     base: &LiftModel,
     params: &[super::sensitivity::LiftParam],

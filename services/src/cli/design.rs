@@ -6,7 +6,7 @@
 //! criterion — and the final one, the spread of simulated fits (`design::simulated_spread`:
 //! `--fits` lifts at Table 4 with the stated noise on every channel, each fitted as the service
 //! fits a lift). The linearised share of the inputs' noise overstates what fits realise (J3 dry
-//! 2× on the designed protocol, 10× on the raise and lower; README, "A designed lift test"), so
+//! 2× on the designed protocol, 10× on the raise and lower; docs/VALIDATION.md, "A designed lift test"), so
 //! the simulated spread is the one to read for "how well will a test tell this parameter".
 //!
 //! The physics (Fisher information, input-noise propagation, the greedy D-optimal search, the

@@ -240,7 +240,7 @@ pub async fn a_designed_lift_is_accepted_and_fitted(b: Backend) {
     let g = pantowatch_models::lift::geometry::builtin_160ec();
     let m = pantowatch_models::lift::dynamics::LiftModel::new(g);
     let mut p = pantowatch_models::lift::protocol::LiftProtocol::reference(g);
-    // The moves `design-test` chose on the stand's space (README, "A designed lift test").
+    // The moves `design-test` chose on the stand's space (docs/VALIDATION.md, "A designed lift test").
     for (t_s, h) in [(3.5, 1.424), (5.5, 1.216)] {
         p.moves.push(Move {
             t_s,
@@ -366,7 +366,7 @@ pub async fn recent_lifts_are_pooled(b: Backend) {
         ci[1].as_f64().unwrap() - ci[0].as_f64().unwrap()
     };
     // What pooling buys is measured, not asserted here: with the inputs' noise propagated into
-    // the intervals, three realistic-noise lifts do not narrow J3/J5/J8 dry (README, "Pooled
+    // the intervals, three realistic-noise lifts do not narrow J3/J5/J8 dry (docs/VALIDATION.md, "Pooled
     // lifts"); the pooled fit still informs J3's dry friction and reports it.
     for joint in ["J3", "J5", "J8"] {
         let (w1, w3) = (width(&single, joint), width(&pooled, joint));
@@ -374,7 +374,7 @@ pub async fn recent_lifts_are_pooled(b: Backend) {
     }
     // Each lift in the pool has its own J8 dry deviation (`POOLED_PER_TRACE`): the newest
     // lift is fitted to its noise, as its own fit is (with every coefficient shared, pools of
-    // such lifts left up to 4.4 mm: README, "Pooled lifts").
+    // such lifts left up to 4.4 mm: docs/VALIDATION.md, "Pooled lifts").
     let rmse_m = pooled["rmse"]["value"].as_f64().expect("rmse");
     eprintln!("H RMSE of the newest lift in the pool: {rmse_m:.2e} m");
     assert!(rmse_m < 0.8e-3, "pooled RMSE {rmse_m} m");

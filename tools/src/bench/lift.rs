@@ -62,7 +62,7 @@ const LOOP_CASES: [(&str, &str, &[&str]); 12] = [
     ("raise-and-lower", "stribeck:ratio=1.2", &[]),
     ("raise", "sensor_offset:offset=0.02", &[]),
     ("design", "stribeck:ratio=1.2", &[]),
-    // A heavy drive side (the size at which a compliant drive shows: README, lift effects).
+    // A heavy drive side (the size at which a compliant drive shows: docs/VALIDATION.md, "Lift effects named").
     (
         "raise-and-lower",
         "drive_compliance:inertia=5,stiffness=15000,damping=80",

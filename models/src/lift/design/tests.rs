@@ -151,14 +151,14 @@ fn designed_protocol_realises_its_predicted_spread() {
         );
         checked.push(*p);
     }
-    // The design informs J3, J5 and J8 dry (README, "A designed lift test"): each is checked.
+    // The design informs J3, J5 and J8 dry (docs/VALIDATION.md, "A designed lift test"): each is checked.
     for (j, kind) in [("J3", "dry"), ("J5", "dry"), ("J8", "dry")] {
         let p = LiftParam::named(j, kind).unwrap();
         assert!(checked.contains(&p), "{j} {kind} not informed: {checked:?}");
     }
 }
 
-/// Why no designed test separates J1's dry friction (README, "A designed lift test"): it is
+/// Why no designed test separates J1's dry friction (docs/VALIDATION.md, "A designed lift test"): it is
 /// not the test's length or the noise but J2's dry friction, whose friction torque enters H
 /// with nearly J1's shape on every move the drive can make. With the H noise alone and the
 /// fit's prior, J1's posterior sd stays above 0.1 × Table 4 on every protocol tried, up to a

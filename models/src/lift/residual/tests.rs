@@ -493,7 +493,7 @@ fn a_record_too_short_for_the_held_out_test_says_so() {
 /// flagged (no wear alarm from it). (b) A heavy drive side (J_d 5 kg·m², k 15000 N·m/rad, c 80
 /// N·m·s/rad, 8.7 Hz) is named `drive_compliance` — never another effect — with J_d within
 /// 25 % of the truth, the RMSE at least halved and no joint flagged. Measured over more seeds
-/// (`examples/lift_effects_probe`): the README's lift-effects score.
+/// (`examples/lift_effects_probe`): docs/VALIDATION.md, "Lift effects named".
 #[test]
 fn a_compliant_drive_is_absorbed_at_its_real_size_and_named_when_heavy() {
     use crate::lift::dynamics::DriveCompliance;
