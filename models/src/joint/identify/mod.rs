@@ -343,22 +343,7 @@ impl lm::Problem for OutputError<'_> {
             for ((rk, q), y) in r.iter_mut().zip(&traj.q).zip(self.y) {
                 *rk = (scale * q + ro.offset) - y;
             }
-            let (rows, ns) = (self.times.len(), traj.n_sens);
-            let mut jr = 0;
-            for (col, p) in jac
-                .as_mut_slice()
-                .chunks_exact_mut(rows.max(1))
-                .zip(&self.params)
-            {
-                if *p == Param::Offset {
-                    col.fill(1.0);
-                } else {
-                    for (c, dq) in col.iter_mut().zip(traj.dq.chunks_exact(ns.max(1))) {
-                        *c = dq[jr] * scale;
-                    }
-                    jr += 1;
-                }
-            }
+            fill_jacobian(jac, &self.params, &traj.dq, traj.n_sens, scale);
             self.last_traj = Some((x.to_vec(), traj));
             return Ok(());
         }
@@ -378,24 +363,7 @@ impl lm::Problem for OutputError<'_> {
         for k in 0..self.times.len() {
             r[k] = rd.y[k] - self.y[k];
         }
-        // Columns in parameter order; the reading's columns follow the same order minus the offset.
-        // Column by column over the matrix's storage (column-major, `times.len()` rows).
-        let mut jr = 0;
-        let rows = self.times.len();
-        for (col, p) in jac
-            .as_mut_slice()
-            .chunks_exact_mut(rows.max(1))
-            .zip(&self.params)
-        {
-            if *p == Param::Offset {
-                col.fill(1.0);
-            } else {
-                for (c, dy) in col.iter_mut().zip(rd.dy.chunks_exact(rd.m.max(1))) {
-                    *c = dy[jr];
-                }
-                jr += 1;
-            }
-        }
+        fill_jacobian(jac, &self.params, &rd.dy, rd.m, 1.0);
         self.last_traj = Some((x.to_vec(), rd.traj));
         Ok(())
     }
@@ -790,4 +758,28 @@ pub fn fit_base(test: &JointTest, opts: &FitOptions) -> Result<FitOutcome, FitEr
         restart::from_grid(test, start, n_fit, &spec, &init, opts, first)
     };
     Ok(input_noise::carry(test, best, opts))
+}
+
+/// The output-error Jacobian's columns in parameter order (column-major, one row per sample):
+/// 1 for the sensor offset, else the next sensitivity column of `sens` (row-major, `stride`
+/// values per sample, the parameters' order minus the offset) × `scale`.
+fn fill_jacobian(
+    jac: &mut DMatrix<f64>,
+    params: &[Param],
+    sens: &[f64],
+    stride: usize,
+    scale: f64,
+) {
+    let rows = jac.nrows();
+    let mut jr = 0;
+    for (col, p) in jac.as_mut_slice().chunks_exact_mut(rows.max(1)).zip(params) {
+        if *p == Param::Offset {
+            col.fill(1.0);
+        } else {
+            for (c, ds) in col.iter_mut().zip(sens.chunks_exact(stride.max(1))) {
+                *c = ds[jr] * scale;
+            }
+            jr += 1;
+        }
+    }
 }
