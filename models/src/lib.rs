@@ -77,7 +77,7 @@ pub fn fit_joint_test_with_finding(
         dynamics::Mechanism::Pendulum(_) => ("rad", "rad/s"),
         dynamics::Mechanism::Slider(_) => ("m", "m/s"),
     };
-    let result = FitResult {
+    let mut result = FitResult {
         trace_id: trace_id.to_string(),
         joints: vec![report::joint_result(&reported, baseline, thresholds)],
         rmse: report::Quantity {
@@ -96,5 +96,6 @@ pub fn fit_joint_test_with_finding(
         combinations: Vec::new(),
         pooled_rig: None,
     };
+    contract::withhold::if_unexplained(&mut result, finding.diagnosis.noise_sigma);
     Ok((result, reported, finding))
 }

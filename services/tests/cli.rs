@@ -231,6 +231,20 @@ fn one_verdict_everywhere_and_a_friction_band_is_named() {
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["residual"]["verdict"], "unexplained", "{}", v["residual"]);
     assert_eq!(v["residual"]["effects"], serde_json::json!([]));
+    // What the loop cannot name is no wear finding: the joint's status is withheld, with why.
+    assert_eq!(v["joints"][0]["status"], "unknown", "{}", v["joints"]);
+    assert_eq!(
+        v["joints"][0]["dry"]["identifiable"], false,
+        "{}",
+        v["joints"]
+    );
+    assert!(
+        v["residual"]["joints_withheld"]
+            .as_str()
+            .is_some_and(|w| w.contains("could not name")),
+        "{}",
+        v["residual"]
+    );
     let html = std::fs::read_to_string(&html).unwrap();
     assert!(html.contains("Finding: none") && html.contains("unexplained"));
     assert!(

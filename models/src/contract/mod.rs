@@ -7,3 +7,4 @@ pub mod plan;
 pub mod report;
 pub mod testspec;
 pub mod trend;
+pub mod withhold;

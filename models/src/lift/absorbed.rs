@@ -258,27 +258,11 @@ fn held_at_prior(
     Some(m)
 }
 
-/// Withhold every joint and combination of `r` (not identified, `unknown`: no alert, health
-/// unchanged) and make its verdict `unexplained` with `reason`, where a fit's verdict was clean
-/// only because it absorbed what the model lacks.
+/// Withhold every joint and combination of `r` and make its verdict `unexplained` with
+/// `reason`, where a fit's verdict was clean only because it absorbed what the model lacks
+/// (`contract::withhold::withhold_all`).
 pub fn withhold_all(r: &mut crate::contract::report::FitResult, reason: String) {
-    use crate::contract::drift::Status;
-    for j in &mut r.joints {
-        for p in [&mut j.viscous, &mut j.dry] {
-            p.identifiable = false;
-            p.status = Status::Unknown;
-        }
-        j.identifiable = false;
-        j.status = Status::Unknown;
-    }
-    for c in &mut r.combinations {
-        c.identifiable = false;
-        c.status = Status::Unknown;
-    }
-    r.residual.verdict = Some("unexplained".into());
-    if r.residual.joints_withheld.is_none() {
-        r.residual.joints_withheld = Some(reason);
-    }
+    crate::contract::withhold::withhold_all(r, reason);
 }
 
 /// The fit a named effect is reported from: the effect held at the value the search found

@@ -106,6 +106,8 @@ pub async fn recordings_of_one_rig_are_fitted_pooled(b: Backend) {
     );
     assert!(p["tried"].as_array().unwrap().len() >= 7, "{p}");
     assert_eq!(fit["residual"]["verdict"], "unexplained", "{fit}");
+    assert_eq!(fit["joints"][0]["status"], "unknown", "{fit}");
+    assert!(fit["residual"]["joints_withheld"].is_string(), "{fit}");
     assert!(
         fit["model_version"].as_str().unwrap().contains(rig),
         "{fit}"

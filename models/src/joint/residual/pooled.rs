@@ -494,7 +494,7 @@ pub fn pooled_result(
         .iter()
         .map(|e| super::effects::effect_result(*e, fit, test))
         .collect();
-    Ok(FitResult {
+    let mut result = FitResult {
         trace_id: trace_ids.get(i).cloned().unwrap_or_default(),
         joints: vec![report::joint_result(fit, baseline, thresholds)],
         rmse: Quantity {
@@ -532,5 +532,11 @@ pub fn pooled_result(
             best_tried: names(&finding.best_tried),
             tried,
         }),
-    })
+    };
+    let sigma = finding
+        .recordings
+        .get(i)
+        .map_or(f64::NAN, |r| r.noise_sigma);
+    crate::contract::withhold::if_unexplained(&mut result, sigma);
+    Ok(result)
 }
