@@ -298,6 +298,52 @@ impl Dopri5 {
         self.dense_range(t, 0..self.n, out);
     }
 
+    /// The dense state at each of `times` (inside the last accepted step), split the way a
+    /// simulation keeps it: components 0 and 1 (position and rate) into `q[i]` and `v[i]`,
+    /// components 2 .. 2 + m into row i of `rows` (row-major, m = `rows.len() / times.len()`
+    /// values a sample). The same products as [`Dopri5::dense_range`], to the bit (test
+    /// `dense_rows_are_dense_range_to_the_bit`). Issue 38, session 23: a single joint's fit
+    /// evaluates the dense output at every sample of every evaluation (~17 samples a step on a
+    /// 500 Hz pendulum); one call a sample through a buffer and a copy was a fifth of the fit.
+    pub fn dense_rows(&self, times: &[f64], q: &mut [f64], v: &mut [f64], rows: &mut [f64]) {
+        let n = times.len();
+        if n == 0 {
+            return;
+        }
+        let m = rows.len() / n;
+        assert!(q.len() == n && v.len() == n && rows.len() == n * m && 2 + m <= self.n);
+        let at = |th: f64, th1: f64, r: [f64; 5]| {
+            r[0] + th * (r[1] + th1 * (r[2] + th * (r[3] + th1 * r[4])))
+        };
+        let [r0, r1, r2, r3, r4] = &self.r;
+        let head = |i: usize| [r0[i], r1[i], r2[i], r3[i], r4[i]];
+        let (hq, hv) = (head(0), head(1));
+        let (r0, r1, r2, r3, r4) = (
+            &r0[2..2 + m],
+            &r1[2..2 + m],
+            &r2[2..2 + m],
+            &r3[2..2 + m],
+            &r4[2..2 + m],
+        );
+        let states = times.iter().zip(q.iter_mut().zip(v.iter_mut()));
+        if m == 0 {
+            for (&t, (qk, vk)) in states {
+                let th = (t - self.t_old) / self.h_old;
+                let th1 = 1.0 - th;
+                (*qk, *vk) = (at(th, th1, hq), at(th, th1, hv));
+            }
+            return;
+        }
+        for ((&t, (qk, vk)), row) in states.zip(rows.chunks_exact_mut(m)) {
+            let th = (t - self.t_old) / self.h_old;
+            let th1 = 1.0 - th;
+            (*qk, *vk) = (at(th, th1, hq), at(th, th1, hv));
+            for i in 0..m {
+                row[i] = at(th, th1, [r0[i], r1[i], r2[i], r3[i], r4[i]]);
+            }
+        }
+    }
+
     /// Components `range` of the dense state at `t` into `out[range]`.
     #[inline]
     pub fn dense_range(&self, t: f64, range: std::ops::Range<usize>, out: &mut [f64]) {
@@ -323,6 +369,71 @@ impl Dopri5 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A damped oscillator with `m` riders (each its own decay): a state of 2 + m components.
+    struct Riders(usize);
+    impl OdeSystem for Riders {
+        fn dim(&self) -> usize {
+            2 + self.0
+        }
+        fn rhs(&self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), OdeError> {
+            dy[0] = y[1];
+            dy[1] = -y[0] - 0.3 * y[1] + (3.0 * t).sin();
+            for i in 2..y.len() {
+                dy[i] = -(i as f64) * y[i] + y[0];
+            }
+            Ok(())
+        }
+    }
+
+    /// Issue 38, session 23: the dense output at a run of samples, split into position, rate
+    /// and rows, is `dense_range`'s at each sample to the bit, for 0 to 6 riders, random states
+    /// and steps, and random sample times inside each step (its ends included).
+    #[test]
+    fn dense_rows_are_dense_range_to_the_bit() {
+        let mut rng = crate::numerics::noise::Noise::new(2338);
+        for m in 0..=6 {
+            let sys = Riders(m);
+            let tol = Tolerances {
+                rtol: 1e-6,
+                atol: 1e-9,
+                ..Default::default()
+            };
+            let mut st = Dopri5::new(2 + m, 2, tol);
+            let mut y: Vec<f64> = (0..2 + m).map(|_| rng.normal()).collect();
+            let (mut t, mut h, mut checked) = (rng.uniform(), 0.05, 0);
+            while checked < 40 {
+                match st.step(&sys, t, &mut y, h).unwrap() {
+                    Step::Rejected { h_next } => h = h_next,
+                    Step::Accepted { h: hh, h_next } => {
+                        let k = 1 + (rng.uniform() * 20.0) as usize;
+                        let mut times: Vec<f64> =
+                            (0..k).map(|_| t + hh * rng.uniform()).collect();
+                        times.push(t);
+                        times.push(t + hh);
+                        times.sort_by(f64::total_cmp);
+                        let n = times.len();
+                        let (mut q, mut v) = (vec![f64::NAN; n], vec![f64::NAN; n]);
+                        let mut rows = vec![f64::NAN; n * m];
+                        st.dense_rows(&times, &mut q, &mut v, &mut rows);
+                        let mut full = vec![0.0; 2 + m];
+                        for (i, &ti) in times.iter().enumerate() {
+                            st.dense_range(ti, 0..2 + m, &mut full);
+                            assert_eq!(q[i].to_bits(), full[0].to_bits(), "m {m} q at {ti}");
+                            assert_eq!(v[i].to_bits(), full[1].to_bits(), "m {m} v at {ti}");
+                            for j in 0..m {
+                                let (a, b) = (rows[i * m + j], full[2 + j]);
+                                assert_eq!(a.to_bits(), b.to_bits(), "m {m} row {j} at {ti}");
+                            }
+                        }
+                        t += hh;
+                        h = h_next;
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
 
     /// y'' = -y: y = cos t.
     struct Osc;
