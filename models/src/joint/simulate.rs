@@ -188,10 +188,16 @@ pub fn simulate_reusing(
     // record without clearing, so a buffer of the same record is not written twice (issue 38:
     // zeroing was a pass over 2 + n_sens values per sample on every evaluation; pushing them
     // one by one a fifth of a pendulum's fit, session 23).
-    let (mut q, mut v, mut dq, mut events) = (buf.q, buf.v, buf.dq, buf.events);
-    q.resize(n, 0.0);
-    v.resize(n, 0.0);
-    dq.resize(n * ns, 0.0);
+    // Storage too small is replaced by zeroed storage from the allocator (fresh pages come
+    // zero), not grown and zeroed here.
+    let sized = |mut x: Vec<f64>, len: usize| {
+        if x.capacity() < len {
+            return vec![0.0; len];
+        }
+        x.resize(len, 0.0);
+        x
+    };
+    let (q, v, dq, mut events) = (sized(buf.q, n), sized(buf.v, n), sized(buf.dq, n * ns), buf.events);
     events.clear();
     let mut tr = Trajectory {
         q,
