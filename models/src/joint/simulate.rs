@@ -176,20 +176,17 @@ pub fn simulate_reusing(
     let n = times.len();
     // `!(b > a)` is `b.partial_cmp(a) != Some(Greater)` (NaN included), over pairs without
     // bounds checks (issue 38, session 23: the indexed check was 12 instructions a sample).
-    if let Some(k) = times
-        .windows(2)
-        .position(|w| !(w[1] > w[0]) || !w[1].is_finite())
-    {
+    if let Some(k) = times.windows(2).position(|w| {
+        w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater) || !w[1].is_finite()
+    }) {
         return Err(SimError::Times(k + 1));
     }
     let ns = opts.sens.len();
     let dim = 2 + 2 * ns;
-    // Every sample is written once, in order, by index (`record`, `dense_split`): sized to the
-    // record without clearing, so a buffer of the same record is not written twice (issue 38:
-    // zeroing was a pass over 2 + n_sens values per sample on every evaluation; pushing them
-    // one by one a fifth of a pendulum's fit, session 23).
-    // Storage too small is replaced by zeroed storage from the allocator (fresh pages come
-    // zero), not grown and zeroed here.
+    // Every sample is written once, in order, by index (`record`, `record_dense`): storage of
+    // this length is reused as it is, too small replaced by zeroed storage from the allocator
+    // (issue 38: zeroing every evaluation, then pushing sample by sample, was a fifth of a
+    // pendulum's fit; session 23).
     let sized = |mut x: Vec<f64>, len: usize| {
         if x.capacity() < len {
             return vec![0.0; len];
@@ -197,7 +194,8 @@ pub fn simulate_reusing(
         x.resize(len, 0.0);
         x
     };
-    let (q, v, dq, mut events) = (sized(buf.q, n), sized(buf.v, n), sized(buf.dq, n * ns), buf.events);
+    let (q, v, dq) = (sized(buf.q, n), sized(buf.v, n), sized(buf.dq, n * ns));
+    let mut events = buf.events;
     events.clear();
     let mut tr = Trajectory {
         q,
@@ -233,7 +231,14 @@ pub fn simulate_reusing(
     // written where they are kept; the next sample to write is returned.
     let record_dense = |tr: &mut Trajectory, k: usize, st: &Dopri5, until: f64| {
         let end = k + times[k..].iter().take_while(|&&t| t < until).count();
-        let (q, v, dq) = (&mut tr.q[k..end], &mut tr.v[k..end], &mut tr.dq[k * ns..end * ns]);
+        if end == k {
+            return k;
+        }
+        let (q, v, dq) = (
+            &mut tr.q[k..end],
+            &mut tr.v[k..end],
+            &mut tr.dq[k * ns..end * ns],
+        );
         st.dense_rows(&times[k..end], q, v, dq);
         end
     };

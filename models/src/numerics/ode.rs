@@ -377,6 +377,7 @@ impl Dopri5 {
     }
 
     /// The dense coefficients of components 0 and 1.
+    #[inline(always)]
     fn head(&self) -> ([f64; 5], [f64; 5]) {
         let c = |i: usize| std::array::from_fn(|j| self.r[j][i]);
         (c(0), c(1))
@@ -452,8 +453,7 @@ mod tests {
                     Step::Rejected { h_next } => h = h_next,
                     Step::Accepted { h: hh, h_next } => {
                         let k = 1 + (rng.uniform() * 20.0) as usize;
-                        let mut times: Vec<f64> =
-                            (0..k).map(|_| t + hh * rng.uniform()).collect();
+                        let mut times: Vec<f64> = (0..k).map(|_| t + hh * rng.uniform()).collect();
                         times.push(t);
                         times.push(t + hh);
                         times.sort_by(f64::total_cmp);

@@ -188,8 +188,10 @@ mod tests {
     /// NaN and infinite times, and every length 0 to 40.
     #[test]
     fn evenly_spaced_is_the_pairwise_test() {
-        let pairwise =
-            |t: &[f64], dt: f64| t.windows(2).all(|w| ((w[1] - w[0]) - dt).abs() <= 1e-6 * dt);
+        let pairwise = |t: &[f64], dt: f64| {
+            t.windows(2)
+                .all(|w| ((w[1] - w[0]) - dt).abs() <= 1e-6 * dt)
+        };
         let mut rng = crate::numerics::noise::Noise::new(23);
         let mut cases = 0;
         for n in 0..=40usize {
