@@ -213,7 +213,10 @@ impl Dof {
     /// Acceleration in motion direction `s` (±1): solves M·a − G(q,t) + T(v, s, N(q,v,a)) = 0
     /// by Newton's method (the dependence on a is weak and monotone), then the partials by the
     /// implicit function theorem.
-    #[inline]
+    ///
+    /// Always inlined: a sensitivity right-hand side calls it once, and out of line its result
+    /// went through memory (an input-driven record's fit did 6 % more work; session 23).
+    #[inline(always)]
     pub fn accel(
         &self,
         law: &FrictionLaw,

@@ -293,8 +293,19 @@ impl FrictionLaw {
 
     /// Position factor ψ(q) = max(0, 1 + a·u + b·u²) (times a simulated profile's factor) and
     /// ∂ψ/∂q.
-    #[inline]
+    #[inline(always)]
     fn position_shape(&self, q: f64) -> (f64, f64) {
+        // Neither effect: (1, 0), what the general path returns, without its call (three a
+        // right-hand side of a single joint's sensitivities; issue 38, session 23).
+        if self.position.is_none() && self.profile.is_none() {
+            return (1.0, 0.0);
+        }
+        self.shaped_position(q)
+    }
+
+    /// [`FrictionLaw::position_shape`] with a fitted or a simulated position effect.
+    #[inline(never)]
+    fn shaped_position(&self, q: f64) -> (f64, f64) {
         let (psi, dpsi) = self.fitted_position_shape(q);
         match self.profile {
             None => (psi, dpsi),

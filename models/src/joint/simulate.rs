@@ -122,8 +122,11 @@ impl OdeSystem for Segment<'_> {
             return Ok(());
         }
         let shapes = self.law.shapes(q, v);
-        for (j, p) in self.sens.iter().enumerate() {
-            let (sq, sv) = (y[2 + j], y[2 + ns + j]);
+        // The sensitivities as slices, zipped: no bounds check per parameter (session 23).
+        let (ys_q, ys_v) = y[2..2 + 2 * ns].split_at(ns);
+        let (dy_q, dy_v) = dy[2..2 + 2 * ns].split_at_mut(ns);
+        let rows = ys_q.iter().zip(ys_v).zip(dy_q.iter_mut().zip(dy_v));
+        for (p, ((&sq, &sv), (dq, dv))) in self.sens.iter().zip(rows) {
             let a_p = match p {
                 SensParam::Dyn(dp) => self
                     .dof
@@ -132,8 +135,8 @@ impl OdeSystem for Segment<'_> {
                 SensParam::InputOffset => 1.0 / acc.f_a,
                 _ => 0.0,
             };
-            dy[2 + j] = sv;
-            dy[2 + ns + j] = acc.a_q * sq + acc.a_v * sv + a_p;
+            *dq = sv;
+            *dv = acc.a_q * sq + acc.a_v * sv + a_p;
         }
         Ok(())
     }
@@ -171,25 +174,29 @@ pub fn simulate_reusing(
     buf: Trajectory,
 ) -> Result<Trajectory, SimError> {
     let n = times.len();
-    for k in 1..n {
-        if times[k].partial_cmp(&times[k - 1]) != Some(std::cmp::Ordering::Greater)
-            || !times[k].is_finite()
-        {
-            return Err(SimError::Times(k));
-        }
+    // `!(b > a)` is `b.partial_cmp(a) != Some(Greater)` (NaN included), over pairs without
+    // bounds checks (issue 38, session 23: the indexed check was 12 instructions a sample).
+    if let Some(k) = times.windows(2).position(|w| {
+        w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater) || !w[1].is_finite()
+    }) {
+        return Err(SimError::Times(k + 1));
     }
     let ns = opts.sens.len();
     let dim = 2 + 2 * ns;
-    // Filled sample by sample in order (`record`), so not zeroed first (issue 38: the zeroing
-    // was a pass over 2 + n_sens values per sample on every evaluation).
-    let (mut q, mut v, mut dq, mut events) = (buf.q, buf.v, buf.dq, buf.events);
-    for x in [&mut q, &mut v, &mut dq] {
-        x.clear();
-    }
+    // Every sample is written once, in order, by index (`record`, `record_dense`): storage of
+    // this length is reused as it is, too small replaced by zeroed storage from the allocator
+    // (issue 38: zeroing every evaluation, then pushing sample by sample, was a fifth of a
+    // pendulum's fit; session 23).
+    let sized = |mut x: Vec<f64>, len: usize| {
+        if x.capacity() < len {
+            return vec![0.0; len];
+        }
+        x.resize(len, 0.0);
+        x
+    };
+    let (q, v, dq) = (sized(buf.q, n), sized(buf.v, n), sized(buf.dq, n * ns));
+    let mut events = buf.events;
     events.clear();
-    q.reserve(n);
-    v.reserve(n);
-    dq.reserve(n * ns);
     let mut tr = Trajectory {
         q,
         v,
@@ -214,21 +221,31 @@ pub fn simulate_reusing(
     let t_end = times[n - 1];
     let mut t = times[0];
     let mut k = 0; // next sample to write
-    // Sample k's values; every call is for the next sample (k = the number recorded so far).
+    // Sample k's values from the state y.
     let record = |tr: &mut Trajectory, k: usize, y: &[f64]| {
-        debug_assert_eq!(tr.q.len(), k);
-        tr.q.push(y[0]);
-        tr.v.push(y[1]);
-        // An iterator over a slice: written in place, where `extend_from_slice` called
-        // memcpy for two to five values (issue 38, session 22: a tenth of a short fit's
-        // per-sample work).
-        tr.dq.extend(y[2..2 + ns].iter().copied());
+        tr.q[k] = y[0];
+        tr.v[k] = y[1];
+        tr.dq[k * ns..(k + 1) * ns].copy_from_slice(&y[2..2 + ns]);
+    };
+    // Samples k .. (the first at or after `until`) from the dense output of the last step,
+    // written where they are kept; the next sample to write is returned.
+    let record_dense = |tr: &mut Trajectory, k: usize, st: &Dopri5, until: f64| {
+        let end = k + times[k..].iter().take_while(|&&t| t < until).count();
+        if end == k {
+            return k;
+        }
+        let (q, v, dq) = (
+            &mut tr.q[k..end],
+            &mut tr.v[k..end],
+            &mut tr.dq[k * ns..end * ns],
+        );
+        st.dense_rows(&times[k..end], q, v, dq);
+        end
     };
     let period = dof.period_s((t_end - t).max(1e-3));
     let mut tol = opts.tol;
     tol.h_max = tol.h_max.min(period / 8.0);
     let mut stepper = Dopri5::new(dim, 2, tol);
-    let mut dense_buf = vec![0.0; dim];
 
     // Initial mode: moving with the given rate, or at rest and either held or breaking away.
     let mut mode = if v0 != 0.0 {
@@ -357,11 +374,7 @@ pub fn simulate_reusing(
                                         h: hh,
                                     }));
                                 };
-                                while k < n && times[k] < t_e {
-                                    stepper.dense_range(times[k], 0..2 + ns, &mut dense_buf);
-                                    record(&mut tr, k, &dense_buf);
-                                    k += 1;
-                                }
+                                k = record_dense(&mut tr, k, &stepper, t_e);
                                 stepper.dense_all(t_e, &mut y);
                                 y[1] = 0.0;
                                 t = t_e;
@@ -370,14 +383,11 @@ pub fn simulate_reusing(
                                 stepper.reset();
                                 break;
                             }
-                            while k < n && times[k] <= t_new {
-                                if times[k] == t_new {
-                                    record(&mut tr, k, &y);
-                                } else {
-                                    // Only q, v and ∂q/∂p are recorded.
-                                    stepper.dense_range(times[k], 0..2 + ns, &mut dense_buf);
-                                    record(&mut tr, k, &dense_buf);
-                                }
+                            // Only q, v and ∂q/∂p are recorded; a sample at the step's end
+                            // from the state itself.
+                            k = record_dense(&mut tr, k, &stepper, t_new);
+                            if k < n && times[k] == t_new {
+                                record(&mut tr, k, &y);
                                 k += 1;
                             }
                             t = t_new;
@@ -395,6 +405,7 @@ pub fn simulate_reusing(
             }
         }
     }
+    debug_assert_eq!(k, n, "every sample recorded");
     tr.n_rhs = stepper.n_rhs;
     tr.n_steps = stepper.n_steps;
     Ok(tr)
@@ -705,6 +716,32 @@ mod tests {
                 worst < 1e-4 * scale.max(1e-3),
                 "{p:?}: worst {worst:e} of {scale:e}"
             );
+        }
+    }
+
+    /// Issue 38, session 23: a run into an earlier run's storage (longer, shorter, with more
+    /// or fewer sensitivities; written in place, never cleared) is a fresh run to the bit.
+    #[test]
+    fn a_run_into_used_storage_is_a_fresh_run() {
+        let dof = pendulum(7.415, 4.645, 0.6685, 0.01);
+        let law = FrictionLaw::base(0.401, 0.88);
+        let all = [SensParam::Dyn(DynParam::Dry), SensParam::Q0, SensParam::V0];
+        let run = |t_end: f64, ns: usize, buf: Trajectory| {
+            let opts = SimOptions {
+                sens: all[..ns].to_vec(),
+                ..SimOptions::default()
+            };
+            simulate_reusing(&dof, &law, 1.2, 0.0, &grid(t_end, 500.0), &opts, buf).unwrap()
+        };
+        let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        let mut used = run(9.0, 3, Trajectory::default());
+        for (t_end, ns) in [(4.0, 2), (12.0, 3), (12.0, 0), (3.0, 1), (3.0, 3)] {
+            let fresh = run(t_end, ns, Trajectory::default());
+            used = run(t_end, ns, used);
+            assert_eq!(bits(&used.q), bits(&fresh.q), "{t_end} s, {ns}");
+            assert_eq!(bits(&used.v), bits(&fresh.v));
+            assert_eq!(bits(&used.dq), bits(&fresh.dq));
+            assert_eq!(used.events, fresh.events);
         }
     }
 

@@ -298,6 +298,91 @@ impl Dopri5 {
         self.dense_range(t, 0..self.n, out);
     }
 
+    /// The dense state at each of `times` (inside the last accepted step), split the way a
+    /// simulation keeps it: components 0 and 1 (position and rate) into `q[i]` and `v[i]`,
+    /// components 2 .. 2 + m into row i of `rows` (row-major, m = `rows.len() / times.len()`
+    /// values a sample). The same products as [`Dopri5::dense_range`], to the bit (test
+    /// `dense_rows_are_dense_range_to_the_bit`). Issue 38, session 23: a single joint's fit
+    /// evaluates the dense output at every sample of every evaluation (~17 samples a step on a
+    /// 500 Hz pendulum); one call a sample through a buffer and a copy was a fifth of the fit.
+    pub fn dense_rows(&self, times: &[f64], q: &mut [f64], v: &mut [f64], rows: &mut [f64]) {
+        let n = times.len();
+        if n == 0 {
+            return;
+        }
+        let m = rows.len() / n;
+        assert!(q.len() == n && v.len() == n && rows.len() == n * m && 2 + m <= self.n);
+        // The usual row lengths with the coefficients held in registers across the samples
+        // (a loop of a run-time length over them was half the work of a sample).
+        match m {
+            1 => self.dense_rows_of::<1>(times, q, v, rows),
+            2 => self.dense_rows_of::<2>(times, q, v, rows),
+            3 => self.dense_rows_of::<3>(times, q, v, rows),
+            4 => self.dense_rows_of::<4>(times, q, v, rows),
+            5 => self.dense_rows_of::<5>(times, q, v, rows),
+            6 => self.dense_rows_of::<6>(times, q, v, rows),
+            _ => self.dense_rows_any(times, q, v, rows, m),
+        }
+    }
+
+    /// [`Dopri5::dense_rows`] for rows of `M` values.
+    fn dense_rows_of<const M: usize>(
+        &self,
+        times: &[f64],
+        q: &mut [f64],
+        v: &mut [f64],
+        rows: &mut [f64],
+    ) {
+        let coeffs = |i: usize| -> [f64; M] { std::array::from_fn(|j| self.r[i][2 + j]) };
+        let (c0, c1, c2, c3, c4) = (coeffs(0), coeffs(1), coeffs(2), coeffs(3), coeffs(4));
+        let (hq, hv) = self.head();
+        let states = times.iter().zip(q.iter_mut().zip(v.iter_mut()));
+        for ((&t, (qk, vk)), row) in states.zip(rows.chunks_exact_mut(M)) {
+            let th = (t - self.t_old) / self.h_old;
+            let th1 = 1.0 - th;
+            (*qk, *vk) = (dense_at(th, th1, hq), dense_at(th, th1, hv));
+            for i in 0..M {
+                row[i] = dense_at(th, th1, [c0[i], c1[i], c2[i], c3[i], c4[i]]);
+            }
+        }
+    }
+
+    /// [`Dopri5::dense_rows`] for rows of any length `m` (0 included).
+    fn dense_rows_any(
+        &self,
+        times: &[f64],
+        q: &mut [f64],
+        v: &mut [f64],
+        rows: &mut [f64],
+        m: usize,
+    ) {
+        let (hq, hv) = self.head();
+        let [r0, r1, r2, r3, r4] = &self.r;
+        let (r0, r1, r2, r3, r4) = (
+            &r0[2..2 + m],
+            &r1[2..2 + m],
+            &r2[2..2 + m],
+            &r3[2..2 + m],
+            &r4[2..2 + m],
+        );
+        for (k, (&t, (qk, vk))) in times.iter().zip(q.iter_mut().zip(v.iter_mut())).enumerate() {
+            let th = (t - self.t_old) / self.h_old;
+            let th1 = 1.0 - th;
+            (*qk, *vk) = (dense_at(th, th1, hq), dense_at(th, th1, hv));
+            let row = &mut rows[k * m..(k + 1) * m];
+            for i in 0..m {
+                row[i] = dense_at(th, th1, [r0[i], r1[i], r2[i], r3[i], r4[i]]);
+            }
+        }
+    }
+
+    /// The dense coefficients of components 0 and 1.
+    #[inline(always)]
+    fn head(&self) -> ([f64; 5], [f64; 5]) {
+        let c = |i: usize| std::array::from_fn(|j| self.r[j][i]);
+        (c(0), c(1))
+    }
+
     /// Components `range` of the dense state at `t` into `out[range]`.
     #[inline]
     pub fn dense_range(&self, t: f64, range: std::ops::Range<usize>, out: &mut [f64]) {
@@ -320,9 +405,80 @@ impl Dopri5 {
     }
 }
 
+/// One component of the dense output at θ (θ1 = 1 − θ) from its coefficients r1..r5: the
+/// products of [`Dopri5::dense_range`], in its order.
+#[inline(always)]
+fn dense_at(th: f64, th1: f64, r: [f64; 5]) -> f64 {
+    r[0] + th * (r[1] + th1 * (r[2] + th * (r[3] + th1 * r[4])))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A damped oscillator with `m` riders (each its own decay): a state of 2 + m components.
+    struct Riders(usize);
+    impl OdeSystem for Riders {
+        fn dim(&self) -> usize {
+            2 + self.0
+        }
+        fn rhs(&self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), OdeError> {
+            dy[0] = y[1];
+            dy[1] = -y[0] - 0.3 * y[1] + (3.0 * t).sin();
+            for i in 2..y.len() {
+                dy[i] = -(i as f64) * y[i] + y[0];
+            }
+            Ok(())
+        }
+    }
+
+    /// Issue 38, session 23: the dense output at a run of samples, split into position, rate
+    /// and rows, is `dense_range`'s at each sample to the bit, for 0 to 8 riders, random states
+    /// and steps, and random sample times inside each step (its ends included).
+    #[test]
+    fn dense_rows_are_dense_range_to_the_bit() {
+        let mut rng = crate::numerics::noise::Noise::new(2338);
+        for m in 0..=8 {
+            let sys = Riders(m);
+            let tol = Tolerances {
+                rtol: 1e-6,
+                atol: 1e-9,
+                ..Default::default()
+            };
+            let mut st = Dopri5::new(2 + m, 2, tol);
+            let mut y: Vec<f64> = (0..2 + m).map(|_| rng.normal()).collect();
+            let (mut t, mut h, mut checked) = (rng.uniform(), 0.05, 0);
+            while checked < 40 {
+                match st.step(&sys, t, &mut y, h).unwrap() {
+                    Step::Rejected { h_next } => h = h_next,
+                    Step::Accepted { h: hh, h_next } => {
+                        let k = 1 + (rng.uniform() * 20.0) as usize;
+                        let mut times: Vec<f64> = (0..k).map(|_| t + hh * rng.uniform()).collect();
+                        times.push(t);
+                        times.push(t + hh);
+                        times.sort_by(f64::total_cmp);
+                        let n = times.len();
+                        let (mut q, mut v) = (vec![f64::NAN; n], vec![f64::NAN; n]);
+                        let mut rows = vec![f64::NAN; n * m];
+                        st.dense_rows(&times, &mut q, &mut v, &mut rows);
+                        let mut full = vec![0.0; 2 + m];
+                        for (i, &ti) in times.iter().enumerate() {
+                            st.dense_range(ti, 0..2 + m, &mut full);
+                            assert_eq!(q[i].to_bits(), full[0].to_bits(), "m {m} q at {ti}");
+                            assert_eq!(v[i].to_bits(), full[1].to_bits(), "m {m} v at {ti}");
+                            for j in 0..m {
+                                let (a, b) = (rows[i * m + j], full[2 + j]);
+                                assert_eq!(a.to_bits(), b.to_bits(), "m {m} row {j} at {ti}");
+                            }
+                        }
+                        t += hh;
+                        h = h_next;
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
 
     /// y'' = -y: y = cos t.
     struct Osc;

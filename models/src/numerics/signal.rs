@@ -143,6 +143,23 @@ pub fn resolution(y: &[f64]) -> f64 {
     }
 }
 
+/// Whether every spacing of `t` is within 1e-6·`dt` of `dt`: `t.windows(2).all(|w| ((w[1] −
+/// w[0]) − dt).abs() ≤ 1e-6·dt)`, the same answer for every input (NaN included), judged 16
+/// spacings at a time without a branch each (issue 38, session 23: four passes over the record
+/// a pendulum fit, 12 instructions a sample each).
+pub fn evenly_spaced(t: &[f64], dt: f64) -> bool {
+    if t.len() < 2 {
+        return true;
+    }
+    let tol = 1e-6 * dt;
+    let (a, b) = (&t[..t.len() - 1], &t[1..]);
+    a.chunks(16).zip(b.chunks(16)).all(|(a, b)| {
+        a.iter()
+            .zip(b)
+            .fold(true, |ok, (&x, &y)| ok & (((y - x) - dt).abs() <= tol))
+    })
+}
+
 /// Half-window (in samples) that spans about `seconds`, from the median sample spacing.
 pub fn half_window(t: &[f64], seconds: f64) -> usize {
     if t.len() < 3 {
@@ -153,10 +170,7 @@ pub fn half_window(t: &[f64], seconds: f64) -> usize {
     // calls per fit were 3.5 % of a pendulum's identification).
     let n = t.len();
     let mean = (t[n - 1] - t[0]) / (n - 1) as f64;
-    if mean > 0.0
-        && t.windows(2)
-            .all(|w| ((w[1] - w[0]) - mean).abs() <= 1e-6 * mean)
-    {
+    if mean > 0.0 && evenly_spaced(t, mean) {
         return ((seconds / 2.0 / mean).round() as usize).clamp(2, n / 2);
     }
     let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
@@ -168,6 +182,44 @@ pub fn half_window(t: &[f64], seconds: f64) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 38, session 23: the chunked evenness test answers as the pairwise one on even
+    /// grids, grids with one spacing off (anywhere, by just over and just under the tolerance),
+    /// NaN and infinite times, and every length 0 to 40.
+    #[test]
+    fn evenly_spaced_is_the_pairwise_test() {
+        let pairwise = |t: &[f64], dt: f64| {
+            t.windows(2)
+                .all(|w| ((w[1] - w[0]) - dt).abs() <= 1e-6 * dt)
+        };
+        let mut rng = crate::numerics::noise::Noise::new(23);
+        let mut cases = 0;
+        for n in 0..=40usize {
+            let fs = 100.0 + 900.0 * rng.uniform();
+            let even: Vec<f64> = (0..n).map(|i| i as f64 / fs).collect();
+            let dt = 1.0 / fs;
+            let mut grids = vec![even.clone()];
+            for k in 1..n {
+                for (off, bad) in [(1.5e-6, f64::NAN), (0.5e-6, f64::INFINITY)] {
+                    let mut g = even.clone();
+                    for x in &mut g[k..] {
+                        *x += off * dt;
+                    }
+                    grids.push(g);
+                    let mut g = even.clone();
+                    g[k] = bad;
+                    grids.push(g);
+                }
+            }
+            for g in &grids {
+                for d in [dt, dt * (1.0 + 1e-5), f64::NAN] {
+                    assert_eq!(evenly_spaced(g, d), pairwise(g, d), "n {n}, {g:?}, {d}");
+                    cases += 1;
+                }
+            }
+        }
+        assert!(cases > 4000);
+    }
 
     #[test]
     fn a_logger_step_is_read_off_the_data_and_continuous_readings_have_none() {
@@ -232,10 +284,7 @@ pub fn local_cubic_at(t: &[f64], y: &[f64], idx: &[usize], half: usize) -> Vec<(
         return idx.iter().map(|&i| local_cubic(t, y, i, half)).collect();
     }
     let dt = (t[n - 1] - t[0]) / (n - 1) as f64;
-    let even = t
-        .windows(2)
-        .all(|w| ((w[1] - w[0]) - dt).abs() <= 1e-6 * dt);
-    if !even {
+    if !evenly_spaced(t, dt) {
         return idx.iter().map(|&i| local_cubic(t, y, i, half)).collect();
     }
     // Weights: the local cubic's coefficients are linear in y; apply it to unit impulses once.
@@ -267,10 +316,7 @@ pub fn local_cubic_rate_at(t: &[f64], y: &[f64], idx: &[usize], half: usize) -> 
         return idx.iter().map(|&i| local_cubic(t, y, i, half).1).collect();
     }
     let dt = (t[n - 1] - t[0]) / (n - 1) as f64;
-    let even = t
-        .windows(2)
-        .all(|w| ((w[1] - w[0]) - dt).abs() <= 1e-6 * dt);
-    if !even {
+    if !evenly_spaced(t, dt) {
         return idx.iter().map(|&i| local_cubic(t, y, i, half).1).collect();
     }
     let m = 2 * half + 1;
