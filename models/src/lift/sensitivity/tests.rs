@@ -180,3 +180,63 @@ fn sensitivities_match_finite_differences(compliant: bool) {
         );
     }
 }
+
+/// Φ computed where W is and reused by a step's inner stages (`SensSys::step_phi`), against Φ
+/// at every stage, on the raise-and-lower record at the fit's tolerance, the rigid drive and a
+/// compliant one (k 8000 N·m/rad, c 50 N·m·s/rad, J_d 3 kg·m², its parameters among the
+/// sensitivities): the same steps and H to the bit (Φ is not in the state's equations), and
+/// every sensitivity within 1 % of its largest value of the every-stage run (the fit's own
+/// tolerance against a tight run is 2 %: the test above).
+#[test]
+fn reusing_phi_within_a_step_keeps_h_and_moves_sensitivities_under_one_percent() {
+    use crate::lift::dynamics::DriveCompliance;
+    use crate::lift::identify::LiftFitOptions;
+    use crate::lift::protocol::{LiftProtocol, record};
+    let g = builtin_160ec();
+    let rigid = LiftModel::new(g);
+    let protocol = LiftProtocol::raise_and_lower(&rigid, g).unwrap();
+    let rec = record(&rigid, &protocol, &SimOptions::default()).unwrap();
+    let inputs = rec.inputs();
+    let opts = LiftFitOptions::default().sim;
+    let mut compliant = rigid.clone();
+    compliant.drive_compliance = Some(DriveCompliance {
+        stiffness_nm_per_rad: 8000.0,
+        damping_nms_per_rad: 50.0,
+        inertia_kgm2: 3.0,
+    });
+    let mut drive_params = LiftParam::all();
+    drive_params.extend([
+        LiftParam::DriveInertia,
+        LiftParam::DriveStiffness,
+        LiftParam::DriveDamping,
+    ]);
+    for (model, params) in [(&rigid, LiftParam::all()), (&compliant, drive_params)] {
+        let run = |reuse: bool| {
+            let mut ws = SensWorkspace::default();
+            run_in(&mut ws, model, &inputs, &params, 0.0, &opts, reuse).unwrap();
+            ws.run
+        };
+        let (reused, fresh) = (run(true), run(false));
+        assert_eq!(reused.steps, fresh.steps);
+        assert_eq!(reused.rhs_evaluations, fresh.rhs_evaluations);
+        assert!(
+            reused
+                .strip_height_m
+                .iter()
+                .zip(&fresh.strip_height_m)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "H the same to the bit"
+        );
+        let p = params.len();
+        for (i, prm) in params.iter().enumerate() {
+            let (mut worst, mut scale): (f64, f64) = (0.0, 0.0);
+            for k in 0..rec.t_s.len() {
+                let (a, b) = (reused.d_height[k * p + i], fresh.d_height[k * p + i]);
+                worst = worst.max((a - b).abs());
+                scale = scale.max(b.abs());
+            }
+            eprintln!("{}.{}: {:.1e}", prm.joint(), prm.kind(), worst / scale);
+            assert!(worst <= 1e-2 * scale, "{prm:?}: {worst} of {scale}");
+        }
+    }
+}
