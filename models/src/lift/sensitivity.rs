@@ -11,7 +11,7 @@
 
 use std::cell::Cell;
 
-use super::dynamics::{DynamicsError, LiftModel, N_Q, Q_DRIVE, Q_SLIDE, State};
+use super::dynamics::{DynamicsError, LiftModel, Q_DRIVE, Q_SLIDE, State};
 use super::integrate::{Segmented, integrate};
 use super::kinematics::HeadKin;
 use super::simulate::{LiftInputs, SimError, SimOptions, initial_deflection_rad, initial_state};
@@ -213,12 +213,6 @@ const FD_STEP: [f64; 4] = [1e-8, 1e-9, 1e-9, 1e-9];
 /// factor's estimates; a factor of 100 breaks (H off by 3 mm).
 const RATE_ATOL_FACTOR: f64 = 10.0;
 
-/// The loosest integration that computes Φ at every stage ([`SensSys::step_phi`]): a run asked
-/// for rtol under 10⁻⁶ gets sensitivities exact to its tolerance (the finite-difference tests
-/// at 10⁻⁹ hold them to 10⁻⁴ relative; Φ held over a step is 1.7·10⁻⁴ off there); the fit's
-/// runs (rtol 10⁻⁵, `LiftFitOptions::default`) reuse it.
-const REUSE_PHI_MIN_RTOL: f64 = 1e-6;
-
 struct SensSys<'a> {
     model: &'a LiftModel,
     inputs: &'a LiftInputs<'a>,
@@ -227,11 +221,6 @@ struct SensSys<'a> {
     fm_n: f64,
     /// Friction torques of the last evaluation: the next fixed point's starting guess.
     last_torque: Cell<Option<[f64; N_REV]>>,
-    /// Φ ([`LiftModel::response`]) at the current step's start: the last evaluation that also
-    /// gave W. The step's inner stages reuse it ([`SensSys::eval`]).
-    step_phi: Cell<Option<[[f64; N_Q]; 2]>>,
-    /// Whether the inner stages reuse `step_phi` (always, but in the test that measures it).
-    reuse_phi: bool,
 }
 
 impl Segmented for SensSys<'_> {
@@ -255,7 +244,6 @@ impl SensSys<'_> {
     ) -> Result<(), DynamicsError> {
         let m = self.model;
         let ns = m.n_state();
-        let want_w = w.is_some();
         let s = State {
             alpha_rad: y[0],
             h_m: y[1],
@@ -285,32 +273,14 @@ impl SensSys<'_> {
         // The fixed point starts from the last evaluation's torques (a nearby state: the
         // previous stage); it converges to the same 10⁻¹⁴ tolerance from any start.
         let guess = self.last_torque.get();
-        let e = m.eval_with_head(&pose, &head, &s, &loads, guess.as_ref())?;
+        let (e, kane) = m.eval_with_kane(&pose, &head, &s, &loads, guess.as_ref())?;
         let acc = [e.alpha_ddot_rad_s2, e.h_ddot_m_s2];
         let mut torque = [0.0; N_REV];
         for i in 0..N_REV {
             torque[i] = e.viscous_torque_nm[i] + e.dry_torque_nm[i];
         }
         self.last_torque.set(Some(torque));
-        // Φ enters the sensitivities only (the state's derivative is `acc`, fully iterated,
-        // and W is formed only where Φ is fresh): computed where W is (a step's start — the
-        // last accepted step's end), reused by the step's three inner stages, as the
-        // Rosenbrock-W method already holds W there. Its ten reaction recoveries were a fifth
-        // of a lift fit's instructions (callgrind, docs/PERFORMANCE.md "Session 23"). Assumed:
-        // Φ (the response to the friction inputs, with the normal-force feedback) changes
-        // little over one step the state's error control accepted; the sensitivities stay
-        // within `tests::at_the_fit_tolerance_…`'s 2 % of a tight run. The state, the steps
-        // and H are the same to the bit (the step's rejection by a stage's failing Φ aside).
-        let phi = match (want_w || !self.reuse_phi, self.step_phi.get()) {
-            (false, Some(phi)) => phi,
-            _ => {
-                let phi = m.response(&pose, &head, &s, &loads, &e)?;
-                if want_w {
-                    self.step_phi.set(Some(phi));
-                }
-                phi
-            }
-        };
+        let phi = m.response(&pose, &head, &s, &loads, &e, &kane)?;
         // State Jacobian of the accelerations, one column per state component: one-sided
         // differences of the accelerations linearised in the friction torques about this
         // evaluation (`accelerations_near`: first-order exact, one reaction recovery each).
@@ -632,20 +602,6 @@ pub fn simulate_sensitivities_in<'w>(
     offset_nm: f64,
     opts: &SimOptions,
 ) -> Result<&'w SensitivityRun, SimError> {
-    run_in(ws, model, inputs, params, offset_nm, opts, true)
-}
-
-/// [`simulate_sensitivities_in`]; `reuse_phi` false computes Φ at every stage (the test of
-/// [`SensSys::step_phi`]'s reuse).
-fn run_in<'w>(
-    ws: &'w mut SensWorkspace,
-    model: &LiftModel,
-    inputs: &LiftInputs,
-    params: &[LiftParam],
-    offset_nm: f64,
-    opts: &SimOptions,
-    reuse_phi: bool,
-) -> Result<&'w SensitivityRun, SimError> {
     inputs.validate()?;
     let n = inputs.t_s.len();
     let p = params.len();
@@ -701,8 +657,6 @@ fn run_in<'w>(
         offset_nm,
         fm_n: inputs.fm(0),
         last_torque: Cell::new(None),
-        step_phi: Cell::new(None),
-        reuse_phi: reuse_phi && opts.rtol >= REUSE_PHI_MIN_RTOL,
     };
     let out = &mut ws.run;
     out.strip_height_m.clear();
