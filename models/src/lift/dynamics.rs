@@ -308,6 +308,20 @@ impl LiftModel {
         loads: &Loads,
         guess: Option<&[f64; N_REV]>,
     ) -> Result<Eval, DynamicsError> {
+        self.eval_with_kane(pose, head, s, loads, guess)
+            .map(|(e, _)| e)
+    }
+
+    /// [`LiftModel::eval_with_head`] and the [`LiftModel::kane`] it solved, for a caller that
+    /// needs both at the same state ([`LiftModel::response`]'s, the same value to the bit).
+    pub(super) fn eval_with_kane(
+        &self,
+        pose: &LinkagePose,
+        head: &HeadKin,
+        s: &State,
+        loads: &Loads,
+        guess: Option<&[f64; N_REV]>,
+    ) -> Result<(Eval, Kane), DynamicsError> {
         let ad = s.alpha_dot_rad_s;
         let f = &self.friction;
         let k = self.kane(pose, head, s, loads);
@@ -390,7 +404,7 @@ impl LiftModel {
                 e.sign = sgn;
                 // One more pass is not needed: the accelerations above used torques within
                 // the tolerance of the ones stored.
-                return Ok(e);
+                return Ok((e, k));
             }
         }
         Err(DynamicsError::FrictionNotConverged {
@@ -461,6 +475,10 @@ impl LiftModel {
     /// δq_total = (I − C)⁻¹ δq, C_jl = μ_j R_j σ_j n̂_j·∂f_j/∂q_l. Returns
     /// ∂(α̈, ḧ)/∂q = A (I − C)⁻¹ (2 × [`N_Q`]). Everything is affine in q at a fixed state,
     /// so the columns of ∂f/∂q are exact differences of reaction recoveries.
+    ///
+    /// `k`: [`LiftModel::kane`] at (pose, head, s, loads), as [`LiftModel::eval_with_kane`]
+    /// returned it with `e`.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn response(
         &self,
         pose: &LinkagePose,
@@ -468,8 +486,8 @@ impl LiftModel {
         s: &State,
         loads: &Loads,
         e: &Eval,
+        k: &Kane,
     ) -> Result<[[f64; N_Q]; 2], DynamicsError> {
-        let k = self.kane(pose, head, s, loads);
         let det = k.m_aa * k.m_hh - k.m_ah * k.m_ah;
         // M⁻¹ applied to a generalised-force change (δb_α, δb_h).
         let minv = |ba: f64, bh: f64| {

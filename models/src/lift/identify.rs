@@ -20,7 +20,7 @@ pub use super::fit::{
     LiftFitOptions, LiftTrace, POOLED_INTERVAL_SCALE, POOLED_PER_TRACE, ParamEstimate, PooledGauge,
     effect_prior,
 };
-use super::inputs::{InputReconstruction, reconstruct};
+use super::inputs::{InputReconstruction, reconstruct_cached};
 // Re-exported for the fits that took it from here (`design`, `quadrangle::identify`).
 pub(crate) use super::posterior::inverse_spd;
 use super::posterior::{correlation, pinv};
@@ -262,7 +262,7 @@ pub fn fit_map_in(
     // integrator's step control (issue 15; `lift::inputs` states the assumptions).
     let rebuilt = traces
         .iter()
-        .map(|t| reconstruct(&t.inputs, &opts.inputs))
+        .map(|t| reconstruct_cached(&t.inputs, &opts.inputs))
         .collect::<Result<Vec<_>, _>>()?;
     let traces: Vec<LiftTrace> = traces
         .iter()

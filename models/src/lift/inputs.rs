@@ -188,6 +188,68 @@ pub fn reconstruct(
     })
 }
 
+/// Reconstructions kept by [`reconstruct_cached`]: the loop's fits of one lift (plain, the
+/// absorption check, the held-out tests, every candidate's refits: 10–40 fits) on the worker's
+/// threads, and a few other lifts fitted at once.
+const CACHED: usize = 8;
+
+/// The inputs and options of a reconstruction, kept with its result.
+struct Cached {
+    t_s: Vec<f64>,
+    torque_nm: Vec<f64>,
+    fs_n: Vec<f64>,
+    fm_n: Vec<f64>,
+    opts: InputOptions,
+    out: ReconstructedInputs,
+}
+
+impl Cached {
+    /// The same inputs to the bit (a NaN-free record: `reconstruct` validated it).
+    fn holds(&self, inputs: &LiftInputs, opts: &InputOptions) -> bool {
+        let same = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+        };
+        self.opts == *opts
+            && same(&self.t_s, inputs.t_s)
+            && same(&self.torque_nm, inputs.torque_nm)
+            && same(&self.fs_n, inputs.fs_n)
+            && same(&self.fm_n, inputs.fm_n)
+    }
+}
+
+static CACHE: std::sync::Mutex<Vec<Cached>> = std::sync::Mutex::new(Vec::new());
+
+/// [`reconstruct`], answered from the last [`CACHED`] reconstructions when the same inputs (to
+/// the bit) and options come again: every fit of a lift's loop reconstructs the same record
+/// (`identify::fit_map_in`), which was 4 % of a loop's instructions (callgrind,
+/// docs/PERFORMANCE.md "Session 23"). The answer is the same value `reconstruct` gives
+/// (deterministic, a pure function of its arguments); comparing costs one pass over the record.
+pub fn reconstruct_cached(
+    inputs: &LiftInputs,
+    opts: &InputOptions,
+) -> Result<ReconstructedInputs, SimError> {
+    if let Ok(cache) = CACHE.lock()
+        && let Some(c) = cache.iter().find(|c| c.holds(inputs, opts))
+    {
+        return Ok(c.out.clone());
+    }
+    let out = reconstruct(inputs, opts)?;
+    if let Ok(mut cache) = CACHE.lock() {
+        if cache.len() >= CACHED {
+            cache.remove(0);
+        }
+        cache.push(Cached {
+            t_s: inputs.t_s.to_vec(),
+            torque_nm: inputs.torque_nm.to_vec(),
+            fs_n: inputs.fs_n.to_vec(),
+            fm_n: inputs.fm_n.to_vec(),
+            opts: *opts,
+            out: out.clone(),
+        });
+    }
+    Ok(out)
+}
+
 /// Median of `v` (reordered; empty → NaN).
 fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {

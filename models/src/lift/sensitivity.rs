@@ -273,14 +273,14 @@ impl SensSys<'_> {
         // The fixed point starts from the last evaluation's torques (a nearby state: the
         // previous stage); it converges to the same 10⁻¹⁴ tolerance from any start.
         let guess = self.last_torque.get();
-        let e = m.eval_with_head(&pose, &head, &s, &loads, guess.as_ref())?;
+        let (e, kane) = m.eval_with_kane(&pose, &head, &s, &loads, guess.as_ref())?;
         let acc = [e.alpha_ddot_rad_s2, e.h_ddot_m_s2];
         let mut torque = [0.0; N_REV];
         for i in 0..N_REV {
             torque[i] = e.viscous_torque_nm[i] + e.dry_torque_nm[i];
         }
         self.last_torque.set(Some(torque));
-        let phi = m.response(&pose, &head, &s, &loads, &e)?;
+        let phi = m.response(&pose, &head, &s, &loads, &e, &kane)?;
         // State Jacobian of the accelerations, one column per state component: one-sided
         // differences of the accelerations linearised in the friction torques about this
         // evaluation (`accelerations_near`: first-order exact, one reaction recovery each).

@@ -76,3 +76,55 @@ fn power_balance_holds() {
         "dE/dt {de_dt} vs drive {drive} − loss {loss}"
     );
 }
+
+/// `eval_with_kane` hands the response the Kane it solved: at moving, resting and
+/// head-bouncing states (a Stribeck excess on J3, head drag on) the Kane, the evaluation and
+/// Φ are the same to the bit as assembled afresh (`kane`, `eval_with_head`), so the
+/// sensitivities a fit reads are those of before.
+#[test]
+fn the_kane_handed_to_the_response_is_the_one_it_would_assemble() {
+    let mut m = model();
+    m.stribeck_excess[RevJoint::J3.index()] = 0.3;
+    m.head_drag_ns2_per_m2 = 3.0;
+    for (a, ad, h, hd) in [
+        (0.2, 0.4, -0.005, 0.03),
+        (0.45, -0.7, 0.002, -0.05),
+        (0.3, 1e-5, 0.0, -1e-4),
+    ] {
+        let pose = m.linkage.pose(a).unwrap();
+        let s = State {
+            alpha_rad: a,
+            h_m: h,
+            alpha_dot_rad_s: ad,
+            h_dot_m_s: hd,
+        };
+        let head = m.linkage.head(&pose, h, ad, hd);
+        let loads = Loads {
+            drive_torque_nm: 1050.0,
+            strip_load_n: 90.0,
+        };
+        let (e, k) = m.eval_with_kane(&pose, &head, &s, &loads, None).unwrap();
+        let fresh = m.kane(&pose, &head, &s, &loads);
+        let bits = |k: &Kane| [k.m_aa, k.m_ah, k.m_hh, k.b_a, k.b_h, k.f_axial].map(f64::to_bits);
+        assert_eq!(bits(&k), bits(&fresh));
+        let e0 = m.eval_with_head(&pose, &head, &s, &loads, None).unwrap();
+        assert_eq!(
+            e.alpha_ddot_rad_s2.to_bits(),
+            e0.alpha_ddot_rad_s2.to_bits()
+        );
+        assert_eq!(e.h_ddot_m_s2.to_bits(), e0.h_ddot_m_s2.to_bits());
+        let phi = m.response(&pose, &head, &s, &loads, &e, &k).unwrap();
+        let phi0 = m.response(&pose, &head, &s, &loads, &e0, &fresh).unwrap();
+        assert_eq!(
+            phi.as_flattened()
+                .iter()
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>(),
+            phi0.as_flattened()
+                .iter()
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>()
+        );
+        assert!(phi.as_flattened().iter().all(|v| v.is_finite()));
+    }
+}

@@ -261,3 +261,78 @@ fn noisy_input_fits_flag_a_j3_dry_drift_within_its_interval() {
 fn noise_base_torque() -> f64 {
     LiftSensorNoise::realistic().torque_sd_nm
 }
+
+/// `reconstruct_cached` gives `reconstruct`'s answer to the bit, from its store or not, for
+/// noisy records (σ 1 N·m on T, 0.2 N on Fs and Fm, seeds 0–2, each asked twice, the seeds
+/// interleaved); a record one torque sample apart (0.05 N·m, the logger's step) is not taken
+/// for a stored one; nor are other options.
+#[test]
+fn cached_reconstructions_are_the_same_to_the_bit() {
+    let t = times();
+    let truth: Vec<f64> = t.iter().map(|&t| smooth_with_step(t)).collect();
+    let weight: Vec<f64> = t
+        .iter()
+        .map(|&t| if t < 0.0 { 78.5 } else { 0.0 })
+        .collect();
+    let records: Vec<[Vec<f64>; 3]> = (0..3)
+        .map(|seed| {
+            let mut rng = Noise::new(100 + seed);
+            let mut noisy = |x: &[f64], sd: f64, step: f64| -> Vec<f64> {
+                x.iter()
+                    .map(|v| ((v + sd * rng.normal()) / step).round() * step)
+                    .collect()
+            };
+            [
+                noisy(&truth, 1.0, 0.05),
+                noisy(&vec![18.0; t.len()], 0.2, 0.02),
+                noisy(&weight, 0.2, 0.02),
+            ]
+        })
+        .collect();
+    let bits = |r: &ReconstructedInputs| -> Vec<u64> {
+        [&r.t_s, &r.torque_nm, &r.fs_n, &r.fm_n]
+            .iter()
+            .flat_map(|v| v.iter().map(|x| x.to_bits()))
+            .collect()
+    };
+    fn view<'a>(t: &'a [f64], r: &'a [Vec<f64>; 3]) -> LiftInputs<'a> {
+        LiftInputs {
+            t_s: t,
+            torque_nm: &r[0],
+            fs_n: &r[1],
+            fm_n: &r[2],
+        }
+    }
+    let opts = InputOptions::default();
+    for _ in 0..2 {
+        for r in &records {
+            let fresh = reconstruct(&view(&t, r), &opts).unwrap();
+            let cached = reconstruct_cached(&view(&t, r), &opts).unwrap();
+            assert_eq!(bits(&fresh), bits(&cached));
+            assert_eq!(fresh.info, cached.info);
+        }
+    }
+    let mut moved = records[0].clone();
+    moved[0][2000] += 0.05;
+    let fresh = reconstruct(&view(&t, &moved), &opts).unwrap();
+    let cached = reconstruct_cached(&view(&t, &moved), &opts).unwrap();
+    assert_eq!(bits(&fresh), bits(&cached));
+    let stored = reconstruct_cached(&view(&t, &records[0]), &opts).unwrap();
+    assert_ne!(
+        bits(&stored),
+        bits(&cached),
+        "a moved sample changes the answer"
+    );
+    let other = InputOptions {
+        cutoff_hz: 5.0,
+        ..opts
+    };
+    let fresh = reconstruct(&view(&t, &records[0]), &other).unwrap();
+    let cached = reconstruct_cached(&view(&t, &records[0]), &other).unwrap();
+    assert_eq!(bits(&fresh), bits(&cached));
+    assert_ne!(
+        bits(&stored),
+        bits(&cached),
+        "other options, another answer"
+    );
+}
