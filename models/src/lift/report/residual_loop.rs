@@ -25,11 +25,24 @@ pub(super) fn residual_loop(
     meter.mark("reported_only");
     result.fit.absorption = absorption.as_ref().map(|a| a.to_result());
     let absorbed = absorption.as_ref().filter(|a| a.fired());
-    let try_effects = absorbed.is_some()
-        || result
-            .residual
-            .excess_ratio
-            .is_some_and(|r| r > super::super::residual::EFFECT_TRY_RATIO);
+    // The effect-free fit that leaves the record closest judges it (session 23). The reported-
+    // only refit is nested in the plain fit (the same model, fewer parameters free), so where it
+    // leaves less the plain fit stopped short of its optimum, and its excess is the optimiser's,
+    // not the record's: the vocabulary is then tried (or not) as that refit calls for — issue
+    // 36, point 1: an effect is detectable when the reported-only refit leaves ≥ 2× the noise.
+    // Measured (`examples/lift_loop_probe rl 1 400 1 j9stiff:3`): head springs 3× stiffer, plain
+    // fit 3.48× (over the gate) while the reported-only refit left 1.09×; the vocabulary, tried
+    // with every joint free from the plain fit, named a 7.1 mm `sensor_offset` (outside the
+    // vocabulary: a wrong name). And (`rl 2 400 1 delay:20`) a 20 ms delay: plain 6.6×, the
+    // reported-only 3.8×; the delay refitted from the plain fit left a phase at 1.35×, not named.
+    let plain_rms_m = fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
+    let nested_better = absorption.as_ref().is_some_and(|a| a.rms_m < plain_rms_m);
+    let effect_free_ratio = match &absorption {
+        Some(a) if nested_better => a.ratio,
+        _ => plain_ratio,
+    };
+    let try_effects =
+        absorbed.is_some() || effect_free_ratio > super::super::residual::EFFECT_TRY_RATIO;
     if !try_effects {
         // Nothing to judge: the held-out test is run only where an effect is tried. Measured
         // (`bench suite --only fits,fleet --lift-seeds 12`): run on every lift it doubled the
@@ -54,7 +67,8 @@ pub(super) fn residual_loop(
     // the check, and the vocabulary is tried as before, every joint free: against the
     // reported-only model a Stribeck ×1.2 with J3 dry ×2 was named a 41 mm `sensor_offset`
     // (`residual::tests`), the drift left out of the model taken for an effect.
-    let gated = plain_ratio > super::super::residual::MODEL_ERROR_RATIO;
+    // Not where the reported-only refit left less (`nested_better`, above): that is the base.
+    let gated = plain_ratio > super::super::residual::MODEL_ERROR_RATIO && !nested_better;
     let restricted = absorption.as_ref().filter(|_| !gated);
     // The search runs on the model the reported-only refit held the other joints in (their
     // prior means: Table 4, or a fleet prior's).
@@ -117,9 +131,18 @@ pub(super) fn residual_loop(
     // (−10 mm: 5× the noise, `residual::tests`); tried there, it was the wrong name for a 2 %
     // spring-force gain error and a 2 % heavier head on the paper's raise (seeds 0–1 and
     // 200–202).
+    //
+    // On a record that lowers the strip it is tried there (session 23): friction's torque
+    // reverses with the direction of motion and an H offset's reading does not, so a record
+    // moving both ways tells the offset from the J1+J3 level that absorbs it on a raise.
+    // Measured (`examples/lift_loop_probe rl 2 401 1 offset:10`): a +10 mm offset left the
+    // reported-only refit at 3.1× (detectable), the plain fit 1.6× (under the gate): with the
+    // offset never tried the lift ended `unexplained`. The offset's size rule and the phase
+    // judge (`absorbed::judge`) still refuse a gain error read as one.
+    let lowers = super::super::absorbed::judge::lowers(channels.t_s, &fitted_height_m);
     let order: Vec<Candidate> = order
         .into_iter()
-        .filter(|c| restricted.is_none() || !matches!(c, Candidate::Offset))
+        .filter(|c| restricted.is_none() || lowers || !matches!(c, Candidate::Offset))
         .collect();
     let mut best: Option<(f64, Named, Candidate)> = None;
     // The candidates' refits run ahead of this loop on other threads (`tried_in_order`: the
@@ -185,8 +208,21 @@ pub(super) fn residual_loop(
     let mut found = found;
     let mut fixed = None;
     if restricted.is_some() {
+        // Taken only where it leaves no more than the search's fit (session 23): the search's
+        // model (the unreported joints at their prior means) is nested in it, so leaving more
+        // it stopped in the plain fit's basin, where the joints had absorbed the effect, and the
+        // fit started from the search's (below) reports the effect. Measured
+        // (`examples/lift_loop_probe rl 1 402 1 stribeck:0.5`, `rl 2 400 1 delay:20`): the search
+        // left 0.72× and 1.03×, the refit from the plain fit 1.15× with a phase over the judge's
+        // 1.35× — both right names turned down.
+        let search_rms_m = found.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
         match try_candidate(chosen, model, &trace, &fit, &opts)? {
-            Some(f) if f.excess_ratio < super::super::absorbed::ABSORBED_RATIO => found = f,
+            Some(f)
+                if f.excess_ratio < super::super::absorbed::ABSORBED_RATIO
+                    && f.fit.rmse_m.first().is_some_and(|r| *r <= search_rms_m) =>
+            {
+                found = f
+            }
             _ => {
                 fixed = super::super::absorbed::fixed_effect_refit(
                     model,
