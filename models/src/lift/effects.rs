@@ -71,7 +71,7 @@ pub const MIN_IMPROVEMENT: f64 = 0.5;
 /// σ̂ 1.0 mm (1.5×), a drag refit to 1.14 mm: under the halved excess (1.15 mm), a wrong name.
 pub fn pass_rms_m(base_rms_m: f64, noise_m: f64, floor_m: f64) -> f64 {
     let s = if noise_m.is_finite() { noise_m } else { 0.0 };
-    if !(base_rms_m >= DETECTABLE_RATIO * s.max(floor_m)) {
+    if base_rms_m.is_nan() || base_rms_m < DETECTABLE_RATIO * s.max(floor_m) {
         return MIN_IMPROVEMENT * base_rms_m;
     }
     let excess2 = (base_rms_m * base_rms_m - s * s).max(0.0);
