@@ -146,6 +146,7 @@ pub(super) fn residual_loop(
         .filter(|c| restricted.is_none() || lowers || !matches!(c, Candidate::Offset))
         .collect();
     let mut best: Option<(f64, Named, Candidate)> = None;
+    let mut too_big_offset: Option<String> = None;
     // The candidates' refits run ahead of this loop on other threads (`tried_in_order`: the
     // same refits, the same order of judging, the spare ones cancelled once it stops).
     let try_one = |c: Candidate| try_candidate(c, base_model, &trace, base_fit, base_opts);
@@ -166,6 +167,24 @@ pub(super) fn residual_loop(
                     || e.ci95[1] < -super::super::absorbed::judge::MAX_NAMED_OFFSET_M)
         });
         if too_big {
+            // Said, if nothing is named (the record cannot tell it from a gain error).
+            let near: Vec<(LiftParam, f64)> = found
+                .fit
+                .effects
+                .iter()
+                .map(|e| {
+                    (
+                        e.param,
+                        if e.ci95[0] > 0.0 {
+                            e.ci95[0]
+                        } else {
+                            e.ci95[1]
+                        },
+                    )
+                })
+                .collect();
+            too_big_offset =
+                super::super::absorbed::judge::objection(found.name, &near, &[], &[], &[], 0.0);
             return Ok(ControlFlow::Continue(()));
         }
         // The named model must pass the check itself.
@@ -204,7 +223,17 @@ pub(super) fn residual_loop(
     let Some((_, Named { found, hold_after }, chosen)) = best else {
         // Nothing named: an absorbed effect leaves the lift `unexplained`, never clean.
         if let Some(a) = absorbed {
-            super::super::absorbed::withhold_all(&mut result, a.reason());
+            let reason = match &too_big_offset {
+                Some(why) => format!("{} ({why})", a.reason()),
+                None => a.reason(),
+            };
+            super::super::absorbed::withhold_all(&mut result, reason);
+        } else if let Some(why) = too_big_offset.filter(|_| result.residual.verdict.is_some()) {
+            let w = result.residual.joints_withheld.take();
+            result.residual.joints_withheld = Some(match w {
+                Some(gate) => format!("{gate}; no named effect explains the record: {why}"),
+                None => format!("no named effect explains the record: {why}"),
+            });
         }
         return Ok(LiftReport {
             result,
