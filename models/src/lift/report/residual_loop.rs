@@ -1,6 +1,7 @@
 //! The lift's residual loop: the plain fit judged against the noise, the vocabulary tried on
 //! the reported-only model, held-out tests, and the named effect's result or `unexplained`.
 
+use super::candidates::Found;
 use super::*;
 
 /// [`fit_lift_trace`] up to the named effect or `unexplained`.
@@ -25,11 +26,24 @@ pub(super) fn residual_loop(
     meter.mark("reported_only");
     result.fit.absorption = absorption.as_ref().map(|a| a.to_result());
     let absorbed = absorption.as_ref().filter(|a| a.fired());
-    let try_effects = absorbed.is_some()
-        || result
-            .residual
-            .excess_ratio
-            .is_some_and(|r| r > super::super::residual::EFFECT_TRY_RATIO);
+    // The effect-free fit that leaves the record closest judges it (session 23). The reported-
+    // only refit is nested in the plain fit (the same model, fewer parameters free), so where it
+    // leaves less the plain fit stopped short of its optimum, and its excess is the optimiser's,
+    // not the record's: the vocabulary is then tried (or not) as that refit calls for — issue
+    // 36, point 1: an effect is detectable when the reported-only refit leaves ≥ 2× the noise.
+    // Measured (`examples/lift_loop_probe rl 1 400 1 j9stiff:3`): head springs 3× stiffer, plain
+    // fit 3.48× (over the gate) while the reported-only refit left 1.09×; the vocabulary, tried
+    // with every joint free from the plain fit, named a 7.1 mm `sensor_offset` (outside the
+    // vocabulary: a wrong name). And (`rl 2 400 1 delay:20`) a 20 ms delay: plain 6.6×, the
+    // reported-only 3.8×; the delay refitted from the plain fit left a phase at 1.35×, not named.
+    let plain_rms_m = fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
+    let nested_better = absorption.as_ref().is_some_and(|a| a.rms_m < plain_rms_m);
+    let effect_free_ratio = match &absorption {
+        Some(a) if nested_better => a.ratio,
+        _ => plain_ratio,
+    };
+    let try_effects =
+        absorbed.is_some() || effect_free_ratio > super::super::residual::EFFECT_TRY_RATIO;
     if !try_effects {
         // Nothing to judge: the held-out test is run only where an effect is tried. Measured
         // (`bench suite --only fits,fleet --lift-seeds 12`): run on every lift it doubled the
@@ -54,7 +68,8 @@ pub(super) fn residual_loop(
     // the check, and the vocabulary is tried as before, every joint free: against the
     // reported-only model a Stribeck ×1.2 with J3 dry ×2 was named a 41 mm `sensor_offset`
     // (`residual::tests`), the drift left out of the model taken for an effect.
-    let gated = plain_ratio > super::super::residual::MODEL_ERROR_RATIO;
+    // Not where the reported-only refit left less (`nested_better`, above): that is the base.
+    let gated = plain_ratio > super::super::residual::MODEL_ERROR_RATIO && !nested_better;
     let restricted = absorption.as_ref().filter(|_| !gated);
     // The search runs on the model the reported-only refit held the other joints in (their
     // prior means: Table 4, or a fleet prior's).
@@ -117,11 +132,21 @@ pub(super) fn residual_loop(
     // (−10 mm: 5× the noise, `residual::tests`); tried there, it was the wrong name for a 2 %
     // spring-force gain error and a 2 % heavier head on the paper's raise (seeds 0–1 and
     // 200–202).
+    //
+    // On a record that lowers the strip it is tried there (session 23): friction's torque
+    // reverses with the direction of motion and an H offset's reading does not, so a record
+    // moving both ways tells the offset from the J1+J3 level that absorbs it on a raise.
+    // Measured (`examples/lift_loop_probe rl 2 401 1 offset:10`): a +10 mm offset left the
+    // reported-only refit at 3.1× (detectable), the plain fit 1.6× (under the gate): with the
+    // offset never tried the lift ended `unexplained`. The offset's size rule and the phase
+    // judge (`absorbed::judge`) still refuse a gain error read as one.
+    let lowers = super::super::absorbed::judge::lowers(channels.t_s, &fitted_height_m);
     let order: Vec<Candidate> = order
         .into_iter()
-        .filter(|c| restricted.is_none() || !matches!(c, Candidate::Offset))
+        .filter(|c| restricted.is_none() || lowers || !matches!(c, Candidate::Offset))
         .collect();
     let mut best: Option<(f64, Named, Candidate)> = None;
+    let mut too_big_offset: Option<String> = None;
     // The candidates' refits run ahead of this loop on other threads (`tried_in_order`: the
     // same refits, the same order of judging, the spare ones cancelled once it stops).
     let try_one = |c: Candidate| try_candidate(c, base_model, &trace, base_fit, base_opts);
@@ -131,6 +156,37 @@ pub(super) fn residual_loop(
         let Some(found) = tried else {
             return Ok(ControlFlow::Continue(()));
         };
+        // An H offset at a size a stand cannot have (`absorbed::judge::MAX_NAMED_OFFSET_M`, its
+        // interval's end nearest zero) is no candidate (session 23): were it kept, it could win
+        // the BIC and be refused after, leaving a right name behind it untold. Measured
+        // (`residual::tests`, Stribeck ×1.2 with J3 dry ×2, the search on the reported-only
+        // model): a 38 mm offset chosen over the Stribeck, then refused.
+        let too_big = found.fit.effects.iter().any(|e| {
+            e.param == LiftParam::SensorOffset
+                && (e.ci95[0] > super::super::absorbed::judge::MAX_NAMED_OFFSET_M
+                    || e.ci95[1] < -super::super::absorbed::judge::MAX_NAMED_OFFSET_M)
+        });
+        if too_big {
+            // Said, if nothing is named (the record cannot tell it from a gain error).
+            let near: Vec<(LiftParam, f64)> = found
+                .fit
+                .effects
+                .iter()
+                .map(|e| {
+                    (
+                        e.param,
+                        if e.ci95[0] > 0.0 {
+                            e.ci95[0]
+                        } else {
+                            e.ci95[1]
+                        },
+                    )
+                })
+                .collect();
+            too_big_offset =
+                super::super::absorbed::judge::objection(found.name, &near, &[], &[], &[], 0.0);
+            return Ok(ControlFlow::Continue(()));
+        }
         // The named model must pass the check itself.
         if found.excess_ratio >= super::super::absorbed::ABSORBED_RATIO {
             return Ok(ControlFlow::Continue(()));
@@ -167,7 +223,17 @@ pub(super) fn residual_loop(
     let Some((_, Named { found, hold_after }, chosen)) = best else {
         // Nothing named: an absorbed effect leaves the lift `unexplained`, never clean.
         if let Some(a) = absorbed {
-            super::super::absorbed::withhold_all(&mut result, a.reason());
+            let reason = match &too_big_offset {
+                Some(why) => format!("{} ({why})", a.reason()),
+                None => a.reason(),
+            };
+            super::super::absorbed::withhold_all(&mut result, reason);
+        } else if let Some(why) = too_big_offset.filter(|_| result.residual.verdict.is_some()) {
+            let w = result.residual.joints_withheld.take();
+            result.residual.joints_withheld = Some(match w {
+                Some(gate) => format!("{gate}; no named effect explains the record: {why}"),
+                None => format!("no named effect explains the record: {why}"),
+            });
         }
         return Ok(LiftReport {
             result,
@@ -182,84 +248,124 @@ pub(super) fn residual_loop(
     // intervals then carry the joints' uncertainty: from the reported-only search a 4 N/(m/s)²
     // drag read 4.32 [4.11, 4.52]); else a refit with the effect held where the search found it
     // (`absorbed::fixed_effect_refit`), the effect's own parameters the search's.
-    let mut found = found;
+    let search = found;
+    let mut full_refit: Option<Found> = None;
     let mut fixed = None;
     if restricted.is_some() {
         match try_candidate(chosen, model, &trace, &fit, &opts)? {
-            Some(f) if f.excess_ratio < super::super::absorbed::ABSORBED_RATIO => found = f,
+            Some(f) if f.excess_ratio < super::super::absorbed::ABSORBED_RATIO => {
+                full_refit = Some(f)
+            }
             _ => {
                 fixed = super::super::absorbed::fixed_effect_refit(
                     model,
                     &trace,
-                    &found.fit,
-                    &found.opts,
+                    &search.fit,
+                    &search.opts,
                     &opts,
                 )?
             }
         }
     }
     meter.mark(format!("report:{}", chosen.name()));
-    let (mut named, refitted) = match &fixed {
-        Some((_, h, full, _)) => {
-            let corrected = LiftTrace {
-                inputs: trace.inputs,
-                strip_height_m: h,
-            };
-            let (named, _) = named_result(
+    // The named result of `found` (held by `fixed`, if it is one) and why it is not the
+    // explanation (`absorbed::judge`), if it is not.
+    let judge_named = |found: &Found, fixed: &Option<FixedRefit>| {
+        let (named, refitted) = match fixed {
+            Some((_, h, full, _)) => {
+                let corrected = LiftTrace {
+                    inputs: trace.inputs,
+                    strip_height_m: h,
+                };
+                let (named, _) = named_result(
+                    model,
+                    full,
+                    &corrected,
+                    &opts,
+                    trace_id,
+                    found.name,
+                    found.params.clone(),
+                    before,
+                    (&hold, &hold_after),
+                );
+                // The plot shows the search's fit: H as the logger would have recorded it.
+                let sensor_h = found
+                    .fit
+                    .fitted_height_m
+                    .first()
+                    .cloned()
+                    .unwrap_or_default();
+                (named, sensor_h)
+            }
+            // A delay's or an offset's refitted H is the sensor's: what the logger would have
+            // recorded.
+            None => named_result(
                 model,
-                full,
-                &corrected,
+                &found.fit,
+                &trace,
                 &opts,
                 trace_id,
                 found.name,
                 found.params.clone(),
                 before,
                 (&hold, &hold_after),
-            );
-            // The plot shows the search's fit: H as the logger would have recorded it.
-            let sensor_h = found
-                .fit
-                .fitted_height_m
-                .first()
-                .cloned()
-                .unwrap_or_default();
-            (named, sensor_h)
-        }
-        // A delay's or an offset's refitted H is the sensor's: what the logger would have
-        // recorded.
-        None => named_result(
-            model,
+            ),
+        };
+        // The named model, as reported, must leave the record at the noise
+        // (`absorbed::NAMED_MAX_RATIO`): else the name is not the explanation.
+        let left = named.residual.excess_ratio.unwrap_or(f64::INFINITY);
+        // And in every phase of the lift, at a size a stand can have (`absorbed::judge`).
+        let (judged_h, judged_fit) = match fixed {
+            Some((_, h, full, _)) => (h.as_slice(), full.fitted_height_m.first()),
+            None => (channels.strip_height_m, found.fit.fitted_height_m.first()),
+        };
+        let judged = (
+            channels.t_s,
+            judged_h,
+            judged_fit.map_or(&[][..], |v| v.as_slice()),
+        );
+        let why = super::super::absorbed::judge::rejected(
             &found.fit,
-            &trace,
-            &opts,
-            trace_id,
             found.name,
-            found.params.clone(),
-            before,
-            (&hold, &hold_after),
-        ),
+            judged,
+            left,
+            absorption.as_ref(),
+            &opts,
+        );
+        (named, refitted, why)
     };
-    // The named model, as reported, must leave the record at the noise
-    // (`absorbed::NAMED_MAX_RATIO`): else the name is not the explanation.
-    let left = named.residual.excess_ratio.unwrap_or(f64::INFINITY);
-    // And in every phase of the lift, at a size a stand can have (`absorbed::judge`).
-    let (judged_h, judged_fit) = match &fixed {
-        Some((_, h, full, _)) => (h.as_slice(), full.fitted_height_m.first()),
-        None => (channels.strip_height_m, found.fit.fitted_height_m.first()),
-    };
-    let judged = (
-        channels.t_s,
-        judged_h,
-        judged_fit.map_or(&[][..], |v| v.as_slice()),
-    );
-    let why = super::super::absorbed::judge::rejected(
-        &found.fit,
-        found.name,
-        judged,
-        left,
-        absorption.as_ref(),
-        &opts,
-    );
+    let (mut named, mut refitted, mut why) =
+        judge_named(full_refit.as_ref().unwrap_or(&search), &fixed);
+    // Session 23: where the every-joint refit from the plain fit is turned down and leaves
+    // more than the search's fit, which is nested in it, it stopped in the plain fit's basin
+    // (where the joints had absorbed the effect): the effect is reported from the search's fit
+    // instead (`absorbed::fixed_effect_refit`, started there) and judged again. Measured
+    // (`examples/lift_loop_probe rl 1 402 1 stribeck:0.5`, `rl 2 400 1 delay:20`): the search
+    // left 0.72× and 1.03×, the refit from the plain fit 1.15× with a phase over the judge's
+    // 1.35× — both right names turned down. Only then: where the every-joint refit passes, its
+    // intervals carry the joints' uncertainty and stand.
+    let search_rms_m = search.fit.rmse_m.first().copied().unwrap_or(f64::INFINITY);
+    let stopped_short = full_refit
+        .as_ref()
+        .is_some_and(|f| f.fit.rmse_m.first().is_some_and(|r| *r > search_rms_m));
+    if why.is_some() && stopped_short {
+        let alt = super::super::absorbed::fixed_effect_refit(
+            model,
+            &trace,
+            &search.fit,
+            &search.opts,
+            &opts,
+        )?;
+        meter.mark(format!("report_from_search:{}", chosen.name()));
+        if alt.is_some() {
+            let (n, r, w) = judge_named(&search, &alt);
+            if w.is_none() {
+                (named, refitted, why) = (n, r, None);
+                fixed = alt;
+                full_refit = None;
+            }
+        }
+    }
     if let Some(why) = why {
         let reason = match result.residual.joints_withheld.take() {
             Some(gate) => format!("{gate}; {why}"),
@@ -278,12 +384,19 @@ pub(super) fn residual_loop(
     named.fit.absorption = result.fit.absorption;
     Ok(LiftReport {
         result: named,
-        fit: fixed.map_or(found.fit, |(_, _, f, _)| f),
+        fit: match fixed {
+            Some((_, _, f, _)) => f,
+            None => full_refit.unwrap_or(search).fit,
+        },
         fitted_height_m: refitted,
         plain_fitted_height_m: Some(fitted_height_m),
         work: meter.steps,
     })
 }
+
+/// What `absorbed::fixed_effect_refit` returns: the model, the record's H as fitted, the fit
+/// and its options.
+type FixedRefit = (LiftModel, Vec<f64>, LiftFit, LiftFitOptions);
 
 /// The `holdout_note` of a lift whose plain model explains the record (no effect tried).
 pub const NO_HOLDOUT_NEEDED: &str = "no held-out test: the plain model explains the record \
