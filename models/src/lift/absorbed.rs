@@ -258,13 +258,6 @@ fn held_at_prior(
     Some(m)
 }
 
-/// Withhold every joint and combination of `r` and make its verdict `unexplained` with
-/// `reason`, where a fit's verdict was clean only because it absorbed what the model lacks
-/// (`contract::withhold::withhold_all`).
-pub fn withhold_all(r: &mut crate::contract::report::FitResult, reason: String) {
-    crate::contract::withhold::withhold_all(r, reason);
-}
-
 /// The fit a named effect is reported from: the effect held at the value the search found
 /// (with the unreported joints at Table 4), every friction parameter of `full` (the plain
 /// fit's options) free again, started at the search's fit. Held fixed because, free with

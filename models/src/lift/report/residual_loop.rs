@@ -227,7 +227,7 @@ pub(super) fn residual_loop(
                 Some(why) => format!("{} ({why})", a.reason()),
                 None => a.reason(),
             };
-            super::super::absorbed::withhold_all(&mut result, reason);
+            crate::contract::withhold::withhold_all(&mut result, reason);
         } else if let Some(why) = too_big_offset.filter(|_| result.residual.verdict.is_some()) {
             let w = result.residual.joints_withheld.take();
             result.residual.joints_withheld = Some(match w {
@@ -371,7 +371,7 @@ pub(super) fn residual_loop(
             Some(gate) => format!("{gate}; {why}"),
             None => why,
         };
-        super::super::absorbed::withhold_all(&mut result, reason);
+        crate::contract::withhold::withhold_all(&mut result, reason);
         return Ok(LiftReport {
             result,
             fit,
