@@ -2,6 +2,7 @@
 //! The binary in `main.rs` wires these modules into the CLI.
 
 pub mod alerts;
+pub mod alloc;
 pub mod api;
 pub mod app;
 pub mod cli;

@@ -48,6 +48,8 @@ enum Command {
 }
 
 fn main() {
+    // Freed memory is kept for the next fit, not returned to the OS (issue 38; `alloc`).
+    pantowatch::alloc::tune();
     let cli = Cli::parse();
     // The pantograph type data (Table 2, Table 4, the rigs) is validated before any work.
     if let Err(e) = pantowatch_models::data::PantographType::from_toml(
