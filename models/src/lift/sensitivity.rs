@@ -9,11 +9,11 @@
 //! smoothed friction at rest is stiff, which held the explicit DOPRI5 to ~3 ms steps through
 //! every rest phase; f_y is computed for the sensitivities anyway, so W costs nothing.
 
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
 
-use super::dynamics::{DynamicsError, LiftModel, Q_DRIVE, Q_SLIDE, State};
+use super::dynamics::{DynamicsError, Eval, Kane, LiftModel, Loads, Q_DRIVE, Q_SLIDE, State};
 use super::integrate::{Segmented, integrate};
-use super::kinematics::HeadKin;
+use super::kinematics::{HeadKin, LinkagePose};
 use super::simulate::{LiftInputs, SimError, SimOptions, initial_deflection_rad, initial_state};
 use super::topology::{N_REV, RevJoint};
 use crate::numerics::ode::{OdeError, Rosw, Tolerances, WSystem};
@@ -221,12 +221,40 @@ struct SensSys<'a> {
     fm_n: f64,
     /// Friction torques of the last evaluation: the next fixed point's starting guess.
     last_torque: Cell<Option<[f64; N_REV]>>,
+    /// The state parts of a step's stages 2–4 ([`WSystem::rhs_head`]), for their
+    /// sensitivities' parts once the step stands ([`WSystem::rhs_rest`]).
+    stages: RefCell<[Option<StatePart>; 3]>,
+    /// Whether the stepper may split evaluations ([`WSystem::splits`]); off only in tests
+    /// that compare the two ways bit for bit.
+    split: bool,
 }
 
 impl Segmented for SensSys<'_> {
     fn enter_segment(&mut self, k: usize) {
         self.fm_n = self.inputs.fm(k);
     }
+}
+
+/// What the sensitivities' part of an evaluation ([`SensSys::eval_sens`]) takes from its
+/// state part ([`SensSys::eval_state`]): the state part's values, kept so that the two parts
+/// together perform the operations of one whole evaluation.
+#[derive(Clone, Copy)]
+struct StatePart {
+    s: State,
+    /// The loads of the evaluation (drag and a compliant drive's transmitted torque in).
+    loads: Loads,
+    /// The recorded drive torque (the drive side's, with a compliant drive).
+    drive_side_nm: f64,
+    pose: LinkagePose,
+    head: HeadKin,
+    drag: f64,
+    e: Eval,
+    kane: Kane,
+    acc: [f64; 2],
+    torque: [f64; N_REV],
+    /// The linkage at α + `FD_STEP[0]` (the Jacobian's α column): assembled in the state
+    /// part, so that a point where it fails fails there (where the stepper sees it).
+    pose_up: LinkagePose,
 }
 
 impl SensSys<'_> {
@@ -242,8 +270,18 @@ impl SensSys<'_> {
         dy: &mut [f64],
         w: Option<&mut [[f64; 6]; 6]>,
     ) -> Result<(), DynamicsError> {
+        let st = self.eval_state(t, y, dy)?;
+        self.eval_sens(&st, y, dy, w)
+    }
+
+    /// The state's part of [`SensSys::eval`]: the state's derivatives into `dy[..n_state]`
+    /// (reading `y[..n_state]` only) and what the sensitivities' part needs. Every failure of
+    /// an evaluation that is not a measure-zero event is met here (the linkage's assembly at α
+    /// and at α + `FD_STEP[0]`, the friction's fixed point); [`SensSys::eval_sens`] fails only
+    /// on a singular response matrix or a non-positive mass-matrix determinant at a state
+    /// 10⁻⁸ from one where it is positive (neither met in any run of the probes).
+    fn eval_state(&self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<StatePart, DynamicsError> {
         let m = self.model;
-        let ns = m.n_state();
         let s = State {
             alpha_rad: y[0],
             h_m: y[1],
@@ -263,13 +301,6 @@ impl SensSys<'_> {
         // carries its own.
         let drag = m.head_drag_n(&head, &s);
         loads.strip_load_n += drag;
-        let loads_at = |hp: &HeadKin, sp: &State| {
-            let mut l = loads;
-            if m.head_drag_ns2_per_m2 != 0.0 {
-                l.strip_load_n += m.head_drag_n(hp, sp) - drag;
-            }
-            l
-        };
         // The fixed point starts from the last evaluation's torques (a nearby state: the
         // previous stage); it converges to the same 10⁻¹⁴ tolerance from any start.
         let guess = self.last_torque.get();
@@ -280,7 +311,67 @@ impl SensSys<'_> {
             torque[i] = e.viscous_torque_nm[i] + e.dry_torque_nm[i];
         }
         self.last_torque.set(Some(torque));
-        let phi = m.response(&pose, &head, &s, &loads, &e, &kane)?;
+        // After the torques are kept: a failure here leaves them kept, as a failure of the
+        // Jacobian's α column did when it was assembled there.
+        let pose_up = m.linkage.pose(s.alpha_rad + FD_STEP[0])?;
+        dy[0] = y[2];
+        dy[1] = y[3];
+        dy[2] = acc[0];
+        dy[3] = acc[1];
+        if let Some(c) = &compliance {
+            // The transmitted torque τ = k·δ + c·δ̇ (the loads' drive torque, set above).
+            let transmitted_nm = loads.drive_torque_nm;
+            dy[4] = y[5];
+            dy[5] = (drive_side_nm - transmitted_nm) / c.inertia_kgm2 - acc[0];
+        }
+        Ok(StatePart {
+            s,
+            loads,
+            drive_side_nm,
+            pose,
+            head,
+            drag,
+            e,
+            kane,
+            acc,
+            torque,
+            pose_up,
+        })
+    }
+
+    /// The sensitivities' part of [`SensSys::eval`] at the state part `st` (of the same `y`):
+    /// `dy[n_state..]`, and W when `w` is given.
+    fn eval_sens(
+        &self,
+        st: &StatePart,
+        y: &[f64],
+        dy: &mut [f64],
+        w: Option<&mut [[f64; 6]; 6]>,
+    ) -> Result<(), DynamicsError> {
+        let m = self.model;
+        let ns = m.n_state();
+        let StatePart {
+            s,
+            loads,
+            drive_side_nm,
+            ref pose,
+            ref head,
+            drag,
+            ref e,
+            ref kane,
+            acc,
+            torque,
+            ref pose_up,
+        } = *st;
+        let compliance = m.drive_compliance;
+        let loads_at = |hp: &HeadKin, sp: &State| {
+            let mut l = loads;
+            if m.head_drag_ns2_per_m2 != 0.0 {
+                l.strip_load_n += m.head_drag_n(hp, sp) - drag;
+            }
+            l
+        };
+        let phi = m.response(pose, head, &s, &loads, e, kane)?;
         // State Jacobian of the accelerations, one column per state component: one-sided
         // differences of the accelerations linearised in the friction torques about this
         // evaluation (`accelerations_near`: first-order exact, one reaction recovery each).
@@ -295,18 +386,16 @@ impl SensSys<'_> {
                 _ => sp.h_dot_m_s += d,
             }
             let ap = if c == 0 {
-                let pp = m.linkage.pose(sp.alpha_rad)?;
-                let hp = m
-                    .linkage
-                    .head(&pp, sp.h_m, sp.alpha_dot_rad_s, sp.h_dot_m_s);
-                m.accelerations_near(&pp, &hp, &sp, &loads_at(&hp, &sp), &torque, &phi, None)?
+                let pp = pose_up;
+                let hp = m.linkage.head(pp, sp.h_m, sp.alpha_dot_rad_s, sp.h_dot_m_s);
+                m.accelerations_near(pp, &hp, &sp, &loads_at(&hp, &sp), &torque, &phi, None)?
             } else {
                 let hp = m
                     .linkage
-                    .head(&pose, sp.h_m, sp.alpha_dot_rad_s, sp.h_dot_m_s);
+                    .head(pose, sp.h_m, sp.alpha_dot_rad_s, sp.h_dot_m_s);
                 // h and ḣ leave the revolute joints' rates, so their sign-law values, as they were.
                 let sign = (c != 2).then_some(&e.sign);
-                m.accelerations_near(&pose, &hp, &sp, &loads_at(&hp, &sp), &torque, &phi, sign)?
+                m.accelerations_near(pose, &hp, &sp, &loads_at(&hp, &sp), &torque, &phi, sign)?
             };
             jy[0][c] = (ap[0] - acc[0]) / d;
             jy[1][c] = (ap[1] - acc[1]) / d;
@@ -326,14 +415,6 @@ impl SensSys<'_> {
             }
             jd[4] -= c.stiffness_nm_per_rad / c.inertia_kgm2;
             jd[5] -= c.damping_nms_per_rad / c.inertia_kgm2;
-        }
-        dy[0] = y[2];
-        dy[1] = y[3];
-        dy[2] = acc[0];
-        dy[3] = acc[1];
-        if let Some(c) = &compliance {
-            dy[4] = y[5];
-            dy[5] = (drive_side_nm - transmitted_nm) / c.inertia_kgm2 - acc[0];
         }
         if let Some(w) = w {
             // d(α, h)/dt = (α̇, ḣ); d(α̇, ḣ)/dt = acc; dδ/dt = δ̇; dδ̇/dt = δ̈.
@@ -364,10 +445,9 @@ impl SensSys<'_> {
                         let mut up = loads;
                         up.strip_load_n += 1.0;
                         let sign = Some(&e.sign);
-                        let a1 =
-                            m.accelerations_near(&pose, &head, &s, &up, &torque, &phi, sign)?;
+                        let a1 = m.accelerations_near(pose, head, &s, &up, &torque, &phi, sign)?;
                         let a0 =
-                            m.accelerations_near(&pose, &head, &s, &loads, &torque, &phi, sign)?;
+                            m.accelerations_near(pose, head, &s, &loads, &torque, &phi, sign)?;
                         let d = [a1[0] - a0[0], a1[1] - a0[1]];
                         per_strip_n = Some(d);
                         d
@@ -520,6 +600,40 @@ impl<const B: usize> WSystem<B> for SensSys<'_> {
     ) -> Result<(), OdeError> {
         self.rhs_block(t, y, dy, w)
     }
+
+    /// Split: the state's equations read the state only, and every failure but the
+    /// measure-zero ones [`SensSys::eval_state`] names is met in the state part.
+    fn splits(&self) -> bool {
+        self.split
+    }
+
+    fn rhs_head(&self, slot: usize, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), OdeError> {
+        let mut stages = self.stages.borrow_mut();
+        match self.eval_state(t, y, dy) {
+            Ok(st) => stages[slot] = Some(st),
+            Err(_) => {
+                // As `rhs_block`: outside the assembly range in a trial stage.
+                dy[..B].fill(f64::NAN);
+                stages[slot] = None;
+            }
+        }
+        Ok(())
+    }
+
+    fn rhs_rest(&self, slot: usize, _t: f64, y: &[f64], dy: &mut [f64]) -> Result<bool, OdeError> {
+        let stages = self.stages.borrow();
+        let Some(st) = &stages[slot] else {
+            // Not reached: a failed state part makes the step's error NaN.
+            return Ok(false);
+        };
+        if self.eval_sens(st, y, dy, None).is_err() {
+            // The whole evaluation would have failed here, leaving this stage's torques as
+            // the next guess (the later stages, at a NaN state, fail before they keep any).
+            self.last_torque.set(Some(st.torque));
+            return Ok(false);
+        }
+        Ok(true)
+    }
 }
 
 /// The stepper kept in `slot`, restarted for a run of dimension `dim`, with the state's
@@ -602,6 +716,20 @@ pub fn simulate_sensitivities_in<'w>(
     offset_nm: f64,
     opts: &SimOptions,
 ) -> Result<&'w SensitivityRun, SimError> {
+    sensitivities_in(ws, model, inputs, params, offset_nm, opts, true)
+}
+
+/// [`simulate_sensitivities_in`], the stepper splitting its evaluations (a rejected step
+/// skips its stages' sensitivities) or not: the same run bit for bit either way.
+fn sensitivities_in<'w>(
+    ws: &'w mut SensWorkspace,
+    model: &LiftModel,
+    inputs: &LiftInputs,
+    params: &[LiftParam],
+    offset_nm: f64,
+    opts: &SimOptions,
+    split: bool,
+) -> Result<&'w SensitivityRun, SimError> {
     inputs.validate()?;
     let n = inputs.t_s.len();
     let p = params.len();
@@ -657,6 +785,8 @@ pub fn simulate_sensitivities_in<'w>(
         offset_nm,
         fm_n: inputs.fm(0),
         last_torque: Cell::new(None),
+        stages: RefCell::new([None; 3]),
+        split,
     };
     let out = &mut ws.run;
     out.strip_height_m.clear();

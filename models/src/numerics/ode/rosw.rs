@@ -17,6 +17,8 @@
 // against the paper digit by digit.
 #![allow(clippy::excessive_precision)]
 
+use std::ops::Range;
+
 use super::{OdeError, Step, Tolerances};
 
 /// A system y' = f(t, y) that also gives the `B × B` diagonal block of its W matrix (the
@@ -32,6 +34,51 @@ pub trait WSystem<const B: usize> {
         dy: &mut [f64],
         w: Option<&mut [[f64; B]; B]>,
     ) -> Result<(), OdeError>;
+
+    /// Whether f can be evaluated in two parts, [`WSystem::rhs_head`] and
+    /// [`WSystem::rhs_rest`] (default: no, every evaluation is [`WSystem::rhs_w`]). The stepper
+    /// then computes a step's stages 2–4 for the block only, decides on the block's error, and
+    /// computes the other components' stages only for a step the block's error accepts (when
+    /// the error is controlled on the block alone): the same floating-point operations, in the
+    /// same order, for every component, as without the split.
+    ///
+    /// A system that splits promises (the assumptions the split's bit-identity rests on):
+    /// the block's components of f do not depend on `y[B..]`; `rhs_head` writes exactly the
+    /// block's components `rhs_w` would (non-finite ones where `rhs_w` would write any), and
+    /// `rhs_rest` the others; a `rhs_rest` failure is reported as `Ok(false)` (where `rhs_w`
+    /// would have written non-finite values into every component), after which the system is
+    /// left as the failed full evaluation at that stage would have left it; and `rhs_rest`
+    /// fails only where `rhs_head` at the same point succeeds with finite values and `rhs_w`
+    /// would have failed (on a step the block's error rejects, such a failure goes unseen: the
+    /// split is exact only where it cannot happen).
+    fn splits(&self) -> bool {
+        false
+    }
+
+    /// The block's components of f(t, y) into `dy[..B]`, keeping in stage slot `slot` (0, 1,
+    /// 2 for stages 2, 3, 4) what [`WSystem::rhs_rest`] needs. `y[B..]` is not the stage's.
+    fn rhs_head(&self, slot: usize, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), OdeError> {
+        let _ = slot;
+        self.rhs_w(t, y, dy, None)
+    }
+
+    /// The other components of f at the (t, y) of the last [`WSystem::rhs_head`] in `slot`
+    /// (`y` now whole) into `dy[B..]`; `Ok(false)` if the full evaluation would have failed.
+    fn rhs_rest(&self, slot: usize, t: f64, y: &[f64], dy: &mut [f64]) -> Result<bool, OdeError> {
+        let _ = (slot, t, y, dy);
+        Ok(true)
+    }
+}
+
+/// Which part of f a pass over the stages evaluates.
+#[derive(Clone, Copy, PartialEq)]
+enum Part {
+    /// Every component, by [`WSystem::rhs_w`].
+    Whole,
+    /// The block's, by [`WSystem::rhs_head`].
+    Head,
+    /// The others, by [`WSystem::rhs_rest`] (after a `Head` pass on the same step).
+    Rest,
 }
 
 // The method's coefficients in the form k_i = h f(y₀ + Σ a_ij k_j) + h W Σ_{j≤i} γ_ij k_j
@@ -183,6 +230,94 @@ fn add_w_times<const B: usize>(w: &[[f64; B]; B], s: f64, v: &[f64], out: &mut [
     }
 }
 
+/// One step's stage computation: its start (t, y), size h, f and W at the start, the factors
+/// of I − hγW, and the stepper's stage buffers.
+struct Pass<'a, S, const B: usize> {
+    sys: &'a S,
+    t: f64,
+    h: f64,
+    y: &'a [f64],
+    f0: &'a [f64],
+    w: &'a [[f64; B]; B],
+    lu: &'a Lu<B>,
+    k: &'a mut [Vec<f64>; 4],
+    yt: &'a mut [f64],
+    rhs: &'a mut [f64],
+}
+
+impl<S: WSystem<B>, const B: usize> Pass<'_, S, B> {
+    /// The stages k₁…k₄ of the components `r` (whole blocks), evaluating f's `part`; `false`
+    /// if a [`Part::Rest`] evaluation failed. Each component's operations are those of the
+    /// whole-vector pass, in the same order: W and the LU act block by block, so a block's
+    /// stages depend on the others only through f.
+    fn stages(&mut self, part: Part, r: Range<usize>) -> Result<bool, OdeError> {
+        let (t, h, y) = (self.t, self.h, self.y);
+        let [k1, k2, k3, k4] = &mut *self.k;
+        let (yt, rhs) = (&mut *self.yt, &mut *self.rhs);
+        // The rest's evaluations see the whole stage vector (the block's part recomputed, the
+        // same values); the others see their own components.
+        let yr = if part == Part::Rest {
+            0..y.len()
+        } else {
+            r.clone()
+        };
+        let sys = self.sys;
+        let eval = |slot: usize, ts: f64, yt: &[f64], rhs: &mut [f64]| match part {
+            Part::Whole => sys.rhs_w(ts, yt, rhs, None).map(|()| true),
+            Part::Head => sys.rhs_head(slot, ts, yt, rhs).map(|()| true),
+            Part::Rest => sys.rhs_rest(slot, ts, yt, rhs),
+        };
+        // Stage 1: (I − hγW) k₁ = h f(y₀).
+        for i in r.clone() {
+            k1[i] = h * self.f0[i];
+        }
+        self.lu.solve_blocks(&mut k1[r.clone()]);
+        // Stage 2.
+        for i in yr.clone() {
+            yt[i] = y[i] + A21 * k1[i];
+        }
+        if !eval(0, t + ALPHA2 * h, yt, rhs)? {
+            return Ok(false);
+        }
+        for i in r.clone() {
+            rhs[i] *= h;
+            k2[i] = G21 * k1[i];
+        }
+        add_w_times(self.w, h, &k2[r.clone()], &mut rhs[r.clone()]);
+        k2[r.clone()].copy_from_slice(&rhs[r.clone()]);
+        self.lu.solve_blocks(&mut k2[r.clone()]);
+        // Stage 3.
+        for i in yr.clone() {
+            yt[i] = y[i] + A31 * k1[i] + A32 * k2[i];
+        }
+        if !eval(1, t + ALPHA3 * h, yt, rhs)? {
+            return Ok(false);
+        }
+        for i in r.clone() {
+            rhs[i] *= h;
+            k3[i] = G31 * k1[i] + G32 * k2[i];
+        }
+        add_w_times(self.w, h, &k3[r.clone()], &mut rhs[r.clone()]);
+        k3[r.clone()].copy_from_slice(&rhs[r.clone()]);
+        self.lu.solve_blocks(&mut k3[r.clone()]);
+        // Stage 4 (a₄₁ = a₄₂ = 0, a₄₃ = 1).
+        for i in yr {
+            yt[i] = y[i] + k3[i];
+        }
+        if !eval(2, t + ALPHA4 * h, yt, rhs)? {
+            return Ok(false);
+        }
+        for i in r.clone() {
+            rhs[i] *= h;
+            k4[i] = G41 * k1[i] + G42 * k2[i] + G43 * k3[i];
+        }
+        add_w_times(self.w, h, &k4[r.clone()], &mut rhs[r.clone()]);
+        k4[r.clone()].copy_from_slice(&rhs[r.clone()]);
+        self.lu.solve_blocks(&mut k4[r]);
+        Ok(true)
+    }
+}
+
 impl<const B: usize> Rosw<B> {
     /// A stepper for systems of dimension `n` (a multiple of `B`), controlling the error on
     /// the first `n_ctrl` components.
@@ -330,54 +465,29 @@ impl<const B: usize> Rosw<B> {
             self.last_rejected = true;
             return Ok(Step::Rejected { h_next: h * 0.5 });
         };
-        let [k1, k2, k3, k4] = &mut self.k;
-        let (yt, rhs) = (&mut self.ytmp, &mut self.rhs);
-        // Stage 1: (I − hγW) k₁ = h f(y₀).
-        for i in 0..n {
-            k1[i] = h * self.f0[i];
-        }
-        lu.solve_blocks(k1);
-        // Stage 2.
-        for i in 0..n {
-            yt[i] = y[i] + A21 * k1[i];
-        }
-        sys.rhs_w(t + ALPHA2 * h, yt, rhs, None)?;
-        for i in 0..n {
-            rhs[i] *= h;
-            k2[i] = G21 * k1[i];
-        }
-        add_w_times(w, h, k2, rhs);
-        k2.copy_from_slice(rhs);
-        lu.solve_blocks(k2);
-        // Stage 3.
-        for i in 0..n {
-            yt[i] = y[i] + A31 * k1[i] + A32 * k2[i];
-        }
-        sys.rhs_w(t + ALPHA3 * h, yt, rhs, None)?;
-        for i in 0..n {
-            rhs[i] *= h;
-            k3[i] = G31 * k1[i] + G32 * k2[i];
-        }
-        add_w_times(w, h, k3, rhs);
-        k3.copy_from_slice(rhs);
-        lu.solve_blocks(k3);
-        // Stage 4 (a₄₁ = a₄₂ = 0, a₄₃ = 1).
-        for i in 0..n {
-            yt[i] = y[i] + k3[i];
-        }
-        sys.rhs_w(t + ALPHA4 * h, yt, rhs, None)?;
-        for i in 0..n {
-            rhs[i] *= h;
-            k4[i] = G41 * k1[i] + G42 * k2[i] + G43 * k3[i];
-        }
-        add_w_times(w, h, k4, rhs);
-        k4.copy_from_slice(rhs);
-        lu.solve_blocks(k4);
+        // Split (the block's stages first) when the system can and the error needs the block
+        // alone.
+        let split = sys.splits() && self.n_ctrl <= B && B < n;
+        let head = if split { B } else { n };
+        let part = if split { Part::Head } else { Part::Whole };
+        let mut pass = Pass {
+            sys,
+            t,
+            h,
+            y: &*y,
+            f0: &self.f0,
+            w: &self.w0,
+            lu: &lu,
+            k: &mut self.k,
+            yt: &mut self.ytmp,
+            rhs: &mut self.rhs,
+        };
+        pass.stages(part, 0..head)?;
         self.n_rhs += 3;
-
+        let [k1, k2, k3, k4] = &self.k;
         let y1 = &mut self.y1;
         let mut err = 0.0;
-        for i in 0..n {
+        for i in 0..head {
             y1[i] = y[i]
                 + WEIGHTS[0] * k1[i]
                 + WEIGHTS[1] * k2[i]
@@ -409,8 +519,36 @@ impl<const B: usize> Rosw<B> {
                 h_next: h * fac.min(1.0),
             });
         }
+        if split {
+            // The other components' stages, now that the step stands on the block's error.
+            let mut pass = Pass {
+                sys,
+                t,
+                h,
+                y: &*y,
+                f0: &self.f0,
+                w: &self.w0,
+                lu: &lu,
+                k: &mut self.k,
+                yt: &mut self.ytmp,
+                rhs: &mut self.rhs,
+            };
+            if !pass.stages(Part::Rest, head..n)? {
+                // The full evaluation would have made every stage value, so the error, NaN.
+                self.last_rejected = true;
+                return Ok(Step::Rejected { h_next: h * 0.1 });
+            }
+            let [k1, k2, k3, k4] = &self.k;
+            for i in head..n {
+                self.y1[i] = y[i]
+                    + WEIGHTS[0] * k1[i]
+                    + WEIGHTS[1] * k2[i]
+                    + WEIGHTS[2] * k3[i]
+                    + WEIGHTS[3] * k4[i];
+            }
+        }
         // f and W at the new point: the dense output's right end and the next first stage.
-        sys.rhs_w(t + h, y1, &mut self.f1, Some(&mut self.w1))?;
+        sys.rhs_w(t + h, &self.y1, &mut self.f1, Some(&mut self.w1))?;
         self.n_rhs += 1;
         if self.f1.iter().any(|v| !v.is_finite()) {
             self.last_rejected = true;
@@ -426,8 +564,8 @@ impl<const B: usize> Rosw<B> {
         let h_next = (h * fac).min(self.tol.h_max);
         self.y_old.copy_from_slice(y);
         self.f_old.copy_from_slice(&self.f0);
-        y.copy_from_slice(y1);
-        self.y_end.copy_from_slice(y1);
+        y.copy_from_slice(&self.y1);
+        self.y_end.copy_from_slice(&self.y1);
         std::mem::swap(&mut self.f0, &mut self.f1);
         std::mem::swap(&mut self.w0, &mut self.w1);
         self.f_end.copy_from_slice(&self.f0);
@@ -548,6 +686,168 @@ mod tests {
         };
         let e = global_error(&sys, 10);
         assert!(e < 1e-3, "error {e}");
+    }
+
+    /// [`Test`]'s three components as the block, then `cols` sensitivity-like columns of
+    /// three, s′ = W·s + g_c(t, y) (W the block's Jacobian, g_c nonlinear in the block): the
+    /// columns' equations read the block, the block's do not read them, as in a sensitivity
+    /// run. `split` turns the split on; `heads` and `rests` count the two parts' calls. Where
+    /// a stage time falls in `fail_t` the columns' part fails: the whole f is NaN.
+    struct Sens {
+        base: Test,
+        cols: usize,
+        split: bool,
+        fail_t: (f64, f64),
+        heads: std::cell::Cell<usize>,
+        rests: std::cell::Cell<usize>,
+    }
+    impl Sens {
+        fn new(cols: usize, split: bool, fail_t: (f64, f64)) -> Self {
+            Sens {
+                base: Test {
+                    lambda: -1e4,
+                    w_scale: 1.0,
+                },
+                cols,
+                split,
+                fail_t,
+                heads: std::cell::Cell::new(0),
+                rests: std::cell::Cell::new(0),
+            }
+        }
+        /// The columns' part; `false` where it fails.
+        fn columns(&self, t: f64, y: &[f64], dy: &mut [f64]) -> bool {
+            if (self.fail_t.0..=self.fail_t.1).contains(&t) {
+                return false;
+            }
+            let mut w = [[0.0; 3]; 3];
+            let mut block = [0.0; 3];
+            let _ = self.base.rhs_w(t, &y[..3], &mut block, Some(&mut w));
+            for c in 0..self.cols {
+                let o = 3 + 3 * c;
+                let sc = (c + 1) as f64;
+                let g = [sc * y[0] * y[0], (sc * y[1]).sin(), y[2] * (t + sc).ln()];
+                for r in 0..3 {
+                    let mut v = g[r];
+                    for k in 0..3 {
+                        v += w[r][k] * y[o + k];
+                    }
+                    dy[o + r] = v;
+                }
+            }
+            true
+        }
+    }
+    impl WSystem<3> for Sens {
+        fn dim(&self) -> usize {
+            3 + 3 * self.cols
+        }
+        fn rhs_w(
+            &self,
+            t: f64,
+            y: &[f64],
+            dy: &mut [f64],
+            w: Option<&mut [[f64; 3]; 3]>,
+        ) -> Result<(), OdeError> {
+            self.base.rhs_w(t, &y[..3], &mut dy[..3], w)?;
+            if !self.columns(t, y, dy) {
+                dy.fill(f64::NAN);
+            }
+            Ok(())
+        }
+        fn splits(&self) -> bool {
+            self.split
+        }
+        fn rhs_head(&self, _: usize, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), OdeError> {
+            self.heads.set(self.heads.get() + 1);
+            self.base.rhs_w(t, &y[..3], &mut dy[..3], None)
+        }
+        fn rhs_rest(&self, _: usize, t: f64, y: &[f64], dy: &mut [f64]) -> Result<bool, OdeError> {
+            self.rests.set(self.rests.get() + 1);
+            Ok(self.columns(t, y, dy))
+        }
+    }
+
+    /// Every step's outcome and the state's bits after it.
+    fn adaptive_trace(sys: &Sens, tol: Tolerances) -> (Vec<(u64, Vec<u64>)>, usize, usize) {
+        let n = sys.dim();
+        let mut st = Rosw::<3>::new(n, 3, tol);
+        let mut y = vec![0.0; n];
+        y[1] = 1.0;
+        for (i, v) in y.iter_mut().enumerate().skip(3) {
+            *v = 0.1 * i as f64;
+        }
+        let (mut t, mut h) = (0.0f64, 0.5f64);
+        let mut trace = Vec::new();
+        while t < 3.0 && trace.len() < 10_000 {
+            let h_try = h.min(3.0 - t);
+            let outcome = match st.step(sys, t, &mut y, h_try).unwrap() {
+                Step::Accepted { h: hh, h_next } => {
+                    t += hh;
+                    h = h_next;
+                    h_next
+                }
+                Step::Rejected { h_next } => {
+                    h = h_next;
+                    -h_next
+                }
+            };
+            trace.push((outcome.to_bits(), y.iter().map(|v| v.to_bits()).collect()));
+        }
+        (trace, st.n_rhs, st.n_steps)
+    }
+
+    #[test]
+    fn split_steps_are_bit_identical_and_skip_the_columns_of_rejected_steps() {
+        let tol = Tolerances {
+            rtol: 1e-6,
+            atol: 1e-8,
+            h_max: 0.5,
+            ..Default::default()
+        };
+        let (whole, split) = (
+            Sens::new(8, false, (-1.0, -1.0)),
+            Sens::new(8, true, (-1.0, -1.0)),
+        );
+        let (a, rhs_a, steps_a) = adaptive_trace(&whole, tol);
+        let (b, rhs_b, steps_b) = adaptive_trace(&split, tol);
+        assert_eq!(a, b, "the split changed a step or a bit of the state");
+        assert_eq!((rhs_a, steps_a), (rhs_b, steps_b));
+        assert_eq!(whole.heads.get() + whole.rests.get(), 0);
+        // Stages 2–4: the block's part on every attempt, the columns' only on accepted ones.
+        let rejected = a.len() - steps_a;
+        assert!(
+            rejected > 0,
+            "no rejected step: the test does not test the split"
+        );
+        assert_eq!(split.heads.get(), 3 * a.len());
+        assert_eq!(split.rests.get(), 3 * steps_b);
+    }
+
+    #[test]
+    fn a_failing_columns_part_rejects_the_step_as_the_whole_evaluation_does() {
+        // One step the error accepts (tolerances infinite) whose stage 3 or 4 fails in the
+        // columns' part: the whole evaluation makes every stage value NaN (rejected, ×0.1).
+        let tol = Tolerances {
+            rtol: 1e30,
+            atol: 1e30,
+            ..Default::default()
+        };
+        // Stage times 0.0872 (stage 2), 0.0732 (stage 3), 0.1 (stage 4); (5, 6) misses them.
+        for fail_t in [(0.08, 0.09), (0.07, 0.075), (0.1, 0.1), (5.0, 6.0)] {
+            let mut outcomes = Vec::new();
+            for split in [false, true] {
+                let sys = Sens::new(2, split, fail_t);
+                let mut st = Rosw::<3>::new(9, 3, tol);
+                let mut y = vec![0.0, 1.0, 0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6];
+                let step = st.step(&sys, 0.0, &mut y, 0.1).unwrap();
+                let bits: Vec<u64> = y.iter().map(|v| v.to_bits()).collect();
+                outcomes.push((step, bits, st.n_rhs, st.n_steps));
+            }
+            assert_eq!(outcomes[0], outcomes[1], "failure window {fail_t:?}");
+            let rejected = matches!(outcomes[0].0, Step::Rejected { .. });
+            assert_eq!(rejected, fail_t.0 < 1.0, "failure window {fail_t:?}");
+        }
     }
 
     #[test]
