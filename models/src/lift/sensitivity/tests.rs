@@ -1,6 +1,7 @@
 use super::*;
 use crate::lift::geometry::builtin_160ec;
 use crate::lift::simulate::simulate;
+use crate::lift::topology::RevJoint;
 
 /// A short lift: the first second of the reference protocol, 250 Hz.
 fn short_lift() -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
