@@ -319,6 +319,42 @@ impl<S: WSystem<B>, const B: usize> Pass<'_, S, B> {
 }
 
 impl<const B: usize> Rosw<B> {
+    /// The stage computation of a step from (t, y) of size h with the factors `lu`, over this
+    /// stepper's f, W and stage buffers.
+    fn pass<'a, S: WSystem<B>>(
+        &'a mut self,
+        sys: &'a S,
+        t: f64,
+        h: f64,
+        y: &'a [f64],
+        lu: &'a Lu<B>,
+    ) -> Pass<'a, S, B> {
+        Pass {
+            sys,
+            t,
+            h,
+            y,
+            f0: &self.f0,
+            w: &self.w0,
+            lu,
+            k: &mut self.k,
+            yt: &mut self.ytmp,
+            rhs: &mut self.rhs,
+        }
+    }
+
+    /// y₁ = y₀ + Σ bᵢ kᵢ for the components `r` (into `self.y1`).
+    fn advance(&mut self, y: &[f64], r: std::ops::Range<usize>) {
+        let [k1, k2, k3, k4] = &self.k;
+        for i in r {
+            self.y1[i] = y[i]
+                + WEIGHTS[0] * k1[i]
+                + WEIGHTS[1] * k2[i]
+                + WEIGHTS[2] * k3[i]
+                + WEIGHTS[3] * k4[i];
+        }
+    }
+
     /// A stepper for systems of dimension `n` (a multiple of `B`), controlling the error on
     /// the first `n_ctrl` components.
     ///
@@ -470,30 +506,12 @@ impl<const B: usize> Rosw<B> {
         let split = sys.splits() && self.n_ctrl <= B && B < n;
         let head = if split { B } else { n };
         let part = if split { Part::Head } else { Part::Whole };
-        let mut pass = Pass {
-            sys,
-            t,
-            h,
-            y: &*y,
-            f0: &self.f0,
-            w: &self.w0,
-            lu: &lu,
-            k: &mut self.k,
-            yt: &mut self.ytmp,
-            rhs: &mut self.rhs,
-        };
-        pass.stages(part, 0..head)?;
+        self.pass(sys, t, h, y, &lu).stages(part, 0..head)?;
         self.n_rhs += 3;
+        self.advance(y, 0..head);
         let [k1, k2, k3, k4] = &self.k;
-        let y1 = &mut self.y1;
+        let y1 = &self.y1;
         let mut err = 0.0;
-        for i in 0..head {
-            y1[i] = y[i]
-                + WEIGHTS[0] * k1[i]
-                + WEIGHTS[1] * k2[i]
-                + WEIGHTS[2] * k3[i]
-                + WEIGHTS[3] * k4[i];
-        }
         for i in 0..self.n_ctrl {
             let e = (WEIGHTS[0] - WEIGHTS_HAT[0]) * k1[i]
                 + (WEIGHTS[1] - WEIGHTS_HAT[1]) * k2[i]
@@ -521,31 +539,12 @@ impl<const B: usize> Rosw<B> {
         }
         if split {
             // The other components' stages, now that the step stands on the block's error.
-            let mut pass = Pass {
-                sys,
-                t,
-                h,
-                y: &*y,
-                f0: &self.f0,
-                w: &self.w0,
-                lu: &lu,
-                k: &mut self.k,
-                yt: &mut self.ytmp,
-                rhs: &mut self.rhs,
-            };
-            if !pass.stages(Part::Rest, head..n)? {
+            if !self.pass(sys, t, h, y, &lu).stages(Part::Rest, head..n)? {
                 // The full evaluation would have made every stage value, so the error, NaN.
                 self.last_rejected = true;
                 return Ok(Step::Rejected { h_next: h * 0.1 });
             }
-            let [k1, k2, k3, k4] = &self.k;
-            for i in head..n {
-                self.y1[i] = y[i]
-                    + WEIGHTS[0] * k1[i]
-                    + WEIGHTS[1] * k2[i]
-                    + WEIGHTS[2] * k3[i]
-                    + WEIGHTS[3] * k4[i];
-            }
+            self.advance(y, head..n);
         }
         // f and W at the new point: the dense output's right end and the next first stage.
         sys.rhs_w(t + h, &self.y1, &mut self.f1, Some(&mut self.w1))?;
